@@ -1,0 +1,34 @@
+"""Errors that nmkane reports to people (CLI, REST, web) rather than tracebacks."""
+
+from __future__ import annotations
+
+
+class NmkaneError(Exception):
+    """Base class of every error nmkane raises on purpose."""
+
+
+class InputError(NmkaneError, ValueError):
+    """Bad input: names the field, the value given and what is allowed.
+
+    The CLI prints ``str(err)`` on one line and exits 2; the REST service answers 422 with
+    ``field``, ``value`` and ``allowed`` in the body.
+    """
+
+    def __init__(self, field: str, value: object, allowed: str, reason: str | None = None):
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        self.reason = reason
+        text = f"{field}: got {value!r}"
+        if reason:
+            text += f" ({reason})"
+        text += f"; allowed: {allowed}"
+        super().__init__(text)
+
+
+class InconsistentStateError(InputError):
+    """An initial state that violates the constraints beyond the tolerance."""
+
+
+class ConvergenceError(NmkaneError):
+    """A Newton iteration (state completion, projection) that did not converge."""

@@ -1,0 +1,70 @@
+"""What a numeric kernel evaluates: the derivation's matrices before any inverse.
+
+Both kernels — the numpy reference (:mod:`nmkane_core.reference`) and the compiled one
+(:mod:`nmkane_core.codegen`) — evaluate the same expressions, in the order [u_I, u_D]:
+
+* ``J``    = [J1  J2]  (17)–(18), m×n
+* ``b``    = B1 u + B2 (14)–(15), the velocity part of the acceleration form (19)
+* ``phin`` = φ (nonholonomic constraint values), ``psid`` = ψ̇, ``psi`` = ψ (holonomic)
+* ``Q``, ``P`` the holonomic system (42); ``qdot`` = C u + D (1)
+* ``energy``, ``viol`` (constraint values φ, ψ and monitors, in reporting order),
+  ``outputs`` (extra reported quantities)
+
+and then solve numerically: A = −J2⁻¹J1, B̂ = J2⁻¹(−b + s) with s the Baumgarte vector,
+T = [A1; A2 Q], V̂ = [B̂; A2 P], T u̇ = V̂.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .derivation import Derivation
+
+
+@dataclass
+class KernelTerms:
+    derivation: Derivation
+    args_t: sp.Symbol
+    args_x: list          # q then u (model order)
+    args_p: list
+    J: sp.Matrix
+    b: sp.Matrix
+    phin: sp.Matrix
+    psid: sp.Matrix
+    psi: sp.Matrix
+    Q: sp.Matrix
+    P: sp.Matrix
+    qdot: sp.Matrix
+    energy: sp.Expr
+    viol: sp.Matrix
+    viol_names: tuple
+    outputs: sp.Matrix
+    output_names: tuple
+    perm: list
+
+    @property
+    def dims(self) -> dict:
+        d = self.derivation
+        return dict(N=d.model.n, M=d.m, MNH=d.m_nh, MH=d.m_h, PI=d.p,
+                    NV=len(self.viol_names), NO=len(self.output_names))
+
+
+def kernel_terms(d: Derivation) -> KernelTerms:
+    md = d.model
+    J = sp.Matrix.hstack(d.J1, d.J2) if d.m else sp.zeros(0, md.n)
+    viol_exprs = list(md.nonholonomic.values()) + list(md.holonomic.values())
+    viol_names = list(md.constraint_names)
+    for k, v in md.monitors.items():
+        if k not in viol_names:
+            viol_names.append(k)
+            viol_exprs.append(v)
+    energy = sp.sympify(md.energy) if md.energy is not None else sp.Integer(0)
+    return KernelTerms(
+        derivation=d, args_t=md.t, args_x=list(md.q) + list(md.u), args_p=list(md.params),
+        J=J, b=d.b, phin=d.phi_nh, psid=d.psi_dot, psi=d.psi, Q=d.Q, P=d.P, qdot=d.qdot,
+        energy=energy, viol=sp.Matrix(viol_exprs) if viol_exprs else sp.zeros(0, 1),
+        viol_names=tuple(viol_names),
+        outputs=sp.Matrix(list(md.outputs.values())) if md.outputs else sp.zeros(0, 1),
+        output_names=tuple(md.outputs), perm=list(d.perm))

@@ -1,0 +1,96 @@
+"""The one schema: run settings in, run result document out (CLI JSON, REST, web).
+
+:class:`RunSettings` is what a user asks for (CLI options, REST body); omitted fields take
+the system's defaults.  :class:`RunResult` is the run result document of
+ARCHITECTURE.md.  Both are pydantic models; the REST service uses them directly as its
+request and response models and the CLI writes ``RunResult`` as its JSON.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, Optional, Union
+
+from pydantic import BaseModel, ConfigDict, Field
+
+__all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "LIMITS", "Gain"]
+
+#: Library-wide limits (the REST service may impose lower ones; see /api/systems).
+LIMITS = {
+    "max_steps": 50_000_000,      # fixed steps (or adaptive attempts) per run
+    "max_rows": 2_000_000,        # output rows per run
+    "max_t_final": 1e6,           # s
+    "min_dt": 1e-7,               # s
+    "max_dt": 10.0,               # s
+    "max_gain": 1e6,              # |Γ| entries
+}
+
+Gain = Union[float, list[list[float]]]
+
+
+class RunSettings(BaseModel):
+    """A run request. Names follow the CLI's options with underscores."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False,
+                              json_schema_extra={"examples": [
+                                  {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}]})
+
+    system: str = Field("appell-hamel", description="appell-hamel | sliding-particle", max_length=64)
+    model: Optional[str] = Field(None, description="appell-hamel constraint model: nonlinear | linear",
+                                 max_length=64)
+    formulation: Optional[str] = Field(None, description="sliding-particle: nonminimal | minimal",
+                                       max_length=64)
+    gamma: Optional[Gain] = Field(None, description="Γ for nonholonomic constraints (104): a scalar "
+                                  "(Γ·I) or a matrix; stabilizing gains are negative")
+    gamma1: Optional[Gain] = Field(None, description="Γ1 for holonomic constraints (112), s⁻¹")
+    gamma2: Optional[Gain] = Field(None, description="Γ2 for holonomic constraints (112), s⁻²")
+    projection: Literal["none"] = Field("none", description="post-step constraint correction")
+    integrator: Optional[str] = Field(None, description="rk4 | kutta-merson | kutta-merson-adaptive | "
+                                      "rk45 | dop853 | radau", max_length=64)
+    dt: Optional[float] = Field(None, description="step size (fixed-step methods) or initial step and "
+                                "maximum output spacing hint (adaptive), s")
+    t_final: Optional[float] = Field(None, description="final time, s")
+    every: int = Field(1, description="keep every k-th step in the output (maxima use every step)")
+    rtol: float = Field(1e-10, description="relative tolerance (adaptive methods)")
+    atol: float = Field(1e-12, description="absolute tolerance (adaptive methods)")
+    rcond_min: float = Field(1e-10, description="J2 or T with a pivot-ratio reciprocal condition "
+                             "below this stops the run with status 'singular'")
+    params: dict[str, float] = Field(default_factory=dict, description="physical parameters")
+    initial: dict[str, float] = Field(default_factory=dict, description="initial values: independent "
+                                      "ones (the rest is completed) or a full consistent state")
+
+
+class Switch(BaseModel):
+    t: float
+    from_: str = Field(alias="from")
+    to: str
+    rcond: float
+    model_config = ConfigDict(populate_by_name=True)
+
+
+class RunSummary(BaseModel):
+    status: Literal["ok", "singular", "diverged", "timeout", "failed"]
+    message: str
+    steps: int
+    rhs_evals: int
+    wall_time_s: float
+    t_end: float
+    max_abs_violation: dict[str, float]
+    max_abs_energy_drift: Optional[float]
+    final_energy_drift: Optional[float]
+    min_rcond: dict[str, float] = Field(default_factory=dict,
+                                        description="smallest reciprocal condition estimate of J2 and T")
+    warnings: list[str] = Field(default_factory=list)
+    switches: list[Switch] = Field(default_factory=list)
+
+
+class RunResult(BaseModel):
+    """The run result document (ARCHITECTURE.md)."""
+
+    id: Optional[str] = None
+    system: str
+    settings: dict
+    t: list[float]
+    state: dict[str, list[float]]
+    energy: Optional[list[float]]
+    violation: dict[str, list[float]]
+    summary: RunSummary

@@ -1,0 +1,538 @@
+"""Runs: settings in, a :class:`Run` (numpy arrays + summary) out.
+
+:func:`resolve` checks a :class:`~nmkane_core.schema.RunSettings` against the system
+(every error names the field, the value and what is allowed) and fills in the defaults;
+:func:`simulate` integrates with the compiled kernel in chunks (progress bar, time limit,
+cancellation between chunks) and never returns non-finite numbers: a run that hits a
+singular J2 or T, or whose state stops being finite, ends with status ``singular`` or
+``diverged`` and keeps everything computed up to the last good step.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+
+from .codegen import compiled_kernel
+from .errors import InputError
+from .initial import initial_state
+from .integrators import ScipyMethod, Tableau, get_integrator
+from .schema import LIMITS, RunResult, RunSettings, RunSummary
+from .system import System, get_system
+
+__all__ = ["Plan", "Run", "resolve", "simulate", "kernel_for", "catalog"]
+
+_STATUS = {1: "singular", 2: "singular", 3: "diverged", 4: "failed"}
+
+
+# --------------------------------------------------------------------------- plan
+@dataclass
+class Plan:
+    """A fully resolved, checked run request."""
+
+    system: System
+    variant: str
+    integrator: Tableau | ScipyMethod
+    params: dict[str, float]
+    p: np.ndarray
+    G: np.ndarray
+    G1: np.ndarray
+    G2: np.ndarray
+    dt: float
+    t_final: float
+    every: int
+    rtol: float
+    atol: float
+    rcond_min: float
+    x0: np.ndarray
+    initial: dict[str, float]
+    settings: dict
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def model(self):
+        return self.system.model(self.variant)
+
+
+def _check_float(name, value, lo, hi, lo_open=True, unit=""):
+    v = float(value)
+    ok = (v > lo if lo_open else v >= lo) and v <= hi and math.isfinite(v)
+    if not ok:
+        bracket = "(" if lo_open else "["
+        raise InputError(name, value, f"a finite number in {bracket}{lo:g}, {hi:g}]{' ' + unit if unit else ''}",
+                         "out of range" if math.isfinite(v) else "not finite")
+    return v
+
+
+def _gain(name: str, value, size: int, warnings: list[str], what: str) -> np.ndarray:
+    if value is None:
+        return np.zeros((size, size))
+    if isinstance(value, (int, float)):
+        g = _check_float(name, value, -LIMITS["max_gain"], LIMITS["max_gain"], lo_open=False)
+        G = g * np.eye(size)
+    else:
+        try:
+            G = np.array(value, dtype=float)
+        except (TypeError, ValueError):
+            raise InputError(name, value, f"a number or a {size}×{size} matrix", "not a matrix") from None
+        if G.shape != (size, size):
+            raise InputError(name, value, f"a number or a {size}×{size} matrix ({what})",
+                             f"shape {G.shape}")
+        if not np.all(np.isfinite(G)) or np.abs(G).max(initial=0) > LIMITS["max_gain"]:
+            raise InputError(name, value, f"finite entries with |Γ_ij| ≤ {LIMITS['max_gain']:g}", "out of range")
+    if size == 0 and value not in (None, 0, 0.0):
+        warnings.append(f"{name} = {value!r} ignored: {what}")
+    return G
+
+
+def resolve(settings: RunSettings | Mapping) -> Plan:
+    """Check settings against the system and fill in defaults."""
+    if not isinstance(settings, RunSettings):
+        settings = RunSettings.model_validate(dict(settings))
+    s = settings
+    system = get_system(s.system)
+    other = "formulation" if system.option == "model" else "model"
+    if getattr(s, other) is not None:
+        raise InputError(other, getattr(s, other),
+                         f"{system.option}: {' | '.join(system.variants)} ({system.name} has no {other})",
+                         f"{system.name} has no {other}")
+    variant = system.check_variant(getattr(s, system.option), system.option)
+    integ = get_integrator(s.integrator or system.default_integrator)
+    dt = _check_float("dt", s.dt if s.dt is not None else system.default_dt,
+                      0.0, LIMITS["max_dt"], unit="s")
+    if dt < LIMITS["min_dt"]:
+        raise InputError("dt", dt, f"a number in [{LIMITS['min_dt']:g}, {LIMITS['max_dt']:g}] s", "too small")
+    t_final = _check_float("t_final", s.t_final if s.t_final is not None else system.default_t_final,
+                           0.0, LIMITS["max_t_final"], unit="s")
+    if s.every < 1 or s.every > LIMITS["max_steps"]:
+        raise InputError("every", s.every, f"an integer in [1, {LIMITS['max_steps']}]")
+    nsteps = math.ceil(t_final / dt - 1e-9)
+    if isinstance(integ, Tableau) and not integ.adaptive:
+        if nsteps > LIMITS["max_steps"]:
+            raise InputError("dt", dt, f"t_final/dt ≤ {LIMITS['max_steps']:,} steps "
+                             f"(dt ≥ {t_final / LIMITS['max_steps']:.3g} s for t_final = {t_final:g} s)",
+                             f"{nsteps:,} steps")
+        rows = nsteps // s.every + 2
+        if rows > LIMITS["max_rows"]:
+            raise InputError("every", s.every, f"an integer ≥ {math.ceil(nsteps / LIMITS['max_rows'])} "
+                             f"(at most {LIMITS['max_rows']:,} output rows)", f"{rows:,} rows")
+    rtol = _check_float("rtol", s.rtol, 0.0, 0.1)
+    if rtol < 1e-14:
+        raise InputError("rtol", s.rtol, "a number in [1e-14, 0.1]", "too small")
+    atol = _check_float("atol", s.atol, 0.0, 1.0)
+    rcond_min = _check_float("rcond_min", s.rcond_min, 0.0, 0.1, lo_open=False)
+    params = system.resolve_params(s.params)
+    p = np.array([params[k] for k in system.param_names])
+    md = system.model(variant)
+    warnings: list[str] = []
+    m_nh, m_h = len(md.nonholonomic), len(md.holonomic)
+    G = _gain("gamma", s.gamma if s.gamma is not None else system.default_gamma, m_nh, warnings,
+              f"the {variant} {system.option} has no nonholonomic constraints")
+    G1 = _gain("gamma1", s.gamma1 if s.gamma1 is not None else system.default_gamma1, m_h, warnings,
+               f"the {variant} {system.option} has no holonomic constraints")
+    G2 = _gain("gamma2", s.gamma2 if s.gamma2 is not None else system.default_gamma2, m_h, warnings,
+               f"the {variant} {system.option} has no holonomic constraints")
+    _warn_unstable(G, G1, G2, warnings)
+    x0, full = initial_state(system, variant, params, dict(s.initial))
+    resolved = s.model_dump()
+    resolved.update({system.option: variant, other: None, "integrator": integ.name, "dt": dt,
+                     "t_final": t_final, "params": params, "initial": full,
+                     "gamma": _plain(s.gamma, system.default_gamma),
+                     "gamma1": _plain(s.gamma1, system.default_gamma1),
+                     "gamma2": _plain(s.gamma2, system.default_gamma2)})
+    return Plan(system, variant, integ, params, p, G, G1, G2, dt, t_final, s.every, rtol, atol,
+                rcond_min, x0, full, resolved, warnings)
+
+
+def _plain(v, default):
+    return default if v is None else v
+
+
+def _warn_unstable(G, G1, G2, warnings):
+    if G.size and np.any(G) and np.any(np.linalg.eigvals(G).real >= 0):
+        warnings.append("Γ has eigenvalues with non-negative real part: the nonholonomic constraint "
+                        "error dynamics φ̇ = Γφ are not stable (stabilizing gains are negative)")
+    if G1.size and (np.any(G1) or np.any(G2)):
+        k = G1.shape[0]
+        comp = np.block([[np.zeros((k, k)), np.eye(k)], [G2, G1]])
+        if np.any(np.linalg.eigvals(comp).real >= 0):
+            warnings.append("Γ1, Γ2 give constraint error dynamics ψ̈ = Γ1ψ̇ + Γ2ψ with eigenvalues of "
+                            "non-negative real part: not stable (e.g. Γ1 = −20, Γ2 = −100 are)")
+
+
+# --------------------------------------------------------------------------- kernels
+def kernel_for(system: System, variant: str):
+    """The compiled kernel module of a system's variant (generated and cached once)."""
+    cache = system.__dict__.setdefault("_kernels", {})
+    if variant not in cache:
+        cache[variant] = compiled_kernel(system.derivation(variant))
+    return cache[variant]
+
+
+# --------------------------------------------------------------------------- result
+@dataclass
+class Run:
+    """A finished run: arrays by name and the summary (convert with :meth:`document`)."""
+
+    system: str
+    settings: dict
+    t: np.ndarray
+    state: dict[str, np.ndarray]
+    energy: np.ndarray | None
+    violation: dict[str, np.ndarray]
+    summary: dict
+
+    @property
+    def status(self) -> str:
+        return self.summary["status"]
+
+    def document(self, id: str | None = None) -> RunResult:
+        return RunResult(
+            id=id, system=self.system, settings=self.settings, t=self.t.tolist(),
+            state={k: v.tolist() for k, v in self.state.items()},
+            energy=None if self.energy is None else self.energy.tolist(),
+            violation={k: v.tolist() for k, v in self.violation.items()},
+            summary=RunSummary(**self.summary))
+
+    def columns(self) -> dict[str, np.ndarray]:
+        cols = {"t": self.t, **self.state}
+        if self.energy is not None:
+            cols["energy"] = self.energy
+        cols.update({f"violation_{k}": v for k, v in self.violation.items()})
+        return cols
+
+    def to_csv(self) -> str:
+        cols = self.columns()
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(cols)
+        for row in zip(*[c.tolist() for c in cols.values()]):
+            w.writerow([repr(v) for v in row])
+        return buf.getvalue()
+
+    def save(self, path: str) -> None:
+        """Write ``.json`` (the run document), ``.csv`` or ``.npz``."""
+        if path.endswith(".json"):
+            with open(path, "w") as f:
+                f.write(self.document().model_dump_json(by_alias=True))
+        elif path.endswith(".csv"):
+            with open(path, "w") as f:
+                f.write(self.to_csv())
+        elif path.endswith(".npz"):
+            import json
+            np.savez_compressed(path, **self.columns(),
+                                summary=json.dumps(self.summary), settings=json.dumps(self.settings))
+        else:
+            raise InputError("out", path, "a file name ending in .json, .csv or .npz", "unknown format")
+
+
+# --------------------------------------------------------------------------- simulate
+def simulate(settings: RunSettings | Mapping | Plan, *, progress: bool | None = None,
+             time_limit: float | None = None, cancel: Callable[[], bool] | None = None) -> Run:
+    """Run a simulation; see the module docstring for the guarantees."""
+    plan = settings if isinstance(settings, Plan) else resolve(settings)
+    start = time.perf_counter()
+    mod = kernel_for(plan.system, plan.variant)
+    if progress is None:
+        progress = sys.stderr.isatty()
+    bar = _Progress(plan.t_final, progress)
+    try:
+        if isinstance(plan.integrator, ScipyMethod):
+            raw = _run_scipy(plan, mod, bar, start, time_limit, cancel)
+        elif plan.integrator.adaptive:
+            raw = _run_adaptive(plan, mod, bar, start, time_limit, cancel)
+        else:
+            raw = _run_fixed(plan, mod, bar, start, time_limit, cancel)
+    finally:
+        bar.close()
+    return _finish(plan, mod, raw, time.perf_counter() - start)
+
+
+class _Progress:
+    def __init__(self, total: float, enabled: bool):
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit="s", unit_scale=False, delay=1.0, leave=False,
+                            desc="simulating", bar_format="{desc}: {percentage:3.0f}%|{bar}| "
+                            "t = {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]")
+
+    def update(self, t: float):
+        if self.bar is not None:
+            self.bar.n = t
+            self.bar.refresh()
+
+    def close(self):
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _stats0(plan, mod):
+    nv = mod.NV
+    E0 = np.empty(1)
+    V0 = np.empty((1, nv))
+    mod.diagnostics_rows(np.zeros(1), plan.x0[None, :], plan.p, E0, V0)
+    stats = np.zeros(5 + nv)
+    stats[0] = E0[0]
+    stats[3] = stats[4] = 1.0
+    stats[5:] = np.abs(V0[0])
+    return stats, E0[0], V0[0]
+
+
+def _interrupted(start, time_limit, cancel):
+    if cancel is not None and cancel():
+        return "cancelled"
+    if time_limit is not None and time.perf_counter() - start > time_limit:
+        return "timeout"
+    return None
+
+
+def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
+    tab = plan.integrator
+    dt, t_final, every = plan.dt, plan.t_final, plan.every
+    nsteps = max(1, math.ceil(t_final / dt - 1e-9))
+    rows = nsteps // every + (1 if nsteps % every else 0) + 2
+    n2 = plan.x0.size
+    out_t, out_x = np.empty(rows), np.empty((rows, n2))
+    out_E, out_V = np.empty(rows), np.empty((rows, mod.NV))
+    stats, E0, V0 = _stats0(plan, mod)
+    out_t[0], out_x[0], out_E[0], out_V[0] = 0.0, plan.x0, E0, V0
+    x = plan.x0.copy()
+    row, k, status, stop = 1, 0, 0, None
+    chunk = 2000
+    while k < nsteps:
+        t_call = time.perf_counter()
+        k_end = min(nsteps, k + chunk)
+        status, k, row = mod.integrate_fixed(x, 0.0, dt, t_final, k, k_end, nsteps, every, plan.p,
+                                             plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.c,
+                                             plan.rcond_min, out_t, out_x, out_E, out_V, row, stats)
+        elapsed = time.perf_counter() - t_call
+        chunk = int(min(max(chunk * min(4.0, 0.05 / max(elapsed, 1e-6)), 500), 5_000_000))
+        bar.update(min(k * dt, t_final))
+        if status != 0:
+            break
+        stop = _interrupted(start, time_limit, cancel)
+        if stop and k < nsteps:
+            break
+    t_last = t_final if k >= nsteps and status == 0 else k * dt
+    if row == 0 or out_t[row - 1] < t_last - 1e-12 * max(1.0, t_last):
+        # keep the last good state even when thinning skipped it
+        out_t[row], out_x[row] = t_last, x
+        E, V = np.empty(1), np.empty((1, mod.NV))
+        mod.diagnostics_rows(out_t[row:row + 1], out_x[row:row + 1], plan.p, E, V)
+        out_E[row], out_V[row] = E[0], V[0]
+        row += 1
+    return dict(status=status, stop=stop, t=out_t[:row], x=out_x[:row], E=out_E[:row], V=out_V[:row],
+                stats=stats, steps=k, evals=k * tab.stages, t_end=t_last)
+
+
+def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
+    tab = plan.integrator
+    t_final = plan.t_final
+    n2 = plan.x0.size
+    stats, E0, V0 = _stats0(plan, mod)
+    ts, xs, Es, Vs = [np.zeros(1)], [plan.x0[None, :].copy()], [np.array([E0])], [V0[None, :].copy()]
+    x = plan.x0.copy()
+    t, h = 0.0, min(plan.dt, t_final)
+    accepted = attempts = 0
+    status, stop = 0, None
+    cap = 4096
+    hmin = 1e-13 * max(1.0, t_final)
+    err_exp = 1.0 / (tab.error_order + 1)
+    while t < t_final:
+        out_t, out_x = np.empty(cap), np.empty((cap, n2))
+        out_E, out_V = np.empty(cap), np.empty((cap, mod.NV))
+        budget = min(200_000, LIMITS["max_steps"] - attempts)
+        status, t, h, nrow, accepted, att = mod.integrate_adaptive(
+            x, t, t_final, h, plan.rtol, plan.atol, hmin, t_final, budget, plan.every, accepted,
+            plan.p, plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.E, tab.c, err_exp, plan.rcond_min,
+            out_t, out_x, out_E, out_V, stats)
+        attempts += att
+        ts.append(out_t[:nrow]); xs.append(out_x[:nrow]); Es.append(out_E[:nrow]); Vs.append(out_V[:nrow])
+        bar.update(t)
+        if status == 5:
+            status = 0
+            if attempts >= LIMITS["max_steps"]:
+                status = 4
+                stop = "max_steps"
+                break
+        if status != 0:
+            break
+        stop = _interrupted(start, time_limit, cancel)
+        if stop and t < t_final:
+            break
+        stop = None
+    t_arr = np.concatenate(ts)
+    if t_arr[-1] < t - 1e-12 * max(1.0, t):
+        ts.append(np.array([t])); xs.append(x[None, :].copy())
+        E, V = np.empty(1), np.empty((1, mod.NV))
+        mod.diagnostics_rows(ts[-1], xs[-1], plan.p, E, V)
+        Es.append(E); Vs.append(V)
+    return dict(status=status, stop=stop, t=np.concatenate(ts), x=np.concatenate(xs),
+                E=np.concatenate(Es), V=np.concatenate(Vs), stats=stats, steps=accepted,
+                evals=attempts * tab.stages, t_end=t, attempts=attempts)
+
+
+def _run_scipy(plan: Plan, mod, bar, start, time_limit, cancel):
+    import scipy.integrate as si
+
+    from .reference import SingularMatrix
+
+    ws = mod.make_workspace()
+    n2 = plan.x0.size
+    rc = ws[11]
+    rcmin = [1.0, 1.0]
+
+    def fun(t, x):
+        xdot = np.empty(n2)
+        mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), plan.p, plan.G, plan.G1, plan.G2, xdot, ws)
+        rcmin[0], rcmin[1] = min(rcmin[0], rc[0]), min(rcmin[1], rc[1])
+        if rc[0] <= plan.rcond_min:
+            raise SingularMatrix("J2", rc[0], t)
+        if rc[1] <= plan.rcond_min:
+            raise SingularMatrix("T", rc[1], t)
+        return xdot
+
+    stats, E0, V0 = _stats0(plan, mod)
+    ts, xs = [0.0], [plan.x0.copy()]
+    status, stop, nstep = 0, None, 0
+    viol = np.empty(mod.NV)
+    fail_msg = None
+    try:
+        solver = getattr(si, plan.integrator.solver)(fun, 0.0, plan.x0.copy(), plan.t_final,
+                                                     rtol=plan.rtol, atol=plan.atol,
+                                                     first_step=min(plan.dt, plan.t_final))
+        while solver.status == "running":
+            msg = solver.step()
+            if solver.status == "failed":
+                status, fail_msg = 4, msg
+                break
+            y = solver.y
+            if not np.all(np.isfinite(y)):
+                status = 3
+                break
+            nstep += 1
+            E = mod.diagnostics(solver.t, y, plan.p, viol)
+            if not (math.isfinite(E) and np.all(np.isfinite(viol))):
+                status = 3
+                break
+            stats[1] = max(stats[1], abs(E - stats[0]))
+            stats[2] = E - stats[0]
+            stats[5:] = np.maximum(stats[5:], np.abs(viol))
+            if nstep % plan.every == 0 or solver.status == "finished":
+                ts.append(solver.t)
+                xs.append(y.copy())
+            if nstep >= LIMITS["max_steps"]:
+                status, stop = 4, "max_steps"
+                break
+            if nstep % 200 == 0:
+                bar.update(solver.t)
+                stop = _interrupted(start, time_limit, cancel)
+                if stop:
+                    break
+        nfev = solver.nfev
+    except SingularMatrix as e:
+        status = 1 if e.matrix == "J2" else 2
+        nfev = 0
+    stats[3], stats[4] = rcmin
+    t_arr, x_arr = np.array(ts), np.array(xs)
+    E_arr, V_arr = np.empty(len(ts)), np.empty((len(ts), mod.NV))
+    mod.diagnostics_rows(t_arr, x_arr, plan.p, E_arr, V_arr)
+    out = dict(status=status, stop=stop, t=t_arr, x=x_arr, E=E_arr, V=V_arr, stats=stats, steps=nstep,
+               evals=nfev, t_end=float(t_arr[-1]))
+    if fail_msg:
+        out["fail_msg"] = fail_msg
+    return out
+
+
+def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
+    md = plan.model
+    system = plan.system
+    status_code, stop = raw["status"], raw.get("stop")
+    t_end = raw["t_end"]
+    stats = raw["stats"]
+    if status_code == 0 and stop is None:
+        status = "ok"
+        message = (f"completed: {raw['steps']:,} steps of {plan.integrator.name} to t = {plan.t_final:g} s")
+    elif status_code == 0 and stop in ("timeout", "cancelled"):
+        status = "timeout"
+        message = (f"stopped at t = {t_end:.6g} s: {'wall-time limit reached' if stop == 'timeout' else 'cancelled'}"
+                   f"; results up to there are kept")
+    elif status_code in (1, 2):
+        status = "singular"
+        which = "J2" if status_code == 1 else "T"
+        rc = stats[3] if status_code == 1 else stats[4]
+        message = (f"{which} became singular or ill-conditioned after t = {t_end:.6g} s "
+                   f"(reciprocal condition estimate {rc:.3g} ≤ rcond_min = {plan.rcond_min:g}); "
+                   f"the run stopped there and keeps the last good state")
+        if which == "J2" and system.name == "appell-hamel" and plan.variant == "nonlinear":
+            message += " — the nonlinear model's J2 is singular where the wheel stops rolling (φ̇ = 0)"
+    elif status_code == 3:
+        status = "diverged"
+        message = (f"the state stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "
+                   f"the last finite state (try a smaller dt or gains of smaller magnitude)")
+    else:
+        status = "failed"
+        message = raw.get("fail_msg") or (f"the step size fell below its minimum at t = {t_end:.6g} s"
+                                          if stop != "max_steps" else
+                                          f"the step budget ({LIMITS['max_steps']:,}) was used up at t = {t_end:.6g} s")
+    x = raw["x"]
+    names_x = [str(s) for s in md.q + md.u]
+    state = {name: x[:, i].copy() for i, name in enumerate(names_x)}
+    if mod.NO:
+        O = np.empty((x.shape[0], mod.NO))
+        mod.outputs_rows(raw["t"], x, plan.p, O)
+        for i, name in enumerate(md.outputs):
+            state[name] = O[:, i]
+    state = {k: state[k] for k in system.state_names if k in state}
+    viol_names = plan.system.constraint_names(plan.variant)
+    violation = {k: raw["V"][:, i].copy() for i, k in enumerate(viol_names)}
+    has_energy = md.energy is not None
+    energy = raw["E"].copy() if has_energy else None
+    summary = {
+        "status": status, "message": message, "steps": int(raw["steps"]), "rhs_evals": int(raw["evals"]),
+        "wall_time_s": wall, "t_end": float(t_end),
+        "max_abs_violation": {k: float(stats[5 + i]) for i, k in enumerate(viol_names)},
+        "max_abs_energy_drift": float(stats[1]) if has_energy else None,
+        "final_energy_drift": float(energy[-1] - energy[0]) if has_energy else None,
+        "min_rcond": {"J2": float(stats[3]), "T": float(stats[4])},
+        "warnings": list(plan.warnings), "switches": [],
+    }
+    return Run(system=system.name, settings=plan.settings, t=raw["t"].copy(), state=state, energy=energy,
+               violation=violation, summary=summary)
+
+
+# --------------------------------------------------------------------------- catalog
+def catalog() -> dict:
+    """Systems with parameters, variants, constraint names, integrators, limits (for /api/systems)."""
+    from .integrators import INTEGRATORS
+    from .system import system_names
+
+    out = []
+    for name in system_names():
+        s = get_system(name)
+        out.append({
+            "name": s.name, "title": s.title, "description": s.description,
+            "option": s.option, s.option + "s": list(s.variants), "default_" + s.option: s.default_variant,
+            "parameters": [{"name": p.name, "default": p.default, "min": p.min, "max": p.max,
+                            "min_inclusive": p.min_inclusive, "unit": p.unit, "description": p.description}
+                           for p in s.parameters],
+            "coordinates": list(s.coordinates), "speeds": list(s.speeds),
+            "independent": list(s.independent), "default_initial": dict(s.default_initial),
+            "constraint_names": {v: list(s.constraint_names(v)) for v in s.variants},
+            "defaults": {"dt": s.default_dt, "t_final": s.default_t_final,
+                         "integrator": s.default_integrator, "gamma": s.default_gamma,
+                         "gamma1": s.default_gamma1, "gamma2": s.default_gamma2},
+        })
+    return {"systems": out,
+            "integrators": {k: v.description for k, v in INTEGRATORS.items()},
+            "projections": ["none"],
+            "limits": dict(LIMITS)}
