@@ -162,6 +162,7 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, ws, rcond_min, rcmin):
     n2 = 2 * N
     rc = ws[11]
     for i in range(S):
+        total = 0.0
         for j in range(n2):
             acc = x[j]
             for l in range(i):
@@ -169,6 +170,9 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, ws, rcond_min, rcmin):
                 if a != 0.0:
                     acc += h * a * K[l, j]
             xs[j] = acc
+            total += abs(acc)
+        if not math.isfinite(total):      # a stage left the finite numbers: divergence
+            return 3
         rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K[i], ws)
         if rc[0] < rcmin[0]:
             rcmin[0] = rc[0]

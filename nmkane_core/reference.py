@@ -123,3 +123,25 @@ class ReferenceKernel:
         return {"phin": self._vec(self._phin(t, x, p), d["MNH"]),
                 "psid": self._vec(self._psid(t, x, p), d["MH"]),
                 "psi": self._vec(self._psi(t, x, p), d["MH"])}
+
+
+def integrate_reference(kernel: ReferenceKernel, x0, p, dt: float, nsteps: int, tableau,
+                        G=None, G1=None, G2=None) -> tuple[np.ndarray, np.ndarray]:
+    """A plain-Python fixed-step Runge–Kutta run with the reference right-hand side.
+
+    The same tableau data as the compiled loop; used by the tests to check that compiled
+    and reference trajectories agree.  Returns (t, x) with one row per step.
+    """
+    A, b, c = tableau.A, tableau.b, tableau.c
+    x = np.array(x0, float)
+    ts, xs = [0.0], [x.copy()]
+    for k in range(nsteps):
+        t = k * dt
+        K = []
+        for i in range(len(c)):
+            xi = x + dt * sum((A[i, j] * K[j] for j in range(i)), np.zeros_like(x))
+            K.append(kernel.rhs(t + c[i] * dt, xi, p, G, G1, G2))
+        x = x + dt * sum(bi * ki for bi, ki in zip(b, K))
+        ts.append((k + 1) * dt)
+        xs.append(x.copy())
+    return np.array(ts), np.array(xs)

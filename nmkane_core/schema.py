@@ -72,7 +72,8 @@ class RunSummary(BaseModel):
     message: str
     steps: int
     rhs_evals: int
-    wall_time_s: float
+    wall_time_s: float = Field(description="integration wall time, s")
+    kernel_load_s: float = Field(0.0, description="time to load (or first compile) the kernel, s")
     t_end: float
     max_abs_violation: dict[str, float]
     max_abs_energy_drift: Optional[float]

@@ -238,8 +238,10 @@ def simulate(settings: RunSettings | Mapping | Plan, *, progress: bool | None = 
              time_limit: float | None = None, cancel: Callable[[], bool] | None = None) -> Run:
     """Run a simulation; see the module docstring for the guarantees."""
     plan = settings if isinstance(settings, Plan) else resolve(settings)
-    start = time.perf_counter()
+    t_setup = time.perf_counter()
     mod = kernel_for(plan.system, plan.variant)
+    start = time.perf_counter()
+    setup = start - t_setup
     if progress is None:
         progress = sys.stderr.isatty()
     bar = _Progress(plan.t_final, progress)
@@ -252,7 +254,9 @@ def simulate(settings: RunSettings | Mapping | Plan, *, progress: bool | None = 
             raw = _run_fixed(plan, mod, bar, start, time_limit, cancel)
     finally:
         bar.close()
-    return _finish(plan, mod, raw, time.perf_counter() - start)
+    run = _finish(plan, mod, raw, time.perf_counter() - start)
+    run.summary["kernel_load_s"] = setup
+    return run
 
 
 class _Progress:

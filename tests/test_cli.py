@@ -1,0 +1,74 @@
+"""The nmkane command: summaries, files, one-line errors with exit code 2."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from nmkane_core.cli import main
+
+NMKANE = [sys.executable, "-m", "nmkane_core.cli"]
+
+
+def test_run_prints_readable_summary(capsys):
+    assert main(["run", "appell-hamel", "--dt", "0.05", "--t-final", "2", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "status   ok" in out and "max |ΔE|" in out and "rolling_speed" in out
+
+
+@pytest.mark.parametrize("ext", ["json", "csv", "npz"])
+def test_run_writes_files(tmp_path, ext):
+    path = tmp_path / f"run.{ext}"
+    assert main(["run", "sliding-particle", "--gamma1", "-20", "--gamma2", "-100", "--dt", "0.01",
+                 "--t-final", "1", "--out", str(path), "--no-progress"]) == 0
+    if ext == "json":
+        doc = json.loads(path.read_text())
+        assert set(doc) >= {"system", "settings", "t", "state", "energy", "violation", "summary"}
+        assert doc["settings"]["gamma1"] == -20 and len(doc["t"]) == 101
+    elif ext == "csv":
+        lines = path.read_text().splitlines()
+        assert lines[0].split(",")[:5] == ["t", "x", "y", "u1", "u2"] and len(lines) == 102
+    else:
+        data = np.load(path)
+        assert data["t"].shape == (101,) and "violation_surface" in data
+
+
+@pytest.mark.parametrize("argv,needle", [
+    (["run", "appell-hamel", "--dt", "0"], "--dt"),
+    (["run", "appell-hamel", "--dt", "-1"], "--dt"),
+    (["run", "appell-hamel", "--dt", "nan"], "--dt"),
+    (["run", "appell-hamel", "--t-final", "inf"], "--t-final"),
+    (["run", "appell-hamel", "--t-final", "0"], "--t-final"),
+    (["run", "appell-hamel", "--dt", "1e-5", "--t-final", "1000"], "steps"),
+    (["run", "appell-hamel", "--model", "cubic"], "nonlinear | linear"),
+    (["run", "banana"], "appell-hamel | sliding-particle"),
+    (["run", "appell-hamel", "--integrator", "euler"], "--integrator"),
+    (["run", "appell-hamel", "--set", "rho=-3"], "--set rho"),
+    (["run", "appell-hamel", "--set", "rho"], "NAME=VALUE"),
+    (["run", "appell-hamel", "--init", "zz=1"], "--init zz"),
+    (["run", "appell-hamel", "--init", "theta=0", "--init", "phi=0", "--init", "x=0", "--init", "y=0",
+      "--init", "z=30", "--init", "u1=1", "--init", "u2=1", "--init", "u3=2", "--init", "u4=5",
+      "--init", "u5=-0.5"], "residuals"),
+    (["run", "appell-hamel", "--out", "x.txt"], "--out"),
+    (["run", "appell-hamel", "--projection", "magic"], "--projection"),
+])
+def test_bad_input_exits_2_with_one_line_naming_the_option(argv, needle):
+    proc = subprocess.run(NMKANE + argv, capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    assert proc.returncode == 2, proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1, proc.stderr
+    assert needle in err[0] and "Traceback" not in proc.stderr
+
+
+def test_singular_run_exits_1_with_message(capsys):
+    assert main(["run", "appell-hamel", "--init", "u2=0", "--no-progress"]) == 1
+    assert "singular" in capsys.readouterr().out
+
+
+def test_matrices_command_prints_A1(capsys):
+    assert main(["matrices", "sliding-particle", "--matrix", "A1", "--latex"]) == 0
+    assert "A_1" in capsys.readouterr().out
