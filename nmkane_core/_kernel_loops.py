@@ -20,22 +20,21 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True)
-def lu_solve_inplace(A, B):
-    """Solve A X = B in place (LU, partial pivoting); B (n×k) receives X.
+@njit(cache=True, nogil=True, inline="always")
+def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
+    """Solve A X = B in place in the flat work array ``w`` (LU with partial pivoting).
 
-    Returns min|pivot|/max|pivot| (0 when singular): the reciprocal-condition estimate
-    the kernels compare with the threshold ``rcond_min``.
+    A is n×n at offset ``oa`` with row stride ``lda``; B is n×k at ``ob`` with row
+    stride ``ldb`` and receives X.  Returns min|pivot|/max|pivot| (0 when singular): the
+    reciprocal-condition estimate the kernels compare with ``rcond_min``.
     """
-    n = A.shape[0]
-    k = B.shape[1]
     pmax = 0.0
-    pmin = np.inf
+    pmin = 1e308
     for c in range(n):
         piv = c
-        big = abs(A[c, c])
+        big = abs(w[oa + c * lda + c])
         for i in range(c + 1, n):
-            v = abs(A[i, c])
+            v = abs(w[oa + i * lda + c])
             if v > big:
                 big = v
                 piv = i
@@ -43,32 +42,32 @@ def lu_solve_inplace(A, B):
             return 0.0
         if piv != c:
             for j in range(n):
-                tmp = A[c, j]
-                A[c, j] = A[piv, j]
-                A[piv, j] = tmp
+                tmp = w[oa + c * lda + j]
+                w[oa + c * lda + j] = w[oa + piv * lda + j]
+                w[oa + piv * lda + j] = tmp
             for j in range(k):
-                tmp = B[c, j]
-                B[c, j] = B[piv, j]
-                B[piv, j] = tmp
+                tmp = w[ob + c * ldb + j]
+                w[ob + c * ldb + j] = w[ob + piv * ldb + j]
+                w[ob + piv * ldb + j] = tmp
         if big > pmax:
             pmax = big
         if big < pmin:
             pmin = big
-        inv = 1.0 / A[c, c]
+        inv = 1.0 / w[oa + c * lda + c]
         for i in range(c + 1, n):
-            f = A[i, c] * inv
+            f = w[oa + i * lda + c] * inv
             if f != 0.0:
                 for j in range(c + 1, n):
-                    A[i, j] -= f * A[c, j]
+                    w[oa + i * lda + j] -= f * w[oa + c * lda + j]
                 for j in range(k):
-                    B[i, j] -= f * B[c, j]
+                    w[ob + i * ldb + j] -= f * w[ob + c * ldb + j]
     for c in range(n - 1, -1, -1):
-        inv = 1.0 / A[c, c]
+        inv = 1.0 / w[oa + c * lda + c]
         for j in range(k):
-            acc = B[c, j]
+            acc = w[ob + c * ldb + j]
             for l in range(c + 1, n):
-                acc -= A[c, l] * B[l, j]
-            B[c, j] = acc * inv
+                acc -= w[oa + c * lda + l] * w[ob + l * ldb + j]
+            w[ob + c * ldb + j] = acc * inv
     if n == 0:
         return 1.0
     return pmin / pmax
@@ -76,91 +75,99 @@ def lu_solve_inplace(A, B):
 
 @njit(cache=True, nogil=True)
 def make_workspace():
-    """Scratch arrays of one right-hand side evaluation (allocated once per run)."""
-    J = np.empty((M, N))
-    b = np.empty(M)
-    phin = np.empty(MNH)
-    psid = np.empty(MH)
-    psi = np.empty(MH)
-    Q = np.empty((N, N))
-    P = np.empty(N)
-    qdot = np.empty(N)
-    R = np.empty((M, PI + 1))
-    T = np.empty((N, N))
-    V = np.empty((N, 1))
-    rc = np.ones(2)
-    return J, b, phin, psid, psi, Q, P, qdot, R, T, V, rc
+    """The flat scratch array of one right-hand side evaluation (allocated once per run).
+
+    Layout (offsets are constants of the generated module): J = [J1 J2] at OJ (m×n),
+    b = B1u + B2 at OB, φ at OPHIN, ψ̇ at OPSID, ψ at OPSI, Q at OQ (n×n), P at OP,
+    C u + D at OQD, R = [−J1 | −b + s] → [A | B̂] at OR (m×(p+1)), W = Q A2ᵀ at OW
+    (n×p), A2 Q A2ᵀ at OMR (p×p), P − Q_{·D}B̂ at OY, A2(P − Q_{·D}B̂) → u̇_I at OUI,
+    (rcond J2, rcond T) at ORC.
+    """
+    w = np.zeros(WSIZE)
+    w[ORC] = 1.0
+    w[ORC + 1] = 1.0
+    return w
 
 
-@njit(cache=True, nogil=True)
-def rhs_ws(t, x, p, G, G1, G2, xdot, ws):
-    """ẋ = [C u + D; T⁻¹V̂] into ``xdot``; ws[-1] receives (rcond J2, rcond T)."""
-    J, b, phin, psid, psi, Q, P, qdot, R, T, V, rc = ws
-    terms(t, x, p, J, b, phin, psid, psi, Q, P, qdot)
+@njit(cache=True, nogil=True, inline="always")
+def rhs_ws(t, x, p, G, G1, G2, K, row, w):
+    """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
+    terms(t, x, p, w)
     for i in range(N):
-        xdot[i] = qdot[i]
-    rc[0] = 1.0
+        K[row, i] = w[OQD + i]
+    w[ORC] = 1.0
     if M > 0:
         # R = [−J1 | −b + s], s = [Γφ; Γ1ψ̇ + Γ2ψ]   (105), (112)
         for i in range(M):
             for j in range(PI):
-                R[i, j] = -J[i, j]
+                w[OR + i * (PI + 1) + j] = -w[OJ + i * N + j]
             s = 0.0
             if i < MNH:
                 for k in range(MNH):
-                    s += G[i, k] * phin[k]
+                    s += G[i, k] * w[OPHIN + k]
             else:
                 ih = i - MNH
                 for k in range(MH):
-                    s += G1[ih, k] * psid[k] + G2[ih, k] * psi[k]
-            R[i, PI] = -b[i] + s
+                    s += G1[ih, k] * w[OPSID + k] + G2[ih, k] * w[OPSI + k]
+            w[OR + i * (PI + 1) + PI] = -w[OB + i] + s
         # J2 X = R  ->  X = [A | B̂]   (20), (108), (113)
-        rc[0] = lu_solve_inplace(J[:, PI:], R)
-        if rc[0] == 0.0:
-            rc[1] = 0.0
+        w[ORC] = lu_solve_flat(w, OJ + PI, N, OR, PI + 1, M, PI + 1)
+        if w[ORC] == 0.0:
+            w[ORC + 1] = 0.0
             return
-        # T = [A1; A2 Q], V̂ = [B̂; A2 P]   (22), (40), (44), (110)
-        for i in range(M):
-            for j in range(PI):
-                T[i, j] = -R[i, j]
-            for j in range(M):
-                T[i, PI + j] = 1.0 if i == j else 0.0
-            V[i, 0] = R[i, PI]
-        for r in range(PI):
-            for j in range(N):
-                acc = Q[r, j]
-                for k in range(M):
-                    acc += R[k, r] * Q[PI + k, j]
-                T[M + r, j] = acc
-            acc = P[r]
-            for k in range(M):
-                acc += R[k, r] * P[PI + k]
-            V[M + r, 0] = acc
-    else:
-        for i in range(N):
-            for j in range(N):
-                T[i, j] = Q[i, j]
-            V[i, 0] = P[i]
-    rc[1] = lu_solve_inplace(T, V)                  # (111) T u̇ = V̂
+    # T u̇ = V̂ with T = [A1; A2 Q], V̂ = [B̂; A2 P]  (22), (40), (44), (110), solved by block
+    # elimination on the identity block of A1 = [−A  I]:  u̇_D = A u̇_I + B̂  (106), then
+    # (A2 Q A2ᵀ) u̇_I = A2 (P − Q [0; B̂])  with A2ᵀ = [I; A]  — exact, allocation-free,
+    # and p×p instead of n×n.  (With no constraints this is Q u̇ = P.)
+    # W = Q A2ᵀ  (n×p)
     for i in range(N):
-        xdot[N + PERM[i]] = V[i, 0]
+        for r in range(PI):
+            acc = w[OQ + i * N + r]
+            for k in range(M):
+                acc += w[OQ + i * N + PI + k] * w[OR + k * (PI + 1) + r]
+            w[OW + i * PI + r] = acc
+    # Mr = A2 W  (p×p),  y = P − Q_{·D} B̂,  rhs = A2 y
+    for r in range(PI):
+        for c in range(PI):
+            acc = w[OW + r * PI + c]
+            for k in range(M):
+                acc += w[OR + k * (PI + 1) + r] * w[OW + (PI + k) * PI + c]
+            w[OMR + r * PI + c] = acc
+    for i in range(N):
+        acc = w[OP + i]
+        for k in range(M):
+            acc -= w[OQ + i * N + PI + k] * w[OR + k * (PI + 1) + PI]
+        w[OY + i] = acc
+    for r in range(PI):
+        acc = w[OY + r]
+        for k in range(M):
+            acc += w[OR + k * (PI + 1) + r] * w[OY + PI + k]
+        w[OUI + r] = acc
+    # (111): u̇_I from the reduced system; its pivot ratio is the T condition estimate
+    w[ORC + 1] = lu_solve_flat(w, OMR, PI, OUI, 1, PI, 1)
+    for r in range(PI):
+        K[row, N + PERM[r]] = w[OUI + r]
+    for k in range(M):
+        acc = w[OR + k * (PI + 1) + PI]
+        for r in range(PI):
+            acc += w[OR + k * (PI + 1) + r] * w[OUI + r]
+        K[row, N + PERM[PI + k]] = acc
 
 
 @njit(cache=True, nogil=True)
 def rhs(t, x, p, G, G1, G2):
     """Convenience form for Python callers and tests: returns (ẋ, rcond J2, rcond T)."""
-    ws = make_workspace()
-    xdot = np.empty(2 * N)
-    rhs_ws(t, x, p, G, G1, G2, xdot, ws)
-    return xdot, ws[11][0], ws[11][1]
+    w = make_workspace()
+    K = np.empty((1, 2 * N))
+    rhs_ws(t, x, p, G, G1, G2, K, 0, w)
+    return K[0].copy(), w[ORC], w[ORC + 1]
 
 
-@njit(cache=True, nogil=True)
-def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, ws, rcond_min, rcmin):
+@njit(cache=True, nogil=True, inline="always")
+def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
     """Fill the stage derivatives K[i] of one explicit RK step; return a status code."""
     S = TC.shape[0]
     n2 = 2 * N
-    rc = ws[11]
     for i in range(S):
         total = 0.0
         for j in range(n2):
@@ -173,19 +180,21 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, ws, rcond_min, rcmin):
             total += abs(acc)
         if not math.isfinite(total):      # a stage left the finite numbers: divergence
             return 3
-        rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K[i], ws)
-        if rc[0] < rcmin[0]:
-            rcmin[0] = rc[0]
-        if rc[1] < rcmin[1]:
-            rcmin[1] = rc[1]
-        if rc[0] <= rcond_min:
+        rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)
+        rc0 = w[ORC]
+        rc1 = w[ORC + 1]
+        if rc0 < stats[3]:
+            stats[3] = rc0
+        if rc1 < stats[4]:
+            stats[4] = rc1
+        if rc0 <= rcond_min:
             return 1
-        if rc[1] <= rcond_min:
+        if rc1 <= rcond_min:
             return 2
     return 0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _record(t, x, p, viol, stats, nv):
     """Diagnostics of an accepted state; running maxima in ``stats``. Returns E, or NaN."""
     E = diagnostics(t, x, p, viol)
@@ -219,12 +228,11 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
     xs = np.empty(n2)
     xn = np.empty(n2)
     viol = np.empty(NV)
-    ws = make_workspace()
-    rcmin = stats[3:5]
+    w = make_workspace()
     for k in range(k0, k1):
         t = t0 + k * dt
         h = dt if k < nsteps - 1 else t_final - t
-        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, ws, rcond_min, rcmin)
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
         if code != 0:
             return code, k, row
         finite = True
@@ -269,8 +277,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
     xs = np.empty(n2)
     xn = np.empty(n2)
     viol = np.empty(NV)
-    ws = make_workspace()
-    rcmin = stats[3:5]
+    w = make_workspace()
     cap = out_t.shape[0]
     row = 0
     attempts = 0
@@ -282,7 +289,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
         if t + h >= t_final or (t_final - t - h) < 1e-12 * abs(t_final):
             h = t_final - t
             last = True
-        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, ws, rcond_min, rcmin)
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
         if code != 0:
             return code, t, h, row, accepted, attempts
         errsum = 0.0
@@ -348,6 +355,8 @@ def outputs_rows(ts, xs, p, O):
 @njit(cache=True, nogil=True)
 def constraint_terms(t, x, p):
     """(J, b, φ, ψ̇, ψ) at a state, for state completion and projections."""
-    J, b, phin, psid, psi, Q, P, qdot, R, T, V, rc = make_workspace()
-    terms(t, x, p, J, b, phin, psid, psi, Q, P, qdot)
-    return J, b, phin, psid, psi
+    w = make_workspace()
+    terms(t, x, p, w)
+    J = w[OJ:OJ + M * N].copy().reshape((M, N))
+    return (J, w[OB:OB + M].copy(), w[OPHIN:OPHIN + MNH].copy(), w[OPSID:OPSID + MH].copy(),
+            w[OPSI:OPSI + MH].copy())

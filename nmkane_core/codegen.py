@@ -59,7 +59,7 @@ class _Printer(PythonCodePrinter):
         return super()._print_Pow(expr, rational=rational)
 
 
-def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple[str, sp.Expr]],
+def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple],
            returns: str | None = None) -> str:
     """One straight-line function: unpack state and parameters, CSE, assign outputs."""
     printer = _Printer()
@@ -69,12 +69,12 @@ def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple[s
     sub = dict(zip(kt.args_x, xs))
     sub.update(zip(kt.args_p, ps))
     sub[kt.args_t] = tt
-    exprs = [sp.sympify(e).xreplace(sub) for _, e in assignments]
+    exprs = [sp.sympify(a[1]).xreplace(sub) for a in assignments]
     repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic")
     used = set()
     for e in exprs:
         used |= {s.name for s in sp.sympify(e).free_symbols}
-    lines = ["@njit(cache=True, nogil=True)", f"def {name}({signature}):"]
+    lines = ["@njit(cache=True, nogil=True, inline=\"always\")", f"def {name}({signature}):"]
     for i, s in enumerate(xs):
         if s.name in used:
             lines.append(f"    {s.name} = x[{i}]")
@@ -83,8 +83,9 @@ def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple[s
             lines.append(f"    {s.name} = p[{i}]")
     for sym, e in repl:
         lines.append(f"    {sym} = {printer.doprint(e)}")
-    for (target, _), e in zip(assignments, reduced):
-        lines.append(f"    {target} = {printer.doprint(e)}")
+    for a, e in zip(assignments, reduced):
+        comment = f"  # {a[2]}" if len(a) > 2 else ""
+        lines.append(f"    {a[0]} = {printer.doprint(e)}{comment}")
     if returns:
         lines.append(f"    return {returns}")
     if len(lines) == 2:
@@ -108,23 +109,34 @@ def generate_source(derivation: Derivation) -> str:
     ]
     head += [f"{k} = {v}" for k, v in d.items()]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")
+    # offsets into the flat work array (see make_workspace in the generic part)
+    sizes = [("OJ", M * N), ("OB", M), ("OPHIN", d["MNH"]), ("OPSID", d["MH"]), ("OPSI", d["MH"]),
+             ("OQ", N * N), ("OP", N), ("OQD", N), ("OR", M * (d["PI"] + 1)),
+             ("OW", N * d["PI"]), ("OMR", d["PI"] ** 2), ("OY", N), ("OUI", d["PI"]), ("ORC", 2)]
+    off = {}
+    pos = 0
+    for name, size in sizes:
+        off[name] = pos
+        head.append(f"{name} = {pos}")
+        pos += size
+    head.append(f"WSIZE = {pos}")
     head.append("")
     assign = []
     for i in range(M):
         for j in range(N):
-            assign.append((f"J[{i}, {j}]", kt.J[i, j]))
-        assign.append((f"b[{i}]", kt.b[i]))
-    assign += [(f"phin[{i}]", e) for i, e in enumerate(kt.phin)]
-    assign += [(f"psid[{i}]", e) for i, e in enumerate(kt.psid)]
-    assign += [(f"psi[{i}]", e) for i, e in enumerate(kt.psi)]
+            assign.append((f"w[{off['OJ'] + i * N + j}]", kt.J[i, j], f"J[{i},{j}]"))
+        assign.append((f"w[{off['OB'] + i}]", kt.b[i], f"b[{i}]"))
+    assign += [(f"w[{off['OPHIN'] + i}]", e, f"phi[{i}]") for i, e in enumerate(kt.phin)]
+    assign += [(f"w[{off['OPSID'] + i}]", e, f"psidot[{i}]") for i, e in enumerate(kt.psid)]
+    assign += [(f"w[{off['OPSI'] + i}]", e, f"psi[{i}]") for i, e in enumerate(kt.psi)]
     for i in range(N):
         for j in range(N):
-            assign.append((f"Q[{i}, {j}]", kt.Q[i, j]))
-        assign.append((f"P[{i}]", kt.P[i]))
-        assign.append((f"qdot[{i}]", kt.qdot[i]))
+            assign.append((f"w[{off['OQ'] + i * N + j}]", kt.Q[i, j], f"Q[{i},{j}]"))
+        assign.append((f"w[{off['OP'] + i}]", kt.P[i], f"P[{i}]"))
+        assign.append((f"w[{off['OQD'] + i}]", kt.qdot[i], f"qdot[{i}]"))
     parts = [
         "\n".join(head),
-        _block("terms", "t, x, p, J, b, phin, psid, psi, Q, P, qdot", kt, assign),
+        _block("terms", "t, x, p, w", kt, assign),
         _block("diagnostics", "t, x, p, viol", kt,
                [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)], returns="_E"),
         _block("outputs", "t, x, p, out", kt, [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)]),

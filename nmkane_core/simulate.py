@@ -390,20 +390,20 @@ def _run_scipy(plan: Plan, mod, bar, start, time_limit, cancel):
 
     from .reference import SingularMatrix
 
-    ws = mod.make_workspace()
+    w = mod.make_workspace()
     n2 = plan.x0.size
-    rc = ws[11]
+    K = np.empty((1, n2))
     rcmin = [1.0, 1.0]
 
     def fun(t, x):
-        xdot = np.empty(n2)
-        mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), plan.p, plan.G, plan.G1, plan.G2, xdot, ws)
-        rcmin[0], rcmin[1] = min(rcmin[0], rc[0]), min(rcmin[1], rc[1])
-        if rc[0] <= plan.rcond_min:
-            raise SingularMatrix("J2", rc[0], t)
-        if rc[1] <= plan.rcond_min:
-            raise SingularMatrix("T", rc[1], t)
-        return xdot
+        mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), plan.p, plan.G, plan.G1, plan.G2, K, 0, w)
+        rc0, rc1 = w[mod.ORC], w[mod.ORC + 1]
+        rcmin[0], rcmin[1] = min(rcmin[0], rc0), min(rcmin[1], rc1)
+        if rc0 <= plan.rcond_min:
+            raise SingularMatrix("J2", rc0, t)
+        if rc1 <= plan.rcond_min:
+            raise SingularMatrix("T", rc1, t)
+        return K[0].copy()
 
     stats, E0, V0 = _stats0(plan, mod)
     ts, xs = [0.0], [plan.x0.copy()]
