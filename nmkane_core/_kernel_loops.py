@@ -11,7 +11,11 @@ loop and one adaptive loop serve every explicit Runge–Kutta tableau.
 
 Status codes returned by the loops:
     0 ok, 1 J2 ill-conditioned, 2 T ill-conditioned, 3 state not finite,
-    4 step size underflow (adaptive), 5 step budget of this call used (adaptive).
+    4 step size underflow (adaptive), 5 step budget of this call used (adaptive),
+    6 a projection matrix was singular.
+
+``proj`` (int64 array) = [on, weight (0 identity, 1 mass), position iterations,
+Newton (1 updated Jacobian, 0 frozen), energy correction (0/1)].
 """
 
 import math
@@ -216,7 +220,7 @@ STATS_FIXED = 5   # stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, 
 
 @njit(cache=True, nogil=True)
 def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA, TB, TC,
-                    rcond_min, out_t, out_x, out_E, out_V, row, stats):
+                    rcond_min, proj, out_t, out_x, out_E, out_V, row, stats):
     """Steps k0 … k1−1 of a fixed-step run of ``nsteps`` steps; ``x`` is advanced in place.
 
     Row r of the outputs holds the state after step r·every (and the final state).
@@ -229,6 +233,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
+    ps = make_projection_scratch()
     for k in range(k0, k1):
         t = t0 + k * dt
         h = dt if k < nsteps - 1 else t_final - t
@@ -246,6 +251,8 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
         if not finite:
             return 3, k, row
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
+        if proj[0] != 0 and project(tn, xn, p, w, ps, proj[1], proj[2], proj[3], proj[4], stats[0], viol) != 0:
+            return 6, k, row
         E = _record(tn, xn, p, viol, stats, NV)
         if not math.isfinite(E):
             return 3, k, row
@@ -264,7 +271,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
 
 @njit(cache=True, nogil=True)
 def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, every, accepted,
-                       p, G, G1, G2, TA, TB, TE, TC, err_exp, rcond_min,
+                       p, G, G1, G2, TA, TB, TE, TC, err_exp, rcond_min, proj,
                        out_t, out_x, out_E, out_V, stats):
     """Adaptive embedded-RK run from t until t_final, the output buffer is full, or
     ``max_steps`` attempts; error = h Σ TE_i K_i, step control with exponent ``err_exp``.
@@ -278,6 +285,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
+    ps = make_projection_scratch()
     cap = out_t.shape[0]
     row = 0
     attempts = 0
@@ -309,6 +317,8 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
         err = math.sqrt(errsum / n2) if finite else np.inf
         if err <= 1.0:
             tn = t_final if last else t + h
+            if proj[0] != 0 and project(tn, xn, p, w, ps, proj[1], proj[2], proj[3], proj[4], stats[0], viol) != 0:
+                return 6, t, h, row, accepted, attempts
             E = _record(tn, xn, p, viol, stats, NV)
             if not math.isfinite(E):
                 return 3, t, h, row, accepted, attempts
@@ -360,3 +370,147 @@ def constraint_terms(t, x, p):
     J = w[OJ:OJ + M * N].copy().reshape((M, N))
     return (J, w[OB:OB + M].copy(), w[OPHIN:OPHIN + MNH].copy(), w[OPSID:OPSID + MH].copy(),
             w[OPSI:OPSI + MH].copy())
+
+
+
+PS_OY = N * N                    # projection scratch layout: Q (model order) and its LU,
+PS_OZ = PS_OY + N * M            # Y = W⁻¹Gᵀ (n×m), a second n×m block,
+PS_OS = PS_OZ + N * M            # S = G W⁻¹ Gᵀ (m×m),
+PS_OZR = PS_OS + M * M           # z = S⁻¹ r (m),
+PS_OD = PS_OZR + M               # δ = Y z (n),
+PS_OG = PS_OD + N                # G (m×n, model column order) and r (m) of the correction
+PS_SIZE = PS_OG + M * N + M + N
+
+
+@njit(cache=True, nogil=True)
+def make_projection_scratch():
+    return np.zeros(PS_SIZE)
+
+
+@njit(cache=True, nogil=True)
+def _weighted_correction(w, ps, mrows, weight, in_q):
+    """δ = W⁻¹Gᵀ (G W⁻¹ Gᵀ)⁻¹ r for G (mrows×n) and r stored at ps[PS_OG:].
+
+    ``weight`` 0: W = I (Moore–Penrose); 1: the kinetic-energy metric — W = Q for a speed
+    correction, and W = C⁻ᵀ Q C⁻¹ (so W⁻¹ = C Q⁻¹ Cᵀ) for a coordinate correction
+    (``in_q``).  Needs Q (``terms``) and C (``positions``) in ``w`` when weighted.
+    δ is left at ps[PS_OD:PS_OD + N]; returns the pivot-ratio rcond of G W⁻¹ Gᵀ.
+    """
+    OR_ = PS_OG + mrows * N
+    for i in range(N):
+        for r in range(mrows):
+            ps[PS_OY + i * mrows + r] = ps[PS_OG + r * N + i]          # Y = Gᵀ
+    if weight == 1:
+        for i in range(N):                                              # Q, model order
+            for j in range(N):
+                ps[PERM[i] * N + PERM[j]] = w[OQ + i * N + j]
+        if in_q:
+            for i in range(N):                                          # Z = Cᵀ Gᵀ
+                for r in range(mrows):
+                    acc = 0.0
+                    for k in range(N):
+                        acc += w[OC + k * N + i] * ps[PS_OY + k * mrows + r]
+                    ps[PS_OZ + i * mrows + r] = acc
+            lu_solve_flat(ps, 0, N, PS_OZ, mrows, N, mrows)            # Z = Q⁻¹Cᵀ Gᵀ
+            for i in range(N):                                          # Y = C Z
+                for r in range(mrows):
+                    acc = 0.0
+                    for k in range(N):
+                        acc += w[OC + i * N + k] * ps[PS_OZ + k * mrows + r]
+                    ps[PS_OY + i * mrows + r] = acc
+        else:
+            lu_solve_flat(ps, 0, N, PS_OY, mrows, N, mrows)            # Y = Q⁻¹Gᵀ
+    for a in range(mrows):
+        for b in range(mrows):
+            acc = 0.0
+            for i in range(N):
+                acc += ps[PS_OG + a * N + i] * ps[PS_OY + i * mrows + b]
+            ps[PS_OS + a * mrows + b] = acc
+        ps[PS_OZR + a] = ps[OR_ + a]
+    rc = lu_solve_flat(ps, PS_OS, mrows, PS_OZR, 1, mrows, 1)
+    for i in range(N):
+        acc = 0.0
+        for a in range(mrows):
+            acc += ps[PS_OY + i * mrows + a] * ps[PS_OZR + a]
+        ps[PS_OD + i] = acc
+    return rc
+
+
+@njit(cache=True, nogil=True)
+def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
+    """Post-step correction of positions, then speeds (geometric elimination).
+
+    (P) ψ(q) = 0: q ← q − W⁻¹Ψ_qᵀ(Ψ_q W⁻¹ Ψ_qᵀ)⁻¹ψ, up to ``pos_iters`` Newton steps, the
+        Jacobian updated each step (``newton``) or frozen at the uncorrected point;
+    (V) [φ; ψ̇](q, u) = 0 at the corrected q: u ← u − W⁻¹Jᵀ(J W⁻¹ Jᵀ)⁻¹[φ; ψ̇], Newton in u
+        (one step is exact for constraints linear in u; up to 3 for nonlinear ones);
+    (E) optionally u ← λu with λ² = (E0 − E(q,0)) / (E(q,u) − E(q,0)), restoring the
+        initial energy (keeps constraints homogeneous in u satisfied).
+    Returns 0, or 1 when a correction matrix was singular.
+    """
+    tol = 1e-15
+    if MH > 0:
+        for it in range(pos_iters):
+            positions(t, x, p, w)
+            big = 0.0
+            for a in range(MH):
+                big = max(big, abs(w[OPSI + a]))
+            if big <= tol:
+                break
+            if newton or it == 0:
+                for a in range(MH):
+                    for j in range(N):
+                        ps[PS_OG + a * N + j] = w[OPSQ + a * N + j]
+            for a in range(MH):
+                ps[PS_OG + MH * N + a] = w[OPSI + a]
+            if weight == 1:
+                terms(t, x, p, w)
+            if _weighted_correction(w, ps, MH, weight, True) == 0.0:
+                return 1
+            for i in range(N):
+                x[i] -= ps[PS_OD + i]
+    if M > 0:
+        for it in range(3):
+            terms(t, x, p, w)
+            big = 0.0
+            for a in range(MNH):
+                big = max(big, abs(w[OPHIN + a]))
+            for a in range(MH):
+                big = max(big, abs(w[OPSID + a]))
+            if big <= tol:
+                break
+            for a in range(M):                     # J = ∂[φ; ψ̇]/∂u in model column order
+                for j in range(N):
+                    ps[PS_OG + a * N + PERM[j]] = w[OJ + a * N + j]
+            for a in range(MNH):
+                ps[PS_OG + M * N + a] = w[OPHIN + a]
+            for a in range(MH):
+                ps[PS_OG + M * N + MNH + a] = w[OPSID + a]
+            if _weighted_correction(w, ps, M, weight, False) == 0.0:
+                return 1
+            for i in range(N):
+                x[N + i] -= ps[PS_OD + i]
+    if energy_fix:
+        for i in range(N):
+            ps[PS_OD + i] = x[N + i]
+            x[N + i] = 0.0
+        V0 = diagnostics(t, x, p, viol)
+        for i in range(N):
+            x[N + i] = ps[PS_OD + i]
+        K = diagnostics(t, x, p, viol) - V0
+        if K > 0.0 and E0 > V0:
+            lam = math.sqrt((E0 - V0) / K)
+            for i in range(N):
+                x[N + i] *= lam
+    return 0
+
+
+@njit(cache=True, nogil=True)
+def project_state(t, x, p, weight, pos_iters, newton):
+    """Project one state onto the constraint manifold (initial states); returns (x, code)."""
+    w = make_workspace()
+    ps = make_projection_scratch()
+    viol = np.empty(NV)
+    y = x.copy()
+    code = project(t, y, p, w, ps, weight, pos_iters, newton, 0, 0.0, viol)
+    return y, code

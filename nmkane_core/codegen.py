@@ -112,7 +112,8 @@ def generate_source(derivation: Derivation) -> str:
     # offsets into the flat work array (see make_workspace in the generic part)
     sizes = [("OJ", M * N), ("OB", M), ("OPHIN", d["MNH"]), ("OPSID", d["MH"]), ("OPSI", d["MH"]),
              ("OQ", N * N), ("OP", N), ("OQD", N), ("OR", M * (d["PI"] + 1)),
-             ("OW", N * d["PI"]), ("OMR", d["PI"] ** 2), ("OY", N), ("OUI", d["PI"]), ("ORC", 2)]
+             ("OW", N * d["PI"]), ("OMR", d["PI"] ** 2), ("OY", N), ("OUI", d["PI"]), ("ORC", 2),
+             ("OPSQ", d["MH"] * N), ("OC", N * N)]
     off = {}
     pos = 0
     for name, size in sizes:
@@ -134,9 +135,19 @@ def generate_source(derivation: Derivation) -> str:
             assign.append((f"w[{off['OQ'] + i * N + j}]", kt.Q[i, j], f"Q[{i},{j}]"))
         assign.append((f"w[{off['OP'] + i}]", kt.P[i], f"P[{i}]"))
         assign.append((f"w[{off['OQD'] + i}]", kt.qdot[i], f"qdot[{i}]"))
+    kin = [(f"w[{off['OPSI'] + i}]", e, f"psi[{i}]") for i, e in enumerate(kt.psi)]
+    psi_q = kt.psi.jacobian(sp.Matrix(kt.args_x[:N])) if d["MH"] else sp.zeros(0, N)
+    for i in range(d["MH"]):
+        for j in range(N):
+            kin.append((f"w[{off['OPSQ'] + i * N + j}]", psi_q[i, j], f"psi_q[{i},{j}]"))
+    C = kt.derivation.C
+    for i in range(N):
+        for j in range(N):
+            kin.append((f"w[{off['OC'] + i * N + j}]", C[i, j], f"C[{i},{j}]"))
     parts = [
         "\n".join(head),
         _block("terms", "t, x, p, w", kt, assign),
+        _block("positions", "t, x, p, w", kt, kin),
         _block("diagnostics", "t, x, p, viol", kt,
                [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)], returns="_E"),
         _block("outputs", "t, x, p, out", kt, [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)]),

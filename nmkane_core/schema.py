@@ -43,7 +43,17 @@ class RunSettings(BaseModel):
                                   "(Γ·I) or a matrix; stabilizing gains are negative")
     gamma1: Optional[Gain] = Field(None, description="Γ1 for holonomic constraints (112), s⁻¹")
     gamma2: Optional[Gain] = Field(None, description="Γ2 for holonomic constraints (112), s⁻²")
-    projection: Literal["none"] = Field("none", description="post-step constraint correction")
+    projection: Literal["none", "blajer", "yoon"] = Field(
+        "none", description="post-step constraint correction (geometric elimination): none | blajer "
+        "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.projection")
+    projection_weight: Optional[Literal["identity", "mass"]] = Field(
+        None, description="override the projection's weighting matrix W")
+    projection_iterations: Optional[int] = Field(
+        None, ge=1, le=20, description="override: Newton iterations of the position correction (1 = one-shot)")
+    projection_jacobian: Optional[Literal["updated", "frozen"]] = Field(
+        None, description="override: position Jacobian updated each iteration or frozen at the uncorrected point")
+    projection_energy: Optional[bool] = Field(
+        None, description="override: rescale the speeds to restore the initial energy after the correction")
     integrator: Optional[str] = Field(None, description="rk4 | kutta-merson | kutta-merson-adaptive | "
                                       "rk45 | dop853 | radau", max_length=64)
     dt: Optional[float] = Field(None, description="step size (fixed-step methods) or initial step and "

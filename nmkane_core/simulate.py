@@ -24,12 +24,12 @@ from .codegen import compiled_kernel
 from .errors import InputError
 from .initial import initial_state
 from .integrators import ScipyMethod, Tableau, get_integrator
+from .projection import ProjectionOptions, projection_options
 from .schema import LIMITS, RunResult, RunSettings, RunSummary
 from .system import System, get_system
 
 __all__ = ["Plan", "Run", "resolve", "simulate", "kernel_for", "catalog"]
 
-_STATUS = {1: "singular", 2: "singular", 3: "diverged", 4: "failed"}
 
 
 # --------------------------------------------------------------------------- plan
@@ -51,6 +51,7 @@ class Plan:
     rtol: float
     atol: float
     rcond_min: float
+    projection: "ProjectionOptions"
     x0: np.ndarray
     initial: dict[str, float]
     settings: dict
@@ -140,6 +141,13 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     G2 = _gain("gamma2", s.gamma2 if s.gamma2 is not None else system.default_gamma2, m_h, warnings,
                f"the {variant} {system.option} has no holonomic constraints")
     _warn_unstable(G, G1, G2, warnings)
+    proj = projection_options(s.projection, s.projection_weight, s.projection_iterations,
+                              s.projection_jacobian, s.projection_energy)
+    if proj.name != "none" and isinstance(integ, ScipyMethod):
+        raise InputError("projection", s.projection, "none with scipy integrators; blajer | yoon with "
+                         "rk4, kutta-merson, kutta-merson-adaptive", "post-step projection needs a tableau integrator")
+    if proj.name != "none" and md.m == 0:
+        warnings.append(f"projection {proj.name} has nothing to do: the {variant} {system.option} has no constraints")
     x0, full = initial_state(system, variant, params, dict(s.initial))
     resolved = s.model_dump()
     resolved.update({system.option: variant, other: None, "integrator": integ.name, "dt": dt,
@@ -147,8 +155,11 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
                      "gamma": _plain(s.gamma, system.default_gamma),
                      "gamma1": _plain(s.gamma1, system.default_gamma1),
                      "gamma2": _plain(s.gamma2, system.default_gamma2)})
+    if proj.name != "none":
+        resolved.update(projection_weight=proj.weight, projection_iterations=proj.iterations,
+                        projection_jacobian=proj.jacobian, projection_energy=proj.energy)
     return Plan(system, variant, integ, params, p, G, G1, G2, dt, t_final, s.every, rtol, atol,
-                rcond_min, x0, full, resolved, warnings)
+                rcond_min, proj, x0, full, resolved, warnings)
 
 
 def _plain(v, default):
@@ -317,7 +328,8 @@ def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
         k_end = min(nsteps, k + chunk)
         status, k, row = mod.integrate_fixed(x, 0.0, dt, t_final, k, k_end, nsteps, every, plan.p,
                                              plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.c,
-                                             plan.rcond_min, out_t, out_x, out_E, out_V, row, stats)
+                                             plan.rcond_min, plan.projection.as_array(),
+                                             out_t, out_x, out_E, out_V, row, stats)
         elapsed = time.perf_counter() - t_call
         chunk = int(min(max(chunk * min(4.0, 0.05 / max(elapsed, 1e-6)), 500), 5_000_000))
         bar.update(min(k * dt, t_final))
@@ -358,7 +370,7 @@ def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
         status, t, h, nrow, accepted, att = mod.integrate_adaptive(
             x, t, t_final, h, plan.rtol, plan.atol, hmin, t_final, budget, plan.every, accepted,
             plan.p, plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.E, tab.c, err_exp, plan.rcond_min,
-            out_t, out_x, out_E, out_V, stats)
+            plan.projection.as_array(), out_t, out_x, out_E, out_V, stats)
         attempts += att
         ts.append(out_t[:nrow]); xs.append(out_x[:nrow]); Es.append(out_E[:nrow]); Vs.append(out_V[:nrow])
         bar.update(t)
@@ -483,6 +495,10 @@ def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
         status = "diverged"
         message = (f"the state stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "
                    f"the last finite state (try a smaller dt or gains of smaller magnitude)")
+    elif status_code == 6:
+        status = "failed"
+        message = (f"the {plan.projection.name} projection met a singular correction matrix after "
+                   f"t = {t_end:.6g} s; the run stopped there")
     else:
         status = "failed"
         message = raw.get("fail_msg") or (f"the step size fell below its minimum at t = {t_end:.6g} s"
