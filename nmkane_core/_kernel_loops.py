@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, fastmath=FM, inline="always")
 def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
     """Solve A X = B in place in the flat work array ``w`` (LU with partial pivoting).
 
@@ -77,7 +77,19 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
     return pmin / pmax
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
+def lu_solve_call(w, oa, lda, ob, ldb, n, k):
+    """lu_solve_flat compiled once as a function (cold paths call this, not an inline copy)."""
+    return lu_solve_flat(w, oa, lda, ob, ldb, n, k)
+
+
+@njit(cache=True, nogil=True, fastmath=FM)
+def terms_call(t, x, p, w):
+    """``terms`` compiled once as a function, for cold paths (projection, completion)."""
+    terms(t, x, p, w)
+
+
+@njit(cache=True, nogil=True, fastmath=FM)
 def make_workspace():
     """The flat scratch array of one right-hand side evaluation (allocated once per run).
 
@@ -93,7 +105,7 @@ def make_workspace():
     return w
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, fastmath=FM, inline="always")
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
     terms(t, x, p, w)
@@ -158,7 +170,7 @@ def rhs_ws(t, x, p, G, G1, G2, K, row, w):
         K[row, N + PERM[PI + k]] = acc
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def rhs(t, x, p, G, G1, G2):
     """Convenience form for Python callers and tests: returns (ẋ, rcond J2, rcond T)."""
     w = make_workspace()
@@ -167,21 +179,22 @@ def rhs(t, x, p, G, G1, G2):
     return K[0].copy(), w[ORC], w[ORC + 1]
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, fastmath=FM, inline="always")
 def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
     """Fill the stage derivatives K[i] of one explicit RK step; return a status code."""
     S = TC.shape[0]
     n2 = 2 * N
     for i in range(S):
+        for j in range(n2):
+            xs[j] = x[j]
+        for l in range(i):
+            ha = h * TA[i, l]
+            if ha != 0.0:
+                for j in range(n2):
+                    xs[j] += ha * K[l, j]
         total = 0.0
         for j in range(n2):
-            acc = x[j]
-            for l in range(i):
-                a = TA[i, l]
-                if a != 0.0:
-                    acc += h * a * K[l, j]
-            xs[j] = acc
-            total += abs(acc)
+            total += abs(xs[j])
         if not math.isfinite(total):      # a stage left the finite numbers: divergence
             return 3
         rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)
@@ -198,7 +211,7 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
     return 0
 
 
-@njit(cache=True, nogil=True, inline="always")
+@njit(cache=True, nogil=True, fastmath=FM)
 def _record(t, x, p, viol, stats, nv):
     """Diagnostics of an accepted state; running maxima in ``stats``. Returns E, or NaN."""
     E = diagnostics(t, x, p, viol)
@@ -218,7 +231,7 @@ def _record(t, x, p, viol, stats, nv):
 STATS_FIXED = 5   # stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, max|viol_i|...]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA, TB, TC,
                     rcond_min, proj, out_t, out_x, out_E, out_V, row, stats):
     """Steps k0 … k1−1 of a fixed-step run of ``nsteps`` steps; ``x`` is advanced in place.
@@ -240,15 +253,17 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
         if code != 0:
             return code, k, row
-        finite = True
         for j in range(n2):
-            acc = 0.0
-            for i in range(S):
-                acc += TB[i] * K[i, j]
-            xn[j] = x[j] + h * acc
-            if not math.isfinite(xn[j]):
-                finite = False
-        if not finite:
+            xn[j] = x[j]
+        for i in range(S):
+            hb = h * TB[i]
+            if hb != 0.0:
+                for j in range(n2):
+                    xn[j] += hb * K[i, j]
+        total = 0.0
+        for j in range(n2):
+            total += abs(xn[j])
+        if not math.isfinite(total):
             return 3, k, row
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
         if proj[0] != 0 and project(tn, xn, p, w, ps, proj[1], proj[2], proj[3], proj[4], stats[0], viol) != 0:
@@ -269,7 +284,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
     return 0, k1, row
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, every, accepted,
                        p, G, G1, G2, TA, TB, TE, TC, err_exp, rcond_min, proj,
                        out_t, out_x, out_E, out_V, stats):
@@ -343,7 +358,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
     return 0, t, h, row, accepted, attempts
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def diagnostics_rows(ts, xs, p, E, V):
     """Energy and violations of many states (scipy adapter, initial row)."""
     viol = np.empty(NV)
@@ -353,7 +368,7 @@ def diagnostics_rows(ts, xs, p, E, V):
             V[r, j] = viol[j]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def outputs_rows(ts, xs, p, O):
     out = np.empty(NO)
     for r in range(ts.shape[0]):
@@ -362,11 +377,11 @@ def outputs_rows(ts, xs, p, O):
             O[r, j] = out[j]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def constraint_terms(t, x, p):
     """(J, b, φ, ψ̇, ψ) at a state, for state completion and projections."""
     w = make_workspace()
-    terms(t, x, p, w)
+    terms_call(t, x, p, w)
     J = w[OJ:OJ + M * N].copy().reshape((M, N))
     return (J, w[OB:OB + M].copy(), w[OPHIN:OPHIN + MNH].copy(), w[OPSID:OPSID + MH].copy(),
             w[OPSI:OPSI + MH].copy())
@@ -382,12 +397,12 @@ PS_OG = PS_OD + N                # G (m×n, model column order) and r (m) of the
 PS_SIZE = PS_OG + M * N + M + N
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def make_projection_scratch():
     return np.zeros(PS_SIZE)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def _weighted_correction(w, ps, mrows, weight, in_q):
     """δ = W⁻¹Gᵀ (G W⁻¹ Gᵀ)⁻¹ r for G (mrows×n) and r stored at ps[PS_OG:].
 
@@ -411,7 +426,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q):
                     for k in range(N):
                         acc += w[OC + k * N + i] * ps[PS_OY + k * mrows + r]
                     ps[PS_OZ + i * mrows + r] = acc
-            lu_solve_flat(ps, 0, N, PS_OZ, mrows, N, mrows)            # Z = Q⁻¹Cᵀ Gᵀ
+            lu_solve_call(ps, 0, N, PS_OZ, mrows, N, mrows)            # Z = Q⁻¹Cᵀ Gᵀ
             for i in range(N):                                          # Y = C Z
                 for r in range(mrows):
                     acc = 0.0
@@ -419,7 +434,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q):
                         acc += w[OC + i * N + k] * ps[PS_OZ + k * mrows + r]
                     ps[PS_OY + i * mrows + r] = acc
         else:
-            lu_solve_flat(ps, 0, N, PS_OY, mrows, N, mrows)            # Y = Q⁻¹Gᵀ
+            lu_solve_call(ps, 0, N, PS_OY, mrows, N, mrows)            # Y = Q⁻¹Gᵀ
     for a in range(mrows):
         for b in range(mrows):
             acc = 0.0
@@ -427,7 +442,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q):
                 acc += ps[PS_OG + a * N + i] * ps[PS_OY + i * mrows + b]
             ps[PS_OS + a * mrows + b] = acc
         ps[PS_OZR + a] = ps[OR_ + a]
-    rc = lu_solve_flat(ps, PS_OS, mrows, PS_OZR, 1, mrows, 1)
+    rc = lu_solve_call(ps, PS_OS, mrows, PS_OZR, 1, mrows, 1)
     for i in range(N):
         acc = 0.0
         for a in range(mrows):
@@ -436,7 +451,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q):
     return rc
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
     """Post-step correction of positions, then speeds (geometric elimination).
 
@@ -464,14 +479,14 @@ def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
             for a in range(MH):
                 ps[PS_OG + MH * N + a] = w[OPSI + a]
             if weight == 1:
-                terms(t, x, p, w)
+                terms_call(t, x, p, w)
             if _weighted_correction(w, ps, MH, weight, True) == 0.0:
                 return 1
             for i in range(N):
                 x[i] -= ps[PS_OD + i]
     if M > 0:
         for it in range(3):
-            terms(t, x, p, w)
+            terms_call(t, x, p, w)
             big = 0.0
             for a in range(MNH):
                 big = max(big, abs(w[OPHIN + a]))
@@ -505,7 +520,7 @@ def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
     return 0
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=FM)
 def project_state(t, x, p, weight, pos_iters, newton):
     """Project one state onto the constraint manifold (initial states); returns (x, code)."""
     w = make_workspace()

@@ -60,7 +60,7 @@ class _Printer(PythonCodePrinter):
 
 
 def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple],
-           returns: str | None = None) -> str:
+           returns: str | None = None, inline: bool = False) -> str:
     """One straight-line function: unpack state and parameters, CSE, assign outputs."""
     printer = _Printer()
     xs = [sp.Symbol(f"x_{i}", real=True) for i in range(len(kt.args_x))]
@@ -74,7 +74,8 @@ def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple],
     used = set()
     for e in exprs:
         used |= {s.name for s in sp.sympify(e).free_symbols}
-    lines = ["@njit(cache=True, nogil=True, inline=\"always\")", f"def {name}({signature}):"]
+    flags = ', inline="always"' if inline else ""
+    lines = [f"@njit(cache=True, nogil=True, fastmath=FM{flags})", f"def {name}({signature}):"]
     for i, s in enumerate(xs):
         if s.name in used:
             lines.append(f"    {s.name} = x[{i}]")
@@ -106,6 +107,9 @@ def generate_source(derivation: Derivation) -> str:
         "import numpy as np",
         "from numba import njit",
         "",
+        "# IEEE-safe fast-math subset: contraction (FMA), reassociation, reciprocals; NaN/Inf",
+        "# semantics are kept so that divergence is still detected",
+        "FM = {'contract'}",
     ]
     head += [f"{k} = {v}" for k, v in d.items()]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")
@@ -146,7 +150,7 @@ def generate_source(derivation: Derivation) -> str:
             kin.append((f"w[{off['OC'] + i * N + j}]", C[i, j], f"C[{i},{j}]"))
     parts = [
         "\n".join(head),
-        _block("terms", "t, x, p, w", kt, assign),
+        _block("terms", "t, x, p, w", kt, assign, inline=True),
         _block("positions", "t, x, p, w", kt, kin),
         _block("diagnostics", "t, x, p, viol", kt,
                [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)], returns="_E"),

@@ -13,8 +13,11 @@ from __future__ import annotations
 import csv
 import io
 import math
+import os
 import sys
+import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
@@ -28,7 +31,7 @@ from .projection import ProjectionOptions, projection_options
 from .schema import LIMITS, RunResult, RunSettings, RunSummary
 from .system import System, get_system
 
-__all__ = ["Plan", "Run", "resolve", "simulate", "kernel_for", "catalog"]
+__all__ = ["Plan", "Run", "resolve", "simulate", "simulate_many", "kernel_for", "catalog"]
 
 
 
@@ -179,11 +182,16 @@ def _warn_unstable(G, G1, G2, warnings):
 
 
 # --------------------------------------------------------------------------- kernels
+_KERNEL_LOCK = threading.RLock()
+
+
 def kernel_for(system: System, variant: str):
     """The compiled kernel module of a system's variant (generated and cached once)."""
     cache = system.__dict__.setdefault("_kernels", {})
     if variant not in cache:
-        cache[variant] = compiled_kernel(system.derivation(variant))
+        with _KERNEL_LOCK:
+            if variant not in cache:
+                cache[variant] = compiled_kernel(system.derivation(variant))
     return cache[variant]
 
 
@@ -268,6 +276,44 @@ def simulate(settings: RunSettings | Mapping | Plan, *, progress: bool | None = 
     run = _finish(plan, mod, raw, time.perf_counter() - start)
     run.summary["kernel_load_s"] = setup
     return run
+
+
+def simulate_many(settings_list, *, workers: int | None = None, progress: bool | None = None,
+                  time_limit: float | None = None) -> list[Run]:
+    """Many runs (a Γ sweep, a parameter study) spread over the machine's cores.
+
+    The compiled loops release the GIL, so a thread pool runs them in parallel; every run
+    is resolved (and so checked) before any starts.  Results keep the input order.
+    """
+    plans = [s if isinstance(s, Plan) else resolve(s) for s in settings_list]
+    for key in {(pl.system.name, pl.variant) for pl in plans}:
+        kernel_for(plans[0].system if plans[0].system.name == key[0] else get_system(key[0]), key[1])
+    workers = workers or os.cpu_count() or 1
+    if progress is None:
+        progress = sys.stderr.isatty()
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=len(plans), unit="run", delay=1.0, leave=False, desc="runs")
+    results: list[Run | None] = [None] * len(plans)
+
+    def one(i):
+        results[i] = simulate(plans[i], progress=False, time_limit=time_limit)
+        if bar is not None:
+            bar.update(1)
+
+    try:
+        if workers == 1:
+            for i in range(len(plans)):
+                one(i)
+        else:
+            with ThreadPoolExecutor(max_workers=workers) as pool:
+                list(pool.map(one, range(len(plans))))
+    finally:
+        if bar is not None:
+            bar.close()
+    return results
 
 
 class _Progress:

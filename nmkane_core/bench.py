@@ -1,0 +1,194 @@
+"""``nmkane bench``: the kernels' speed, measured, against the usual sympy route.
+
+Every number is measured in the same process (or in child processes for the cold-start
+rows) on this machine, each time the command runs; nothing is hard-coded.  Workloads and
+targets are those of the compiled-kernels issue:
+
+* Appell–Hamel, nonlinear model, fixed-step Kutta–Merson, Δt = 0.001, 500 s, warm
+* per-evaluation speed: compiled kernel vs sympy KanesMethod + lambdify + numpy solve
+  (:mod:`nmkane_core.oracle`) and vs the numpy reference path
+* the same 500 s run in a fresh process, kernel cached (whole ``nmkane run`` process)
+* first run after install: a fresh process with an empty kernel cache (compilation)
+* interactive re-run: 20 s at Δt = 0.01 with a new Γ, step or model, warm
+* 500 s to a tolerance of 1e−10 with an adaptive integrator (time to an accurate answer)
+* Γ sweep: 64 sliding-particle runs, 500 s at Δt = 0.001, one core vs all cores
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+from .simulate import kernel_for, resolve, simulate, simulate_many
+from .system import get_system
+
+
+def _best(fn, repeat=3):
+    best = float("inf")
+    out = None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, out
+
+
+def _evals_per_s(fn, x, seconds=0.5):
+    n, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        for _ in range(50):
+            fn(0.0, x)
+        n += 50
+    return n / (time.perf_counter() - t0)
+
+
+def _cli_seconds(args, env=None):
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "nmkane_core.cli", *args], capture_output=True, text=True,
+                          env={**os.environ, **(env or {})})
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise RuntimeError(proc.stderr or proc.stdout)
+    return wall
+
+
+def run_bench(quick: bool = False, log=print) -> list[dict]:
+    rows: list[dict] = []
+    system = get_system("appell-hamel")
+    long_t = 50.0 if quick else 500.0
+
+    def add(workload, wall, evals=None, target=None, ok=None, note=""):
+        row = {"workload": workload, "wall_s": wall, "evals_per_s": evals, "target": target, "pass": ok,
+               "note": note}
+        rows.append(row)
+        log(f"  measured: {workload}: {wall:.4g} s {note}")
+        return row
+
+    # warm every kernel used below (compiles on a first run)
+    for v in ("nonlinear", "linear"):
+        kernel_for(system, v)
+    kernel_for(get_system("sliding-particle"), "nonminimal")
+
+    # 1. the paper's long run
+    settings = {"system": "appell-hamel", "model": "nonlinear", "integrator": "kutta-merson", "dt": 0.001,
+                "t_final": long_t, "every": 1000}
+    plan = resolve(settings)
+    wall, run = _best(lambda: simulate(plan, progress=False))
+    evals = run.summary["rhs_evals"]
+    r1 = add(f"Appell–Hamel NC, Kutta–Merson, dt=0.001, {long_t:g} s, warm", wall, evals / wall,
+             "≤ 0.5 s" if not quick else None, wall <= 0.5 if not quick else None,
+             f"({evals:,} rhs evaluations)")
+
+    # 2. per-evaluation: sympy route and numpy reference vs compiled (in its loop)
+    from .oracle import appell_hamel_minimal_rhs
+    from .reference import ReferenceKernel
+
+    x0 = plan.x0
+    sym_rhs = appell_hamel_minimal_rhs()
+    sym_eps = _evals_per_s(sym_rhs, x0)
+    ref = ReferenceKernel(system.derivation("nonlinear"))
+    ref_eps = _evals_per_s(lambda t, x: ref.rhs(t, x, plan.p, plan.G, plan.G1, plan.G2), x0)
+    mod = kernel_for(system, "nonlinear")
+    single_eps = _evals_per_s(lambda t, x: mod.rhs(t, x, plan.p, plan.G, plan.G1, plan.G2), x0)
+    comp_eps = r1["evals_per_s"]
+    add("sympy KanesMethod + lambdify + numpy solve (minimal eqs, per call)", 1 / sym_eps, sym_eps,
+        note=f"{sym_eps:,.0f} evals/s")
+    add("numpy reference path (nonminimal, per call)", 1 / ref_eps, ref_eps, note=f"{ref_eps:,.0f} evals/s")
+    add("compiled kernel called from Python (per call)", 1 / single_eps, single_eps,
+        note=f"{single_eps:,.0f} evals/s")
+    add("compiled kernel inside the compiled loop vs sympy route", 1 / comp_eps, comp_eps, "≥ 150×",
+        comp_eps / sym_eps >= 150, f"{comp_eps / sym_eps:,.0f}× the sympy route, "
+        f"{comp_eps / ref_eps:,.0f}× the numpy reference")
+    for row in rows:
+        if row["evals_per_s"]:
+            row["x_sympy"] = row["evals_per_s"] / sym_eps
+            row["x_reference"] = row["evals_per_s"] / ref_eps
+
+    # 3–4. cold starts in child processes
+    args = ["run", "appell-hamel", "--dt", "0.001", "--t-final", f"{long_t:g}", "--every", "1000",
+            "--no-progress"]
+    wall = min(_cli_seconds(args) for _ in range(2))
+    add("same run, fresh process, kernel cached (whole `nmkane run`)", wall, None,
+        "≤ 2 s" if not quick else None, wall <= 2.0 if not quick else None)
+    with tempfile.TemporaryDirectory() as tmp:
+        wall = _cli_seconds(args, env={"NMKANE_CACHE_DIR": tmp, "NUMBA_CACHE_DIR": tmp})
+    add("first run after install (empty cache: derivation + compilation)", wall, None, "≤ 15 s", wall <= 15.0)
+
+    # 5. interactive re-runs (settings in → arrays out)
+    variants = [{"gamma": -1.0}, {"gamma": -5.0}, {"dt": 0.005}, {"model": "linear"}, {"dt": 0.02},
+                {"gamma": -0.5, "model": "linear"}, {"initial": {"u1": 0.5}}, {"params": {"rho": 4.0}}]
+    times = []
+    for extra in variants * 3:
+        s = {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}
+        s.update(extra)
+        t0 = time.perf_counter()
+        simulate(s, progress=False)
+        times.append(time.perf_counter() - t0)
+    worst = max(times)
+    add("interactive re-run: 20 s at dt=0.01, new Γ/step/model/initial/params, warm", worst, None, "≤ 20 ms",
+        worst <= 0.020, f"(median {statistics.median(times) * 1e3:.1f} ms, worst {worst * 1e3:.1f} ms)")
+
+    # 6. adaptive, to 1e-10
+    fine = simulate({"system": "appell-hamel", "dt": 0.0002 if not quick else 0.0005, "t_final": long_t,
+                     "every": 10 ** 6}, progress=False)
+    ad_plan = resolve({"system": "appell-hamel", "integrator": "kutta-merson-adaptive", "t_final": long_t,
+                       "rtol": 1e-10, "atol": 1e-10, "every": 10 ** 6})
+    wall, ad = _best(lambda: simulate(ad_plan, progress=False))
+    err = max(abs(ad.state[k][-1] - fine.state[k][-1]) / max(1.0, abs(fine.state[k][-1]))
+              for k in ("theta", "phi", "x", "y", "u2"))
+    add(f"adaptive Kutta–Merson to 1e-10, {long_t:g} s, warm", wall, ad.summary["rhs_evals"] / wall,
+        "≤ 0.15 s" if not quick else None, wall <= 0.15 if not quick else None,
+        f"({ad.summary['steps']:,} steps; final-state difference to a dt=2e-4 run {err:.1e})")
+
+    # 7. Γ sweep over cores
+    nruns, horizon = (16, 100.0) if quick else (64, 500.0)
+    gains = np.linspace(-40, -5, nruns)
+    sweep = [{"system": "sliding-particle", "gamma1": float(g), "gamma2": float(-(g / 2) ** 2), "dt": 0.001,
+              "t_final": horizon, "every": 10 ** 6} for g in gains]
+    sweep_plans = [resolve(s) for s in sweep]
+    one = min(_best(lambda: simulate_many(sweep_plans[:8], workers=1, progress=False), 2)[0], 1e9) / 8
+    cores = os.cpu_count() or 1
+    t0 = time.perf_counter()
+    simulate_many(sweep_plans, workers=cores, progress=False)
+    allc = (time.perf_counter() - t0) / nruns
+    speedup = one / allc
+    add(f"Γ sweep: {nruns} sliding-particle runs, {horizon:g} s at dt=0.001, {cores} cores", allc * nruns, None,
+        "≥ 1.7× one core", speedup >= 1.7 if cores >= 2 else None,
+        f"({1 / one:.2f} runs/s on one core, {1 / allc:.2f} runs/s on {cores}: {speedup:.2f}×)")
+    return rows
+
+
+def format_table(rows) -> str:
+    head = f"{'workload':<78} {'evals/s':>12} {'wall':>10} {'×sympy':>8} {'×numpy':>8} {'target':>16} {'':>5}"
+    lines = [head, "-" * len(head)]
+    for r in rows:
+        eps = f"{r['evals_per_s']:,.0f}" if r.get("evals_per_s") else ""
+        wall = r["wall_s"]
+        wall_s = f"{wall * 1e3:.1f} ms" if wall < 1 else f"{wall:.2f} s"
+        if wall < 1e-3:
+            wall_s = f"{wall * 1e9:.0f} ns"
+        xs = f"{r['x_sympy']:,.0f}" if r.get("x_sympy") else ""
+        xr = f"{r['x_reference']:,.0f}" if r.get("x_reference") else ""
+        ok = {True: "PASS", False: "FAIL", None: ""}[r["pass"]]
+        lines.append(f"{r['workload'][:78]:<78} {eps:>12} {wall_s:>10} {xs:>8} {xr:>8} {r['target'] or '':>16} {ok:>5}")
+        if r.get("note"):
+            lines.append(f"    {r['note']}")
+    return "\n".join(lines)
+
+
+def main(json_out: bool = False, quick: bool = False) -> int:
+    log = (lambda *_: None) if json_out else (lambda msg: print(msg, file=sys.stderr))
+    rows = run_bench(quick=quick, log=log)
+    if json_out:
+        print(json.dumps({"machine": {"cpus": os.cpu_count(), "python": sys.version.split()[0]},
+                          "rows": rows}, indent=2))
+    else:
+        print(format_table(rows))
+    return 0 if all(r["pass"] is not False for r in rows) else 1
