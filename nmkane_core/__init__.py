@@ -4,14 +4,24 @@ Describe a system with sympy (:class:`MechanicalModel`), derive the paper's matr
 once (:func:`derive`), and simulate with compiled kernels (:func:`simulate`).
 """
 
-from .derivation import Derivation, derive
 from .errors import ConvergenceError, InconsistentStateError, InputError, NmkaneError
-from .model import MechanicalModel, plain_symbols
 from .system import Parameter, System, get_system, register, system_names
+
+_LAZY = {"Derivation": "derivation", "derive": "derivation", "MechanicalModel": "model",
+         "plain_symbols": "model", "simulate": "simulate", "simulate_many": "simulate",
+         "resolve": "simulate", "RunSettings": "schema", "RunResult": "schema"}
+
+
+def __getattr__(name):  # PEP 562: sympy is imported only when symbolic work is asked for
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    raise AttributeError(name)
 
 __all__ = [
     "ConvergenceError", "Derivation", "InconsistentStateError", "InputError", "MechanicalModel",
-    "NmkaneError", "Parameter", "System", "derive", "get_system", "plain_symbols", "register",
-    "system_names",
+    "NmkaneError", "Parameter", "RunResult", "RunSettings", "System", "derive", "get_system",
+    "plain_symbols", "register", "resolve", "simulate", "simulate_many", "system_names",
 ]
 __version__ = "0.1.0"

@@ -15,7 +15,7 @@ Status codes returned by the loops:
     6 a projection matrix was singular.
 
 ``proj`` (int64 array) = [on, weight (0 identity, 1 mass), position iterations,
-Newton (1 updated Jacobian, 0 frozen), energy correction (0/1)].
+Newton (1 updated Jacobian, 0 frozen), energy correction (0/1), N, M, MNH, MH].
 """
 
 import math
@@ -247,6 +247,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
     viol = np.empty(NV)
     w = make_workspace()
     ps = make_projection_scratch()
+    perm = PERM.copy()
     for k in range(k0, k1):
         t = t0 + k * dt
         h = dt if k < nsteps - 1 else t_final - t
@@ -266,7 +267,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
         if not math.isfinite(total):
             return 3, k, row
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
-        if proj[0] != 0 and project(tn, xn, p, w, ps, proj[1], proj[2], proj[3], proj[4], stats[0], viol) != 0:
+        if proj[0] != 0 and project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
             return 6, k, row
         E = _record(tn, xn, p, viol, stats, NV)
         if not math.isfinite(E):
@@ -301,6 +302,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
     viol = np.empty(NV)
     w = make_workspace()
     ps = make_projection_scratch()
+    perm = PERM.copy()
     cap = out_t.shape[0]
     row = 0
     attempts = 0
@@ -332,7 +334,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
         err = math.sqrt(errsum / n2) if finite else np.inf
         if err <= 1.0:
             tn = t_final if last else t + h
-            if proj[0] != 0 and project(tn, xn, p, w, ps, proj[1], proj[2], proj[3], proj[4], stats[0], viol) != 0:
+            if proj[0] != 0 and project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
                 return 6, t, h, row, accepted, attempts
             E = _record(tn, xn, p, viol, stats, NV)
             if not math.isfinite(E):
@@ -378,14 +380,26 @@ def outputs_rows(ts, xs, p, O):
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
-def constraint_terms(t, x, p):
-    """(J, b, φ, ψ̇, ψ) at a state, for state completion and projections."""
+def state_terms(t, x, p):
+    """Constraint quantities at one state, for completing and checking initial states:
+    (J = ∂[φ; ψ̇]/∂u in the model's speed order, [φ; ψ̇], ψ, ∂ψ/∂q, reported violations)."""
     w = make_workspace()
     terms_call(t, x, p, w)
-    J = w[OJ:OJ + M * N].copy().reshape((M, N))
-    return (J, w[OB:OB + M].copy(), w[OPHIN:OPHIN + MNH].copy(), w[OPSID:OPSID + MH].copy(),
-            w[OPSI:OPSI + MH].copy())
-
+    positions(t, x, p, w)
+    J = np.empty((M, N))
+    for a in range(M):
+        for j in range(N):
+            J[a, PERM[j]] = w[OJ + a * N + j]
+    c = np.empty(M)
+    for a in range(MNH):
+        c[a] = w[OPHIN + a]
+    for a in range(MH):
+        c[MNH + a] = w[OPSID + a]
+    psi = w[OPSI:OPSI + MH].copy()
+    psi_q = w[OPSQ:OPSQ + MH * N].copy().reshape((MH, N))
+    viol = np.empty(NV)
+    diagnostics(t, x, p, viol)
+    return J, c, psi, psi_q, viol
 
 
 PS_OY = N * N                    # projection scratch layout: Q (model order) and its LU,
@@ -403,7 +417,7 @@ def make_projection_scratch():
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
-def _weighted_correction(w, ps, mrows, weight, in_q):
+def _weighted_correction(w, ps, mrows, weight, in_q, N, M, perm):
     """δ = W⁻¹Gᵀ (G W⁻¹ Gᵀ)⁻¹ r for G (mrows×n) and r stored at ps[PS_OG:].
 
     ``weight`` 0: W = I (Moore–Penrose); 1: the kinetic-energy metric — W = Q for a speed
@@ -411,6 +425,14 @@ def _weighted_correction(w, ps, mrows, weight, in_q):
     (``in_q``).  Needs Q (``terms``) and C (``positions``) in ``w`` when weighted.
     δ is left at ps[PS_OD:PS_OD + N]; returns the pivot-ratio rcond of G W⁻¹ Gᵀ.
     """
+    # dimensions arrive as runtime values here (not the module constants): this cold path
+    # then compiles to compact loops instead of fully unrolled ones
+    PS_OY = N * N
+    PS_OZ = PS_OY + N * M
+    PS_OS = PS_OZ + N * M
+    PS_OZR = PS_OS + M * M
+    PS_OD = PS_OZR + M
+    PS_OG = PS_OD + N
     OR_ = PS_OG + mrows * N
     for i in range(N):
         for r in range(mrows):
@@ -418,7 +440,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q):
     if weight == 1:
         for i in range(N):                                              # Q, model order
             for j in range(N):
-                ps[PERM[i] * N + PERM[j]] = w[OQ + i * N + j]
+                ps[perm[i] * N + perm[j]] = w[OQ + i * N + j]
         if in_q:
             for i in range(N):                                          # Z = Cᵀ Gᵀ
                 for r in range(mrows):
@@ -452,7 +474,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q):
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
-def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
+def project(t, x, p, w, ps, proj, E0, viol, perm):
     """Post-step correction of positions, then speeds (geometric elimination).
 
     (P) ψ(q) = 0: q ← q − W⁻¹Ψ_qᵀ(Ψ_q W⁻¹ Ψ_qᵀ)⁻¹ψ, up to ``pos_iters`` Newton steps, the
@@ -463,6 +485,10 @@ def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
         initial energy (keeps constraints homogeneous in u satisfied).
     Returns 0, or 1 when a correction matrix was singular.
     """
+    weight, pos_iters, newton, energy_fix = proj[1], proj[2], proj[3], proj[4]
+    N, M, MNH, MH = proj[5], proj[6], proj[7], proj[8]     # runtime values (see above)
+    PS_OD = N * N + 2 * N * M + M * M + M
+    PS_OG = PS_OD + N
     tol = 1e-15
     if MH > 0:
         for it in range(pos_iters):
@@ -480,7 +506,7 @@ def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
                 ps[PS_OG + MH * N + a] = w[OPSI + a]
             if weight == 1:
                 terms_call(t, x, p, w)
-            if _weighted_correction(w, ps, MH, weight, True) == 0.0:
+            if _weighted_correction(w, ps, MH, weight, True, N, M, perm) == 0.0:
                 return 1
             for i in range(N):
                 x[i] -= ps[PS_OD + i]
@@ -496,12 +522,12 @@ def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
                 break
             for a in range(M):                     # J = ∂[φ; ψ̇]/∂u in model column order
                 for j in range(N):
-                    ps[PS_OG + a * N + PERM[j]] = w[OJ + a * N + j]
+                    ps[PS_OG + a * N + perm[j]] = w[OJ + a * N + j]
             for a in range(MNH):
                 ps[PS_OG + M * N + a] = w[OPHIN + a]
             for a in range(MH):
                 ps[PS_OG + M * N + MNH + a] = w[OPSID + a]
-            if _weighted_correction(w, ps, M, weight, False) == 0.0:
+            if _weighted_correction(w, ps, M, weight, False, N, M, perm) == 0.0:
                 return 1
             for i in range(N):
                 x[N + i] -= ps[PS_OD + i]
@@ -521,11 +547,12 @@ def project(t, x, p, w, ps, weight, pos_iters, newton, energy_fix, E0, viol):
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
-def project_state(t, x, p, weight, pos_iters, newton):
+def project_state(t, x, p, proj):
     """Project one state onto the constraint manifold (initial states); returns (x, code)."""
     w = make_workspace()
     ps = make_projection_scratch()
+    perm = PERM.copy()
     viol = np.empty(NV)
     y = x.copy()
-    code = project(t, y, p, w, ps, weight, pos_iters, newton, 0, 0.0, viol)
+    code = project(t, y, p, w, ps, proj, 0.0, viol, PERM.copy())
     return y, code

@@ -24,13 +24,11 @@ import sys
 import threading
 from pathlib import Path
 
-import sympy as sp
-from sympy.printing.pycode import PythonCodePrinter
+from typing import Callable
 
-from .derivation import Derivation
-from .kernel_terms import KernelTerms, kernel_terms
+from .info import ModelInfo
 
-__all__ = ["cache_dir", "generate_source", "compiled_kernel"]
+__all__ = ["cache_dir", "generate_source", "compiled_kernel", "kernel", "fingerprint"]
 
 _LOCK = threading.Lock()
 _LOADED: dict[str, object] = {}
@@ -43,26 +41,31 @@ def cache_dir() -> Path:
     return base / "kernels"
 
 
-class _Printer(PythonCodePrinter):
-    def __init__(self):
-        super().__init__({"fully_qualified_modules": True, "standard": "python3"})
+def _printer():
+    import sympy as sp
+    from sympy.printing.pycode import PythonCodePrinter
 
-    def _print_Pow(self, expr, rational=False):
-        # integer powers as products/divisions: exact and fast in compiled code
-        base, exp = expr.as_base_exp()
-        if exp.is_Integer and 1 < abs(int(exp)) <= 4:
-            b = self.parenthesize(base, 100)
-            prod = "*".join([b] * abs(int(exp)))
-            return f"({prod})" if exp > 0 else f"(1.0/({prod}))"
-        if exp == sp.S.Half:
-            return f"math.sqrt({self._print(base)})"
-        return super()._print_Pow(expr, rational=rational)
+    class _Printer(PythonCodePrinter):
+        def _print_Pow(self, expr, rational=False):
+            # integer powers as products/divisions: exact and fast in compiled code
+            base, exp = expr.as_base_exp()
+            if exp.is_Integer and 1 < abs(int(exp)) <= 4:
+                b = self.parenthesize(base, 100)
+                prod = "*".join([b] * abs(int(exp)))
+                return f"({prod})" if exp > 0 else f"(1.0/({prod}))"
+            if exp == sp.S.Half:
+                return f"math.sqrt({self._print(base)})"
+            return super()._print_Pow(expr, rational=rational)
+
+    return _Printer({"fully_qualified_modules": True, "standard": "python3"})
 
 
-def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple],
+def _block(name: str, signature: str, kt, assignments: list[tuple],
            returns: str | None = None, inline: bool = False) -> str:
     """One straight-line function: unpack state and parameters, CSE, assign outputs."""
-    printer = _Printer()
+    import sympy as sp
+
+    printer = _printer()
     xs = [sp.Symbol(f"x_{i}", real=True) for i in range(len(kt.args_x))]
     ps = [sp.Symbol(f"p_{i}", real=True) for i in range(len(kt.args_p))]
     tt = sp.Symbol("t", real=True)
@@ -94,8 +97,12 @@ def _block(name: str, signature: str, kt: KernelTerms, assignments: list[tuple],
     return "\n".join(lines) + "\n"
 
 
-def generate_source(derivation: Derivation) -> str:
+def generate_source(derivation) -> str:
     """The whole kernel module for one model, as text."""
+    import sympy as sp
+
+    from .kernel_terms import kernel_terms
+
     kt = kernel_terms(derivation)
     d = kt.dims
     N, M = d["N"], d["M"]
@@ -169,25 +176,79 @@ def _source_key(source: str) -> str:
     return h.hexdigest()[:20]
 
 
-def compiled_kernel(derivation: Derivation, source: str | None = None):
-    """Import (generating if needed) the compiled kernel module of a model."""
+def _import(folder: Path, key: str, source: str | None):
+    path = folder / f"nmkane_kernel_{key}.py"
+    if source is not None and (not path.exists() or path.read_text() != source):
+        folder.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".tmp{os.getpid()}")
+        tmp.write_text(source)
+        os.replace(tmp, path)               # atomic: a parallel process never sees half a file
+    name = f"nmkane_kernel_{key}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def compiled_kernel(derivation, source: str | None = None):
+    """Import (generating if needed) the compiled kernel module of a derivation."""
     if source is None:
         source = generate_source(derivation)
     key = _source_key(source)
     with _LOCK:
-        if key in _LOADED:
-            return _LOADED[key]
-        folder = cache_dir() / key
-        path = folder / f"nmkane_kernel_{key}.py"
-        if not path.exists() or path.read_text() != source:
-            folder.mkdir(parents=True, exist_ok=True)
-            tmp = path.with_suffix(f".tmp{os.getpid()}")
-            tmp.write_text(source)
-            os.replace(tmp, path)               # atomic: a parallel process never sees half a file
-        name = f"nmkane_kernel_{key}"
-        spec = importlib.util.spec_from_file_location(name, path)
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
-        _LOADED[key] = module
-        return module
+        if key not in _LOADED:
+            _LOADED[key] = _import(cache_dir() / key, key, source)
+        return _LOADED[key]
+
+
+_CORE_FILES = ("model.py", "derivation.py", "kernel_terms.py", "codegen.py", "_kernel_loops.py", "info.py")
+
+
+def fingerprint(system_name: str, variant: str, source_files) -> str | None:
+    """A key for a model's kernel that needs no sympy: the text of every file that defines
+    the model or its generation, and the versions of the tools that generate it."""
+    if not source_files:
+        return None
+    from importlib.metadata import version
+
+    h = hashlib.sha256(f"{system_name}\0{variant}\0{sys.version}".encode())
+    for dist in ("sympy", "numba", "numpy"):
+        h.update(version(dist).encode())
+    here = Path(__file__).parent
+    for f in [*(here / c for c in _CORE_FILES), *map(Path, source_files)]:
+        h.update(Path(f).read_bytes())
+    return h.hexdigest()[:24]
+
+
+def kernel(fp: str | None, derive: Callable[[], object]) -> tuple[object, ModelInfo]:
+    """The kernel module and model info for fingerprint ``fp``, from the disk cache when it
+    is there (no sympy needed), otherwise derived, generated and cached."""
+    index = cache_dir() / "index" / f"{fp}.json" if fp else None
+    if index is not None and index.exists():
+        try:
+            import json
+
+            entry = json.loads(index.read_text())
+            key = entry["key"]
+            with _LOCK:
+                if key not in _LOADED:
+                    folder = cache_dir() / key
+                    if not (folder / f"nmkane_kernel_{key}.py").exists():
+                        raise FileNotFoundError(key)
+                    _LOADED[key] = _import(folder, key, None)
+                return _LOADED[key], ModelInfo.from_json(json.dumps(entry["info"]))
+        except (OSError, KeyError, ValueError, TypeError):
+            pass                                   # a damaged entry: regenerate below
+    d = derive()
+    source = generate_source(d)
+    module = compiled_kernel(d, source)
+    info = ModelInfo.from_derivation(d)
+    if index is not None:
+        import json
+
+        index.parent.mkdir(parents=True, exist_ok=True)
+        tmp = index.with_suffix(f".tmp{os.getpid()}")
+        tmp.write_text(json.dumps({"key": _source_key(source), "info": json.loads(info.to_json())}))
+        os.replace(tmp, index)
+    return module, info

@@ -32,3 +32,12 @@ class InconsistentStateError(InputError):
 
 class ConvergenceError(NmkaneError):
     """A Newton iteration (state completion, projection) that did not converge."""
+
+
+class SingularMatrix(ArithmeticError):
+    """J2 or T is singular or ill-conditioned at a state (``matrix``, ``rcond``, ``t``)."""
+
+    def __init__(self, matrix: str, rcond: float, t: float):
+        self.matrix, self.rcond, self.t = matrix, rcond, t
+        super().__init__(f"{matrix} is singular or ill-conditioned at t = {t:.6g} s "
+                         f"(pivot-ratio reciprocal condition {rcond:.3g})")

@@ -2,19 +2,16 @@
 
 Given values for the *independent* coordinates and speeds (the rest taken from the
 system's defaults), the dependent ones are solved from the constraints by Newton's
-method: first the holonomic ψ(q) = 0 for the dependent coordinates, then the velocity
-constraints [φ; ψ̇] = 0 for u_D.  A system may name a ``completion_variant`` (the
-Appell–Hamel mechanism uses its linear model, whose velocity constraints have one
-solution) — the state is then checked against the chosen variant's own constraints.
-A full state (every name given) is not changed, only checked.
+method with the compiled kernel's Jacobians: first the holonomic ψ(q) = 0 for the
+dependent coordinates, then the velocity constraints [φ; ψ̇] = 0 for u_D.  A system may
+name a ``completion_variant`` (the Appell–Hamel mechanism uses its linear model, whose
+velocity constraints have one solution) — the state is then checked against the chosen
+variant's own constraints.  A full state (every name given) is not changed, only checked.
 """
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
-import sympy as sp
 
 from .errors import ConvergenceError, InconsistentStateError, InputError
 from .system import System
@@ -25,72 +22,44 @@ __all__ = ["initial_state", "CHECK_TOL"]
 CHECK_TOL = 1e-8
 
 
-class _ConstraintFunctions:
-    def __init__(self, derivation):
-        md = derivation.model
-        self.model = md
-        x = list(md.q) + list(md.u)
-        args = [md.t, x, list(md.params)]
-        d = derivation
-        self.q_dep = list(md.q_dependent) if md.q_dependent else self._pick_q_dep(d)
-        self.q_dep_idx = [list(md.q).index(s) for s in self.q_dep]
-        self.u_dep_idx = [list(md.u).index(s) for s in md.u_dependent]
-        lam = lambda e: sp.lambdify(args, e, modules="numpy")  # noqa: E731
-        self.psi = lam(d.psi)
-        self.psi_q = lam(d.psi.jacobian(sp.Matrix(self.q_dep)) if d.m_h else sp.zeros(0, 0))
-        self.phi = lam(d.phi)
-        self.phi_u = lam(d.J2)
-        self.viol = lam(sp.Matrix(list(md.nonholonomic.values()) + list(md.holonomic.values())))
-        self.m_h, self.m = d.m_h, d.m
-
-    @staticmethod
-    def _pick_q_dep(d):
-        if not d.m_h:
-            return []
-        jac = d.psi.jacobian(d.q)
-        chosen = []
-        for i in range(d.m_h):  # first coordinate with a nonzero symbolic entry per row
-            for j, qj in enumerate(d.q):
-                if jac[i, j] != 0 and qj not in chosen:
-                    chosen.append(qj)
-                    break
-        return chosen
-
-
-@lru_cache(maxsize=None)
-def _functions(system_name: str, variant: str):
-    from .system import get_system
-
-    return _ConstraintFunctions(get_system(system_name).derivation(variant))
-
-
-def _newton(f, jac, z0, idx, x, label, tol=1e-13, maxit=60):
+def _newton(residual, x, idx, label, tol=1e-13, maxit=60):
+    """Solve residual(x)[0] = 0 for x[idx]; residual returns (r, dr/dx[idx])."""
     x = x.copy()
+    r = np.zeros(0)
     for _ in range(maxit):
-        r = np.atleast_1d(np.asarray(f(x), float)).ravel()
+        r, jac = residual(x)
         if np.all(np.abs(r) <= tol * (1.0 + np.abs(x[idx]).max(initial=0.0))):
             return x
-        Jm = np.atleast_2d(np.asarray(jac(x), float))
         try:
-            step = np.linalg.solve(Jm, r)
+            step = np.linalg.solve(jac, r)
         except np.linalg.LinAlgError:
             raise ConvergenceError(f"{label}: the constraint Jacobian is singular at the guess") from None
         x[idx] -= step
         if not np.all(np.isfinite(x)):
             break
     raise ConvergenceError(f"{label}: Newton did not converge in {maxit} iterations "
-                           f"(residual {np.abs(r).max():.3g})")
+                           f"(residual {np.abs(r).max(initial=0.0):.3g})")
 
 
-def _complete(fn: _ConstraintFunctions, x: np.ndarray, p: np.ndarray) -> np.ndarray:
-    n = fn.model.n
-    if fn.m_h:
-        x = _newton(lambda z: fn.psi(0.0, z, p), lambda z: fn.psi_q(0.0, z, p), None,
-                    fn.q_dep_idx, x, "holonomic constraints ψ(q) = 0")
-    if fn.m:
-        uidx = [n + i for i in fn.u_dep_idx]
-        x = _newton(lambda z: fn.phi(0.0, z, p), lambda z: fn.phi_u(0.0, z, p), None,
-                    uidx, x, "velocity constraints [φ; ψ̇] = 0")
+def complete_state(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Solve the dependent coordinates and speeds of ``x`` (model order) from the constraints."""
+    n = info.n
+    if info.holonomic:
+        qi = [info.q.index(s) for s in info.q_dependent]
+
+        def holo(z):
+            _, _, psi, psi_q, _ = module.state_terms(0.0, z, p)
+            return psi, psi_q[:, qi]
+
+        x = _newton(holo, x, qi, "holonomic constraints ψ(q) = 0")
+    if info.m:
+        ui = [n + info.u.index(s) for s in info.u if s not in info.u_independent]
+
+        def vel(z):
+            J, c, _, _, _ = module.state_terms(0.0, z, p)
+            return c, J[:, [i - n for i in ui]]
+
+        x = _newton(vel, x, ui, "velocity constraints [φ; ψ̇] = 0")
     return x
 
 
@@ -113,39 +82,49 @@ def initial_state(system: System, variant: str, params: dict[str, float],
     full.update(given)
     dependent = [k for k in names if k not in system.independent]
     given_dep = [k for k in dependent if k in given]
-    complete = not given_dep
     if given_dep and len(given) < len(names):
         missing = [k for k in names if k not in given]
         raise InputError(f"initial.{given_dep[0]}", given[given_dep[0]],
                          f"either independent values only ({', '.join(system.independent)}), "
                          f"the rest being completed, or a full state (missing: {', '.join(missing)})",
                          "dependent value given without a full state")
+    # the defaults are consistent; anything else given without dependent values is completed
+    complete = bool(given) and not given_dep
     comp_variant = system.completion_variant or variant
-    fn = _functions(system.name, comp_variant)
-    md_c = fn.model
-    xc = np.array([full[str(s)] for s in md_c.q + md_c.u], float)
     if complete:
+        module, info = system.kernel(comp_variant)
+        xc = np.array([full[s] for s in info.state_names], float)
         try:
-            xc = _complete(fn, xc, p)
+            xc = complete_state(module, info, xc, p)
         except ConvergenceError as e:
             raise InputError("initial", given, "values for which the constraints can be solved", str(e)) from None
-        for s, v in zip(md_c.q + md_c.u, xc):
-            full[str(s)] = float(v)
-    # check against the completion variant and against the chosen variant
-    for var in dict.fromkeys([comp_variant, variant]):
-        f = _functions(system.name, var)
-        md = f.model
-        if any(str(s) not in full for s in md.q + md.u):
+        for s, v in zip(info.state_names, xc):
+            full[s] = float(v)
+    # check against the chosen variant, and against the completion variant for states
+    # that were completed or given in full (it may exclude branches the variant admits)
+    checks = [variant] + ([comp_variant] if (complete or given_dep) else [])
+    failed = {}
+    for var in dict.fromkeys(checks):
+        module, info = system.kernel(var)
+        if any(s not in full for s in info.state_names):
             continue
-        xv = np.array([full[str(s)] for s in md.q + md.u], float)
-        r = np.atleast_1d(np.asarray(f.viol(0.0, xv, p), float)).ravel()
-        bad = {name: float(val) for name, val in zip(md.constraint_names, r) if abs(val) > CHECK_TOL}
+        xv = np.array([full[s] for s in info.state_names], float)
+        viol = module.state_terms(0.0, xv, p)[4][:info.m]
+        bad = {name: float(val) for name, val in zip(info.constraint_names, viol) if abs(val) > CHECK_TOL}
         if bad:
-            detail = ", ".join(f"{k} = {v:.3g}" for k, v in bad.items())
-            raise InconsistentStateError(
-                "initial", {k: full[k] for k in names},
-                f"a state satisfying the constraints of the {var} {system.option} within {CHECK_TOL:g}",
-                f"constraint residuals {detail}")
-    md = system.model(variant)
-    x0 = np.array([full[str(s)] for s in md.q + md.u], float)
+            failed[var] = ", ".join(f"{k} = {v:.3g}" for k, v in bad.items())
+    if failed:
+        if variant not in failed:
+            other = next(iter(failed))
+            reason = (f"the state satisfies the constraints of the {variant} {system.option} but not those "
+                      f"of the {other} {system.option} ({failed[other]}): it lies on a spurious branch of "
+                      f"the {variant} constraints that the mechanism excludes")
+        else:
+            reason = "constraint residuals " + "; ".join(f"{v} {system.option}: {d}" for v, d in failed.items())
+        raise InconsistentStateError(
+            "initial", {k: full[k] for k in names},
+            f"a state satisfying the constraints of the {' and '.join(dict.fromkeys(checks))} "
+            f"{system.option} within {CHECK_TOL:g}", reason)
+    info = system.info(variant)
+    x0 = np.array([full[s] for s in info.state_names], float)
     return x0, {k: float(full[k]) for k in names}

@@ -54,11 +54,12 @@ class ProjectionOptions:
     jacobian: str = "updated"       # updated | frozen
     energy: bool = False
 
-    def as_array(self) -> np.ndarray:
-        """The compiled loops' ``proj`` argument."""
+    def as_array(self, info) -> np.ndarray:
+        """The compiled loops' ``proj`` argument (with the model's dimensions)."""
         on = 0 if self.name == "none" else 1
         return np.array([on, 1 if self.weight == "mass" else 0, self.iterations,
-                         1 if self.jacobian == "updated" else 0, 1 if self.energy else 0], dtype=np.int64)
+                         1 if self.jacobian == "updated" else 0, 1 if self.energy else 0,
+                         info.n, info.m, len(info.nonholonomic), len(info.holonomic)], dtype=np.int64)
 
 
 PRESETS = {

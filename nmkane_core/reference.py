@@ -13,16 +13,8 @@ import scipy.linalg as sla
 import sympy as sp
 
 from .derivation import Derivation
+from .errors import SingularMatrix
 from .kernel_terms import kernel_terms
-
-
-class SingularMatrix(ArithmeticError):
-    """J2 or T is singular or ill-conditioned at a state (``matrix``, ``rcond``)."""
-
-    def __init__(self, matrix: str, rcond: float, t: float):
-        self.matrix, self.rcond, self.t = matrix, rcond, t
-        super().__init__(f"{matrix} is singular or ill-conditioned at t = {t:.6g} s "
-                         f"(pivot-ratio reciprocal condition {rcond:.3g})")
 
 
 def pivot_rcond(lu: np.ndarray) -> float:

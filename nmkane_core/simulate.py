@@ -23,7 +23,6 @@ from typing import Callable, Mapping
 
 import numpy as np
 
-from .codegen import compiled_kernel
 from .errors import InputError
 from .initial import initial_state
 from .integrators import ScipyMethod, Tableau, get_integrator
@@ -61,8 +60,8 @@ class Plan:
     warnings: list[str] = field(default_factory=list)
 
     @property
-    def model(self):
-        return self.system.model(self.variant)
+    def info(self):
+        return self.system.info(self.variant)
 
 
 def _check_float(name, value, lo, hi, lo_open=True, unit=""):
@@ -134,7 +133,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     rcond_min = _check_float("rcond_min", s.rcond_min, 0.0, 0.1, lo_open=False)
     params = system.resolve_params(s.params)
     p = np.array([params[k] for k in system.param_names])
-    md = system.model(variant)
+    md = system.info(variant)
     warnings: list[str] = []
     m_nh, m_h = len(md.nonholonomic), len(md.holonomic)
     G = _gain("gamma", s.gamma if s.gamma is not None else system.default_gamma, m_nh, warnings,
@@ -182,17 +181,9 @@ def _warn_unstable(G, G1, G2, warnings):
 
 
 # --------------------------------------------------------------------------- kernels
-_KERNEL_LOCK = threading.RLock()
-
-
 def kernel_for(system: System, variant: str):
-    """The compiled kernel module of a system's variant (generated and cached once)."""
-    cache = system.__dict__.setdefault("_kernels", {})
-    if variant not in cache:
-        with _KERNEL_LOCK:
-            if variant not in cache:
-                cache[variant] = compiled_kernel(system.derivation(variant))
-    return cache[variant]
+    """The compiled kernel module of a system's variant (loaded from cache or built once)."""
+    return system.kernel(variant)[0]
 
 
 # --------------------------------------------------------------------------- result
@@ -286,8 +277,8 @@ def simulate_many(settings_list, *, workers: int | None = None, progress: bool |
     is resolved (and so checked) before any starts.  Results keep the input order.
     """
     plans = [s if isinstance(s, Plan) else resolve(s) for s in settings_list]
-    for key in {(pl.system.name, pl.variant) for pl in plans}:
-        kernel_for(plans[0].system if plans[0].system.name == key[0] else get_system(key[0]), key[1])
+    for pl in plans:
+        kernel_for(pl.system, pl.variant)
     workers = workers or os.cpu_count() or 1
     if progress is None:
         progress = sys.stderr.isatty()
@@ -374,7 +365,7 @@ def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
         k_end = min(nsteps, k + chunk)
         status, k, row = mod.integrate_fixed(x, 0.0, dt, t_final, k, k_end, nsteps, every, plan.p,
                                              plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.c,
-                                             plan.rcond_min, plan.projection.as_array(),
+                                             plan.rcond_min, plan.projection.as_array(plan.info),
                                              out_t, out_x, out_E, out_V, row, stats)
         elapsed = time.perf_counter() - t_call
         chunk = int(min(max(chunk * min(4.0, 0.05 / max(elapsed, 1e-6)), 500), 5_000_000))
@@ -416,7 +407,7 @@ def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
         status, t, h, nrow, accepted, att = mod.integrate_adaptive(
             x, t, t_final, h, plan.rtol, plan.atol, hmin, t_final, budget, plan.every, accepted,
             plan.p, plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.E, tab.c, err_exp, plan.rcond_min,
-            plan.projection.as_array(), out_t, out_x, out_E, out_V, stats)
+            plan.projection.as_array(plan.info), out_t, out_x, out_E, out_V, stats)
         attempts += att
         ts.append(out_t[:nrow]); xs.append(out_x[:nrow]); Es.append(out_E[:nrow]); Vs.append(out_V[:nrow])
         bar.update(t)
@@ -446,7 +437,7 @@ def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
 def _run_scipy(plan: Plan, mod, bar, start, time_limit, cancel):
     import scipy.integrate as si
 
-    from .reference import SingularMatrix
+    from .errors import SingularMatrix
 
     w = mod.make_workspace()
     n2 = plan.x0.size
@@ -516,7 +507,7 @@ def _run_scipy(plan: Plan, mod, bar, start, time_limit, cancel):
 
 
 def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
-    md = plan.model
+    md = plan.info
     system = plan.system
     status_code, stop = raw["status"], raw.get("stop")
     t_end = raw["t_end"]
@@ -551,17 +542,16 @@ def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
                                           if stop != "max_steps" else
                                           f"the step budget ({LIMITS['max_steps']:,}) was used up at t = {t_end:.6g} s")
     x = raw["x"]
-    names_x = [str(s) for s in md.q + md.u]
-    state = {name: x[:, i].copy() for i, name in enumerate(names_x)}
+    state = {name: x[:, i].copy() for i, name in enumerate(md.state_names)}
     if mod.NO:
         O = np.empty((x.shape[0], mod.NO))
         mod.outputs_rows(raw["t"], x, plan.p, O)
         for i, name in enumerate(md.outputs):
             state[name] = O[:, i]
     state = {k: state[k] for k in system.state_names if k in state}
-    viol_names = plan.system.constraint_names(plan.variant)
+    viol_names = md.viol_names
     violation = {k: raw["V"][:, i].copy() for i, k in enumerate(viol_names)}
-    has_energy = md.energy is not None
+    has_energy = md.has_energy
     energy = raw["E"].copy() if has_energy else None
     summary = {
         "status": status, "message": message, "steps": int(raw["steps"]), "rhs_evals": int(raw["evals"]),

@@ -15,9 +15,15 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from typing import Callable, Mapping
 
-from .derivation import Derivation, derive
+import threading
+from typing import TYPE_CHECKING
+
 from .errors import InputError
-from .model import MechanicalModel
+
+if TYPE_CHECKING:  # sympy is imported only when a model is actually built
+    from .derivation import Derivation
+    from .info import ModelInfo
+    from .model import MechanicalModel
 
 __all__ = ["Parameter", "System", "register", "get_system", "system_names"]
 
@@ -73,8 +79,11 @@ class System:
     default_gamma1: float = 0.0
     default_gamma2: float = 0.0
     description: str = ""
+    source_files: tuple[str, ...] = ()           # files defining the variants (kernel cache key)
     _models: dict = field(default_factory=dict, repr=False)
     _derivations: dict = field(default_factory=dict, repr=False)
+    _kernels: dict = field(default_factory=dict, repr=False)
+    _lock: threading.RLock = field(default_factory=threading.RLock, repr=False)
 
     @property
     def state_names(self) -> tuple[str, ...]:
@@ -98,17 +107,41 @@ class System:
                              f"unknown {self.option} of {self.name}")
         return variant
 
-    def model(self, variant: str | None = None) -> MechanicalModel:
+    def model(self, variant: str | None = None) -> "MechanicalModel":
+        """The symbolic description of a variant (built once; needs sympy)."""
         variant = self.check_variant(variant)
-        if variant not in self._models:
-            self._models[variant] = self.variants[variant]()
-        return self._models[variant]
+        with self._lock:
+            if variant not in self._models:
+                self._models[variant] = self.variants[variant]()
+            return self._models[variant]
 
-    def derivation(self, variant: str | None = None) -> Derivation:
+    def derivation(self, variant: str | None = None) -> "Derivation":
+        """The paper's procedure applied to a variant (symbolic, once)."""
+        from .derivation import derive
+
         variant = self.check_variant(variant)
-        if variant not in self._derivations:
-            self._derivations[variant] = derive(self.model(variant))
-        return self._derivations[variant]
+        with self._lock:
+            if variant not in self._derivations:
+                self._derivations[variant] = derive(self.model(variant))
+            return self._derivations[variant]
+
+    def kernel(self, variant: str | None = None):
+        """(compiled kernel module, :class:`ModelInfo`) of a variant.
+
+        Loaded from the on-disk cache when the files that define the system are unchanged
+        (no sympy work at all), otherwise derived, generated, compiled and cached.
+        """
+        from .codegen import fingerprint, kernel
+
+        variant = self.check_variant(variant)
+        with self._lock:
+            if variant not in self._kernels:
+                fp = fingerprint(self.name, variant, self.source_files)
+                self._kernels[variant] = kernel(fp, lambda: self.derivation(variant))
+            return self._kernels[variant]
+
+    def info(self, variant: str | None = None) -> "ModelInfo":
+        return self.kernel(variant)[1]
 
     def resolve_params(self, given: Mapping[str, object] | None, field_path: str = "params") -> dict[str, float]:
         """Defaults filled in, every value checked against its range."""
@@ -122,8 +155,8 @@ class System:
                 for p in self.parameters}
 
     def constraint_names(self, variant: str | None = None) -> tuple[str, ...]:
-        md = self.model(variant)
-        return md.constraint_names + tuple(k for k in md.monitors if k not in md.constraint_names)
+        """Names of the reported violations: the constraints, then any monitors."""
+        return self.info(variant).viol_names
 
 
 _REGISTRY: dict[str, Callable[[], System]] = {}

@@ -13,10 +13,6 @@ mechanism: ``nonlinear`` (57)+(58)+(59) and ``linear`` (101)+(102)+(59).
 
 from __future__ import annotations
 
-import sympy as sp
-from sympy.physics import mechanics as me
-
-from ..model import MechanicalModel, plain_symbols
 from ..system import Parameter, System, register
 
 PARAMETERS = (
@@ -36,6 +32,9 @@ SPEEDS = ("u1", "u2", "u3", "u4", "u5")
 
 def _holonomic_equations():
     """Q, P of the unconstrained mechanism from bodies and loads (KanesMethod)."""
+    import sympy as sp
+    from sympy.physics import mechanics as me
+
     th, ph, x, y, z = me.dynamicsymbols("theta phi x y z")
     u = me.dynamicsymbols("u1:6")
     a, b, rho, m, M, I, g, z0 = sp.symbols("a b rho m M I g z0", real=True)
@@ -59,7 +58,12 @@ def _holonomic_equations():
     return dict(q=q, u=u, kd_eqs=kd, bodies=[wheel, load], loads=loads, frame=N, params=params)
 
 
-def _model(name: str) -> MechanicalModel:
+def _model(name: str):
+    import sympy as sp
+    from sympy.physics import mechanics as me
+
+    from ..model import MechanicalModel, plain_symbols
+
     th, ph, x, y, z = plain_symbols(COORDINATES)
     u1, u2, u3, u4, u5 = plain_symbols(SPEEDS)
     a, b, rho, m, M, I, g, z0 = sp.symbols("a b rho m M I g z0", real=True)
@@ -113,4 +117,5 @@ def appell_hamel() -> System:
         default_integrator="kutta-merson",
         description="Frame, wheel and hanging load; constraints modeled nonlinear (NC) or linear (LC) "
                     "in the speeds.",
+        source_files=(__file__,),
     )

@@ -10,10 +10,6 @@ outputs.
 
 from __future__ import annotations
 
-import sympy as sp
-from sympy.physics import mechanics as me
-
-from ..model import MechanicalModel, plain_symbols
 from ..system import Parameter, System, register
 
 PARAMETERS = (
@@ -23,7 +19,11 @@ PARAMETERS = (
 )
 
 
-def _nonminimal() -> MechanicalModel:
+def _nonminimal():
+    import sympy as sp
+
+    from ..model import MechanicalModel, plain_symbols
+
     x, y = plain_symbols("x y")
     u1, u2 = plain_symbols("u1 u2")
     l0, m, g = sp.symbols("l0 m g", real=True)
@@ -39,7 +39,12 @@ def _nonminimal() -> MechanicalModel:
         description="nonminimal equations (119)–(126)")
 
 
-def _minimal() -> MechanicalModel:
+def _minimal():
+    import sympy as sp
+    from sympy.physics import mechanics as me
+
+    from ..model import MechanicalModel
+
     x = me.dynamicsymbols("x")
     u1 = me.dynamicsymbols("u1")
     l0, m, g = sp.symbols("l0 m g", real=True)
@@ -78,4 +83,5 @@ def sliding_particle() -> System:
         default_t_final=20.0,
         default_integrator="kutta-merson",
         description="Holonomic constraint in acceleration form with Baumgarte stabilization (Γ1, Γ2).",
+        source_files=(__file__,),
     )
