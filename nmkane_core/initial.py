@@ -63,12 +63,26 @@ def complete_state(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
     return x
 
 
+def project_onto_manifold(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """The nearest consistent state (Euclidean metric): positions onto ψ = 0, then speeds onto
+    [φ; ψ̇] = 0 at the corrected positions (the kernel's post-step projection, iterated)."""
+    proj = np.array([1, 0, 20, 1, 0, info.n, info.m, len(info.nonholonomic), len(info.holonomic)],
+                    dtype=np.int64)
+    y, code = module.project_state(0.0, x, p, proj)
+    if code != 0 or not np.all(np.isfinite(y)):
+        raise ConvergenceError("the projection onto the constraint manifold met a singular matrix")
+    return y
+
+
 def initial_state(system: System, variant: str, params: dict[str, float],
-                  given: dict[str, float]) -> tuple[np.ndarray, dict[str, float]]:
+                  given: dict[str, float], project: bool = False,
+                  correction: dict | None = None) -> tuple[np.ndarray, dict[str, float]]:
     """The variant model's initial state vector and the full state (by name).
 
     Raises :class:`InputError` for unknown names, :class:`InconsistentStateError` when a
-    full state violates the constraints by more than :data:`CHECK_TOL`.
+    full state violates the constraints by more than :data:`CHECK_TOL` — unless
+    ``project`` is set: then the state is projected onto the constraint manifold of the
+    completion variant and the change is written into ``correction``.
     """
     names = system.state_names
     for k, v in given.items():
@@ -102,6 +116,17 @@ def initial_state(system: System, variant: str, params: dict[str, float],
             full[s] = float(v)
     # check against the chosen variant, and against the completion variant for states
     # that were completed or given in full (it may exclude branches the variant admits)
+    if project and given_dep:
+        module, info = system.kernel(comp_variant)
+        xc = np.array([full[s] for s in info.state_names], float)
+        try:
+            y = project_onto_manifold(module, info, xc, p)
+        except ConvergenceError as e:
+            raise InputError("initial", given, "a state that can be projected onto the constraints", str(e)) from None
+        for s, a, b in zip(info.state_names, xc, y):
+            full[s] = float(b)
+            if correction is not None and a != b:
+                correction[s] = float(b - a)
     checks = [variant] + ([comp_variant] if (complete or given_dep) else [])
     failed = {}
     for var in dict.fromkeys(checks):

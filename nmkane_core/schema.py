@@ -64,6 +64,13 @@ class RunSettings(BaseModel):
     atol: float = Field(1e-12, description="absolute tolerance (adaptive methods)")
     rcond_min: float = Field(1e-10, description="J2 or T with a pivot-ratio reciprocal condition "
                              "below this stops the run with status 'singular'")
+    switching: bool = Field(True, description="near a singular J2 or T, continue with an equivalent "
+                            "constraint model declared by the system and switch back afterwards")
+    rcond_switch: float = Field(1e-2, description="reciprocal-condition estimate of J2 or T at which the "
+                                "run switches to an equivalent model (when the system declares one)")
+    project_initial: bool = Field(False, description="move a full initial state that violates the "
+                                  "constraints onto the constraint manifold (the correction is reported) "
+                                  "instead of refusing it")
     params: dict[str, float] = Field(default_factory=dict, description="physical parameters")
     initial: dict[str, float] = Field(default_factory=dict, description="initial values: independent "
                                       "ones (the rest is completed) or a full consistent state")
@@ -91,6 +98,8 @@ class RunSummary(BaseModel):
     min_rcond: dict[str, float] = Field(default_factory=dict,
                                         description="smallest reciprocal condition estimate of J2 and T")
     warnings: list[str] = Field(default_factory=list)
+    initial_correction: dict[str, float] = Field(default_factory=dict,
+                                                 description="change made by project_initial, per state")
     switches: list[Switch] = Field(default_factory=list)
 
 

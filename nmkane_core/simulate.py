@@ -53,11 +53,14 @@ class Plan:
     rtol: float
     atol: float
     rcond_min: float
+    rcond_switch: float
+    switching: bool
     projection: "ProjectionOptions"
     x0: np.ndarray
     initial: dict[str, float]
     settings: dict
     warnings: list[str] = field(default_factory=list)
+    initial_correction: dict[str, float] = field(default_factory=dict)
 
     @property
     def info(self):
@@ -131,6 +134,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         raise InputError("rtol", s.rtol, "a number in [1e-14, 0.1]", "too small")
     atol = _check_float("atol", s.atol, 0.0, 1.0)
     rcond_min = _check_float("rcond_min", s.rcond_min, 0.0, 0.1, lo_open=False)
+    rcond_switch = _check_float("rcond_switch", s.rcond_switch, 0.0, 0.5, lo_open=False)
     params = system.resolve_params(s.params)
     p = np.array([params[k] for k in system.param_names])
     md = system.info(variant)
@@ -150,7 +154,12 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
                          "rk4, kutta-merson, kutta-merson-adaptive", "post-step projection needs a tableau integrator")
     if proj.name != "none" and md.m == 0:
         warnings.append(f"projection {proj.name} has nothing to do: the {variant} {system.option} has no constraints")
-    x0, full = initial_state(system, variant, params, dict(s.initial))
+    correction: dict[str, float] = {}
+    x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial,
+                             correction=correction)
+    if correction:
+        warnings.append("the initial state was projected onto the constraint manifold: "
+                        + ", ".join(f"{k} {v:+.3g}" for k, v in correction.items()))
     resolved = s.model_dump()
     resolved.update({system.option: variant, other: None, "integrator": integ.name, "dt": dt,
                      "t_final": t_final, "params": params, "initial": full,
@@ -160,8 +169,10 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     if proj.name != "none":
         resolved.update(projection_weight=proj.weight, projection_iterations=proj.iterations,
                         projection_jacobian=proj.jacobian, projection_energy=proj.energy)
-    return Plan(system, variant, integ, params, p, G, G1, G2, dt, t_final, s.every, rtol, atol,
-                rcond_min, proj, x0, full, resolved, warnings)
+    plan = Plan(system, variant, integ, params, p, G, G1, G2, dt, t_final, s.every, rtol, atol,
+                rcond_min, rcond_switch, s.switching, proj, x0, full, resolved, warnings)
+    plan.initial_correction = correction
+    return plan
 
 
 def _plain(v, default):
@@ -347,6 +358,82 @@ def _interrupted(start, time_limit, cancel):
     return None
 
 
+class _Switcher:
+    """Switching between equivalent constraint models near singular configurations.
+
+    A system may declare, for a variant, equivalent variants (the same motion on the
+    constraint manifold, e.g. the Appell–Hamel nonlinear and linear models).  When J2 or T
+    of the selected model gets a reciprocal-condition estimate at or below
+    ``rcond_switch``, the run continues with the first equivalent variant that is
+    well-conditioned there, and returns to the selected model once its estimate is above
+    ``SWITCH_BACK × rcond_switch`` again (hysteresis).  Without a cure, the run goes on with
+    the selected model until ``rcond_min`` and then stops as ``singular``.
+    """
+
+    SWITCH_BACK = 10.0
+    SWITCHED_CHUNK = 25          # steps per call while switched, to return promptly
+
+    def __init__(self, plan: Plan, home):
+        self.plan = plan
+        self.home = home
+        self.cur = home
+        self.cur_name = plan.variant
+        self.alts = list(plan.system.equivalents.get(plan.variant, ())) if plan.switching else []
+        self.no_cure = False
+        self.switches: list[dict] = []
+        self.segments: list[tuple[int, int]] = []   # output rows computed with another model
+        self.seg_start = 0
+
+    @property
+    def switched(self) -> bool:
+        return self.cur is not self.home
+
+    @property
+    def threshold(self) -> float:
+        if self.alts and not self.switched and not self.no_cure:
+            return max(self.plan.rcond_switch, self.plan.rcond_min)
+        return self.plan.rcond_min
+
+    def _rcond(self, mod, t, x):
+        _, rc0, rc1 = mod.rhs(t, x, self.plan.p, self.plan.G, self.plan.G1, self.plan.G2)
+        return min(rc0, rc1)
+
+    def leave(self, t, x, row) -> bool:
+        """The selected model is ill-conditioned at (t, x): switch if an equivalent one is not."""
+        if self.switched or not self.alts or self.no_cure:
+            return False
+        rc_home = self._rcond(self.home, t, x)
+        for v in self.alts:
+            mod = kernel_for(self.plan.system, v)
+            if self._rcond(mod, t, x) > self.plan.rcond_switch:
+                self.switches.append({"t": float(t), "from": self.plan.variant, "to": v, "rcond": float(rc_home)})
+                self.cur, self.cur_name, self.seg_start = mod, v, row
+                return True
+        self.no_cure = True
+        return False
+
+    def maybe_return(self, t, x, row) -> bool:
+        if not self.switched:
+            return False
+        rc_home = self._rcond(self.home, t, x)
+        if rc_home > self.SWITCH_BACK * self.plan.rcond_switch:
+            self.switches.append({"t": float(t), "from": self.cur_name, "to": self.plan.variant,
+                                  "rcond": float(rc_home)})
+            self.segments.append((self.seg_start, row))
+            self.cur, self.cur_name = self.home, self.plan.variant
+            return True
+        return False
+
+    def finish(self, row, t, x, E, V, stats):
+        """Report the selected model's constraint values on rows computed with another."""
+        if self.switched:
+            self.segments.append((self.seg_start, row))
+        for a, b in self.segments:
+            if b > a:
+                self.home.diagnostics_rows(t[a:b], x[a:b], self.plan.p, E[a:b], V[a:b])
+                stats[5:] = np.maximum(stats[5:], np.abs(V[a:b]).max(axis=0))
+
+
 def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
     tab = plan.integrator
     dt, t_final, every = plan.dt, plan.t_final, plan.every
@@ -360,18 +447,25 @@ def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
     x = plan.x0.copy()
     row, k, status, stop = 1, 0, 0, None
     chunk = 2000
+    sw = _Switcher(plan, mod)
+    proj = plan.projection.as_array(plan.info)
+    loop = "integrate_fixed"
     while k < nsteps:
         t_call = time.perf_counter()
-        k_end = min(nsteps, k + chunk)
-        status, k, row = mod.integrate_fixed(x, 0.0, dt, t_final, k, k_end, nsteps, every, plan.p,
-                                             plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.c,
-                                             plan.rcond_min, plan.projection.as_array(plan.info),
-                                             out_t, out_x, out_E, out_V, row, stats)
+        k_end = min(nsteps, k + (sw.SWITCHED_CHUNK if sw.switched else chunk))
+        status, k, row = getattr(sw.cur, loop)(x, 0.0, dt, t_final, k, k_end, nsteps, every, plan.p,
+                                               plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.c,
+                                               sw.threshold, proj, out_t, out_x, out_E, out_V, row, stats)
         elapsed = time.perf_counter() - t_call
-        chunk = int(min(max(chunk * min(4.0, 0.05 / max(elapsed, 1e-6)), 500), 5_000_000))
+        if not sw.switched:
+            chunk = int(min(max(chunk * min(4.0, 0.05 / max(elapsed, 1e-6)), 500), 5_000_000))
         bar.update(min(k * dt, t_final))
+        if status in (1, 2) and (sw.leave(k * dt, x, row) or sw.no_cure):
+            status = 0
+            continue
         if status != 0:
             break
+        sw.maybe_return(k * dt, x, row)
         stop = _interrupted(start, time_limit, cancel)
         if stop and k < nsteps:
             break
@@ -379,12 +473,12 @@ def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
     if row == 0 or out_t[row - 1] < t_last - 1e-12 * max(1.0, t_last):
         # keep the last good state even when thinning skipped it
         out_t[row], out_x[row] = t_last, x
-        E, V = np.empty(1), np.empty((1, mod.NV))
-        mod.diagnostics_rows(out_t[row:row + 1], out_x[row:row + 1], plan.p, E, V)
-        out_E[row], out_V[row] = E[0], V[0]
+        mod.diagnostics_rows(out_t[row:row + 1], out_x[row:row + 1], plan.p, out_E[row:row + 1],
+                             out_V[row:row + 1])
         row += 1
+    sw.finish(row, out_t, out_x, out_E, out_V, stats)
     return dict(status=status, stop=stop, t=out_t[:row], x=out_x[:row], E=out_E[:row], V=out_V[:row],
-                stats=stats, steps=k, evals=k * tab.stages, t_end=t_last)
+                stats=stats, steps=k, evals=k * tab.stages, t_end=t_last, switches=sw.switches)
 
 
 def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
@@ -400,17 +494,25 @@ def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
     cap = 4096
     hmin = 1e-13 * max(1.0, t_final)
     err_exp = 1.0 / (tab.error_order + 1)
+    sw = _Switcher(plan, mod)
+    proj = plan.projection.as_array(plan.info)
+    nrows = 1
     while t < t_final:
-        out_t, out_x = np.empty(cap), np.empty((cap, n2))
-        out_E, out_V = np.empty(cap), np.empty((cap, mod.NV))
-        budget = min(200_000, LIMITS["max_steps"] - attempts)
-        status, t, h, nrow, accepted, att = mod.integrate_adaptive(
+        size = sw.SWITCHED_CHUNK if sw.switched else cap
+        out_t, out_x = np.empty(size), np.empty((size, n2))
+        out_E, out_V = np.empty(size), np.empty((size, mod.NV))
+        budget = min(sw.SWITCHED_CHUNK if sw.switched else 200_000, LIMITS["max_steps"] - attempts)
+        status, t, h, nrow, accepted, att = sw.cur.integrate_adaptive(
             x, t, t_final, h, plan.rtol, plan.atol, hmin, t_final, budget, plan.every, accepted,
-            plan.p, plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.E, tab.c, err_exp, plan.rcond_min,
-            plan.projection.as_array(plan.info), out_t, out_x, out_E, out_V, stats)
+            plan.p, plan.G, plan.G1, plan.G2, tab.A, tab.b, tab.E, tab.c, err_exp, sw.threshold,
+            proj, out_t, out_x, out_E, out_V, stats)
         attempts += att
         ts.append(out_t[:nrow]); xs.append(out_x[:nrow]); Es.append(out_E[:nrow]); Vs.append(out_V[:nrow])
+        nrows += nrow
         bar.update(t)
+        if status in (1, 2) and (sw.leave(t, x, nrows) or sw.no_cure):
+            status = 0
+            continue
         if status == 5:
             status = 0
             if attempts >= LIMITS["max_steps"]:
@@ -419,19 +521,21 @@ def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
                 break
         if status != 0:
             break
+        sw.maybe_return(t, x, nrows)
         stop = _interrupted(start, time_limit, cancel)
         if stop and t < t_final:
             break
         stop = None
-    t_arr = np.concatenate(ts)
-    if t_arr[-1] < t - 1e-12 * max(1.0, t):
+    if np.concatenate(ts)[-1] < t - 1e-12 * max(1.0, t):
         ts.append(np.array([t])); xs.append(x[None, :].copy())
         E, V = np.empty(1), np.empty((1, mod.NV))
         mod.diagnostics_rows(ts[-1], xs[-1], plan.p, E, V)
         Es.append(E); Vs.append(V)
-    return dict(status=status, stop=stop, t=np.concatenate(ts), x=np.concatenate(xs),
-                E=np.concatenate(Es), V=np.concatenate(Vs), stats=stats, steps=accepted,
-                evals=attempts * tab.stages, t_end=t, attempts=attempts)
+        nrows += 1
+    t_arr, x_arr, E_arr, V_arr = (np.concatenate(a) for a in (ts, xs, Es, Vs))
+    sw.finish(nrows, t_arr, x_arr, E_arr, V_arr, stats)
+    return dict(status=status, stop=stop, t=t_arr, x=x_arr, E=E_arr, V=V_arr, stats=stats, steps=accepted,
+                evals=attempts * tab.stages, t_end=t, attempts=attempts, switches=sw.switches)
 
 
 def _run_scipy(plan: Plan, mod, bar, start, time_limit, cancel):
@@ -560,7 +664,8 @@ def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
         "max_abs_energy_drift": float(stats[1]) if has_energy else None,
         "final_energy_drift": float(energy[-1] - energy[0]) if has_energy else None,
         "min_rcond": {"J2": float(stats[3]), "T": float(stats[4])},
-        "warnings": list(plan.warnings), "switches": [],
+        "warnings": list(plan.warnings), "switches": raw.get("switches", []),
+        "initial_correction": dict(plan.initial_correction),
     }
     return Run(system=system.name, settings=plan.settings, t=raw["t"].copy(), state=state, energy=energy,
                violation=violation, summary=summary)

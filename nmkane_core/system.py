@@ -71,6 +71,7 @@ class System:
     speeds: tuple[str, ...]
     default_initial: Mapping[str, float]
     completion_variant: str | None = None         # variant used to complete/check initial states
+    equivalents: Mapping[str, tuple[str, ...]] = field(default_factory=dict)  # switching targets
     independent: tuple[str, ...] = ()             # names a user sets; the rest are completed
     default_dt: float = 0.01
     default_t_final: float = 20.0
