@@ -20,6 +20,7 @@ _FIELD_TO_OPTION = {"t_final": "--t-final", "dt": "--dt", "every": "--every", "g
                     "gamma1": "--gamma1", "gamma2": "--gamma2", "integrator": "--integrator",
                     "model": "--model", "formulation": "--formulation", "projection": "--projection",
                     "rtol": "--rtol", "atol": "--atol", "rcond_min": "--rcond-min", "out": "--out",
+                    "rcond_switch": "--rcond-switch",
                     "system": "SYSTEM", "initial": "--init"}
 
 
@@ -94,6 +95,12 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--atol", type=_finite, help="absolute tolerance (adaptive methods, default 1e-12)")
     run.add_argument("--rcond-min", type=_finite, dest="rcond_min",
                      help="stop as singular below this reciprocal condition of J2 or T (default 1e-10)")
+    run.add_argument("--no-switching", action="store_true",
+                     help="stop as singular instead of switching to an equivalent constraint model")
+    run.add_argument("--rcond-switch", type=_finite, dest="rcond_switch",
+                     help="reciprocal condition at which to switch models (default 1e-2)")
+    run.add_argument("--project-initial", action="store_true",
+                     help="project an inconsistent full initial state onto the constraints (reported)")
     run.add_argument("--set", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
                      help="a physical parameter, e.g. --set rho=4")
     run.add_argument("--init", type=_assignment, action="append", default=[], metavar="NAME=VALUE",
@@ -162,9 +169,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def _settings_from_args(args) -> dict:
     settings = {"system": args.system, "every": args.every, "projection": args.projection,
-                "params": dict(args.set), "initial": dict(args.init)}
+                "params": dict(args.set), "initial": dict(args.init),
+                "switching": not args.no_switching, "project_initial": args.project_initial}
     for key in ("model", "formulation", "gamma", "gamma1", "gamma2", "integrator", "dt", "t_final",
-                "rtol", "atol", "rcond_min"):
+                "rtol", "atol", "rcond_min", "rcond_switch"):
         v = getattr(args, key)
         if v is not None:
             settings[key] = v

@@ -65,8 +65,14 @@ def test_bad_input_exits_2_with_one_line_naming_the_option(argv, needle):
 
 
 def test_singular_run_exits_1_with_message(capsys):
-    assert main(["run", "appell-hamel", "--init", "u2=0", "--no-progress"]) == 1
+    assert main(["run", "appell-hamel", "--init", "u2=0", "--no-switching", "--no-progress"]) == 1
     assert "singular" in capsys.readouterr().out
+
+
+def test_wheel_not_rolling_start_switches_models_and_lists_the_switches(capsys):
+    assert main(["run", "appell-hamel", "--init", "u2=0", "--t-final", "3", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "switch   t = 0 s: nonlinear → linear" in out
 
 
 def test_matrices_command_prints_A1(capsys):
