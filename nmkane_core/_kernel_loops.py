@@ -126,6 +126,19 @@ def rhs_ws(t, x, p, G, G1, G2, K, row, w):
                 for k in range(MH):
                     s += G1[ih, k] * w[OPSID + k] + G2[ih, k] * w[OPSI + k]
             w[OR + i * (PI + 1) + PI] = -w[OB + i] + s
+        if SCALE_ROWS:
+            # rows of degree k > 1 in u scaled by 1/max(1, |u|∞)^(k−1): same solution, and a
+            # condition estimate that sees a degenerating gradient rather than large speeds
+            un = 1.0
+            for j in range(N):
+                un = max(un, abs(x[N + j]))
+            for i in range(M):
+                if ROWDEG[i] > 1:
+                    sc = 1.0 / un ** (ROWDEG[i] - 1)
+                    for j in range(N):
+                        w[OJ + i * N + j] *= sc
+                    for j in range(PI + 1):
+                        w[OR + i * (PI + 1) + j] *= sc
         # J2 X = R  ->  X = [A | B̂]   (20), (108), (113)
         w[ORC] = lu_solve_flat(w, OJ + PI, N, OR, PI + 1, M, PI + 1)
         if w[ORC] == 0.0:

@@ -120,6 +120,8 @@ def generate_source(derivation) -> str:
     ]
     head += [f"{k} = {v}" for k, v in d.items()]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")
+    head.append(f"ROWDEG = np.array({(kt.row_degree or [1])!r}, dtype=np.int64)  # degree in u of each row of J")
+    head.append(f"SCALE_ROWS = {any(k > 1 for k in kt.row_degree)}")
     # offsets into the flat work array (see make_workspace in the generic part)
     sizes = [("OJ", M * N), ("OB", M), ("OPHIN", d["MNH"]), ("OPSID", d["MH"]), ("OPSI", d["MH"]),
              ("OQ", N * N), ("OP", N), ("OQD", N), ("OR", M * (d["PI"] + 1)),

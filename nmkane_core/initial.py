@@ -102,8 +102,10 @@ def initial_state(system: System, variant: str, params: dict[str, float],
                          f"either independent values only ({', '.join(system.independent)}), "
                          f"the rest being completed, or a full state (missing: {', '.join(missing)})",
                          "dependent value given without a full state")
-    # the defaults are consistent; anything else given without dependent values is completed
-    complete = bool(given) and not given_dep
+    # the default state is consistent for the default parameters; anything else given
+    # without dependent values is completed
+    defaults = all(params[q.name] == q.default for q in system.parameters)
+    complete = not given_dep and (bool(given) or not defaults)
     comp_variant = system.completion_variant or variant
     if complete:
         module, info = system.kernel(comp_variant)

@@ -43,6 +43,7 @@ class KernelTerms:
     outputs: sp.Matrix
     output_names: tuple
     perm: list
+    row_degree: list      # degree in u of each velocity-level constraint (condition scaling)
 
     @property
     def dims(self) -> dict:
@@ -67,4 +68,21 @@ def kernel_terms(d: Derivation) -> KernelTerms:
         energy=energy, viol=sp.Matrix(viol_exprs) if viol_exprs else sp.zeros(0, 1),
         viol_names=tuple(viol_names),
         outputs=sp.Matrix(list(md.outputs.values())) if md.outputs else sp.zeros(0, 1),
-        output_names=tuple(md.outputs), perm=list(d.perm))
+        output_names=tuple(md.outputs), perm=list(d.perm), row_degree=row_degrees(d))
+
+
+def row_degrees(d: Derivation) -> list:
+    """Polynomial degree in u of each row of φ = [φ_nh; ψ̇] (1 when not polynomial).
+
+    A row of J = ∂φ/∂u of degree k grows like |u|^(k−1): the kernels divide it by
+    max(1, |u|∞)^(k−1) before estimating J2's condition, so that a constraint quadratic in
+    the speeds (the Appell–Hamel (57)) is flagged where its gradient degenerates (φ̇ → 0,
+    cancellation) and not merely because the speeds are large.
+    """
+    out = []
+    for e in d.phi:
+        try:
+            out.append(max(1, sp.Poly(sp.expand(e), *d.u).total_degree()))
+        except (sp.PolificationFailed, sp.GeneratorsNeeded):
+            out.append(1)
+    return out

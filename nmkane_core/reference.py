@@ -64,13 +64,16 @@ class ReferenceKernel:
             s = np.concatenate([G @ self._vec(self._phin(t, x, p), MNH),
                                 G1 @ self._vec(self._psid(t, x, p), MH) + G2 @ self._vec(self._psi(t, x, p), MH)])
             J1, J2 = J[:, :PI], J[:, PI:]
-            lu = sla.lu_factor(J2, check_finite=False) if np.all(np.isfinite(J2)) else None
+            # the compiled kernel's row scaling for the condition estimate (kernel_terms.row_degrees)
+            unorm = max(1.0, np.abs(np.asarray(x)[N:]).max(initial=0.0))
+            sc = unorm ** -(np.array(self.terms.row_degree, float) - 1.0)
+            lu = sla.lu_factor(sc[:, None] * J2, check_finite=False) if np.all(np.isfinite(J2)) else None
             rc_j2 = pivot_rcond(lu[0]) if lu is not None else 0.0
             out.update(J1=J1, J2=J2, b=b, s=s, rcond_J2=rc_j2)
             if rc_j2 == 0.0:
                 return out
-            A = -sla.lu_solve(lu, J1)                             # (20)
-            B_hat = sla.lu_solve(lu, -b + s)                      # (20), (108), (113)
+            A = -sla.lu_solve(lu, sc[:, None] * J1)               # (20)
+            B_hat = sla.lu_solve(lu, sc * (-b + s))               # (20), (108), (113)
             A1 = np.hstack([-A, np.eye(M)])                       # (22)
             A2 = np.hstack([np.eye(PI), A.T])                     # (40)
             T = np.vstack([A1, A2 @ Q])                           # (44)

@@ -3,7 +3,6 @@ speeds and integrators never give status 'ok' with non-finite numbers, always gi
 status and a message, and never run past the time limit."""
 
 import math
-import time
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
@@ -49,15 +48,13 @@ def test_sliding_particle_runs_never_report_ok_with_nonfinite_values(formulation
 
 
 def _check(settings_):
-    t0 = time.perf_counter()
     try:
         run = simulate(settings_, progress=False, time_limit=2.0)
     except InputError as e:                       # refused up front, with a field and a reason
         assert e.field and "allowed" in str(e)
         return
-    wall = time.perf_counter() - t0
-    assert wall < 15.0                             # the time limit is honoured (plus set-up)
     s = run.summary
+    assert s["wall_time_s"] < 4.0                  # the time limit is honoured (kernel loading excluded)
     assert s["status"] in ("ok", "singular", "diverged", "timeout", "failed") and s["message"]
     arrays = [run.t, *run.state.values(), *run.violation.values()]
     if run.energy is not None:
