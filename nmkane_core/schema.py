@@ -56,17 +56,17 @@ class RunSettings(BaseModel):
         None, description="override: rescale the speeds to restore the initial energy after the correction")
     integrator: Optional[str] = Field(None, description="rk4 | kutta-merson | kutta-merson-adaptive | "
                                       "rk45 | dop853 | radau", max_length=64)
-    dt: Optional[float] = Field(None, description="step size (fixed-step methods) or initial step and "
+    dt: Optional[float] = Field(None, gt=0, le=LIMITS["max_dt"], description="step size (fixed-step methods) or initial step and "
                                 "maximum output spacing hint (adaptive), s")
-    t_final: Optional[float] = Field(None, description="final time, s")
-    every: int = Field(1, description="keep every k-th step in the output (maxima use every step)")
-    rtol: float = Field(1e-10, description="relative tolerance (adaptive methods)")
-    atol: float = Field(1e-12, description="absolute tolerance (adaptive methods)")
-    rcond_min: float = Field(1e-10, description="J2 or T with a pivot-ratio reciprocal condition "
+    t_final: Optional[float] = Field(None, gt=0, le=LIMITS["max_t_final"], description="final time, s")
+    every: int = Field(1, ge=1, le=LIMITS["max_steps"], description="keep every k-th step in the output (maxima use every step)")
+    rtol: float = Field(1e-10, ge=1e-14, le=0.1, description="relative tolerance (adaptive methods)")
+    atol: float = Field(1e-12, gt=0, le=1.0, description="absolute tolerance (adaptive methods)")
+    rcond_min: float = Field(1e-10, ge=0, le=0.1, description="J2 or T with a pivot-ratio reciprocal condition "
                              "below this stops the run with status 'singular'")
     switching: bool = Field(True, description="near a singular J2 or T, continue with an equivalent "
                             "constraint model declared by the system and switch back afterwards")
-    rcond_switch: float = Field(1e-2, description="reciprocal-condition estimate of J2 or T at which the "
+    rcond_switch: float = Field(1e-2, ge=0, le=0.5, description="reciprocal-condition estimate of J2 or T at which the "
                                 "run switches to an equivalent model (when the system declares one)")
     project_initial: bool = Field(False, description="move a full initial state that violates the "
                                   "constraints onto the constraint manifold (the correction is reported) "
