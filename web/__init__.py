@@ -1,0 +1,1 @@
+"""nmkane web app: the Appell–Hamel mechanism and the sliding particle in viser."""
