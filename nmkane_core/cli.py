@@ -180,16 +180,9 @@ def _settings_from_args(args) -> dict:
 
 
 def _validated(settings: dict):
-    from pydantic import ValidationError
+    from .simulate import validate_settings
 
-    from .schema import RunSettings
-
-    try:
-        return RunSettings.model_validate(settings)
-    except ValidationError as e:
-        err = e.errors()[0]
-        field = ".".join(str(p) for p in err["loc"])
-        raise InputError(field, err.get("input"), err["msg"]) from None
+    return validate_settings(settings)
 
 
 def _cmd_run(args) -> int:

@@ -67,6 +67,18 @@ class Plan:
         return self.system.info(self.variant)
 
 
+def validate_settings(settings: Mapping) -> RunSettings:
+    """The schema's checks (types, finite numbers, ranges) with errors as :class:`InputError`."""
+    from pydantic import ValidationError
+
+    try:
+        return RunSettings.model_validate(dict(settings))
+    except ValidationError as e:
+        err = e.errors()[0]
+        field = ".".join(str(p) for p in err["loc"]) or "settings"
+        raise InputError(field, err.get("input"), err["msg"].replace("Input should be", "a value")) from None
+
+
 def _check_float(name, value, lo, hi, lo_open=True, unit=""):
     v = float(value)
     ok = (v > lo if lo_open else v >= lo) and v <= hi and math.isfinite(v)
@@ -101,7 +113,7 @@ def _gain(name: str, value, size: int, warnings: list[str], what: str) -> np.nda
 def resolve(settings: RunSettings | Mapping) -> Plan:
     """Check settings against the system and fill in defaults."""
     if not isinstance(settings, RunSettings):
-        settings = RunSettings.model_validate(dict(settings))
+        settings = validate_settings(settings)
     s = settings
     system = get_system(s.system)
     other = "formulation" if system.option == "model" else "model"
