@@ -132,9 +132,12 @@ def rhs_ws(t, x, p, G, G1, G2, K, row, w):
             un = 1.0
             for j in range(N):
                 un = max(un, abs(x[N + j]))
+            inv = 1.0 / un
             for i in range(M):
                 if ROWDEG[i] > 1:
-                    sc = 1.0 / un ** (ROWDEG[i] - 1)
+                    sc = inv
+                    for _ in range(ROWDEG[i] - 2):
+                        sc *= inv
                     for j in range(N):
                         w[OJ + i * N + j] *= sc
                     for j in range(PI + 1):
