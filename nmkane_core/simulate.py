@@ -663,7 +663,7 @@ def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
         O = np.empty((x.shape[0], mod.NO))
         mod.outputs_rows(raw["t"], x, plan.p, O)
         for i, name in enumerate(md.outputs):
-            state[name] = O[:, i]
+            state[name] = O[:, i].copy()          # contiguous, like every other array
     state = {k: state[k] for k in system.state_names if k in state}
     viol_names = md.viol_names
     violation = {k: raw["V"][:, i].copy() for i, k in enumerate(viol_names)}

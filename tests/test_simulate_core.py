@@ -126,6 +126,17 @@ def test_document_has_contract_keys_and_round_trips():
     assert again.state["phi"][-1] == run.state["phi"][-1]
 
 
+@pytest.mark.parametrize("settings", [{"system": "sliding-particle", "formulation": "minimal"},
+                                      {"system": "sliding-particle"}, {"system": "appell-hamel"},
+                                      {"system": "appell-hamel", "integrator": "dop853"}])
+def test_result_arrays_are_contiguous_float64(settings):
+    """Found by the soak test: an output column of the minimal formulation was a strided view,
+    which fast JSON encoders refuse."""
+    run = simulate({**settings, "t_final": 1})
+    for arr in [run.t, run.energy, *run.state.values(), *run.violation.values()]:
+        assert arr.dtype == np.float64 and arr.flags["C_CONTIGUOUS"]
+
+
 def test_minimal_formulation_reports_y_u2_and_satisfies_the_surface():
     run = simulate({"system": "sliding-particle", "formulation": "minimal", "dt": 0.01, "t_final": 10})
     assert set(run.state) == {"x", "y", "u1", "u2"}
