@@ -1,138 +1,95 @@
-"""The REST face of nmkane (FastAPI).
+"""The REST face of nmkane (FastAPI); OpenAPI docs at ``/docs``.
 
     GET  /api/health              liveness, stored runs, runs in flight
     GET  /api/systems             systems, parameters, models, constraints, integrators, limits
     POST /api/runs                body = run settings (JSON) -> 201 + run result document
-    GET  /api/runs                recent runs (summaries), ?limit=&offset=
+    GET  /api/runs                recent runs (summaries), ?limit=&offset=&system=&status=
     GET  /api/runs/{id}           a stored run document
-    GET  /api/runs/{id}.csv       the same as CSV
+    GET  /api/runs/{id}.csv       the same as CSV (the CLI's CSV)
 
-Simulations are CPU work: they run in a bounded worker pool, never on the event loop;
-past ``queue_limit`` admitted runs the service answers 503 with ``Retry-After``.  Run
-documents are serialized once with orjson straight from numpy and stored compressed.
+Route functions are thin: the work is in :class:`backend.service.RunService` (worker
+pool, admission, limits, encoding) and :class:`backend.store.RunStore` (SQLite).  Run
+documents are encoded once, when the run finishes, and served as stored bytes; the
+OpenAPI schema still documents them as the core's ``RunResult``.
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import csv
-import io
-import math
-import secrets
-import threading
-from concurrent.futures import ThreadPoolExecutor
+import datetime as dt
+import logging
+from functools import lru_cache
+from importlib import metadata
+from typing import Optional, get_args
 
 import numpy as np
 import orjson
-from fastapi import Depends, FastAPI, Query, Request
-from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse, PlainTextResponse, Response
+from fastapi import Depends, FastAPI, Path, Query
+from fastapi.responses import JSONResponse, RedirectResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from nmkane_core.errors import InputError
 from nmkane_core.schema import RunResult, RunSettings
-from nmkane_core.simulate import catalog, resolve, simulate
-from nmkane_core.system import get_system, system_names
+from nmkane_core.simulate import Run, catalog
 
-from .config import Settings
-from .store import RunStore
+from .config import LIMIT_DESCRIPTIONS, Settings
+from .errors import ErrorResponse, error_response, install_error_handlers, item
+from .models import STATUSES, Catalog, Health, RunList
+from .service import RunService
 
 __all__ = ["create_app"]
 
-ERROR_RESPONSES = {
-    400: {"description": "the body is not parseable JSON"},
-    422: {"description": "invalid settings: the field path, the value given and what is allowed"},
-    413: {"description": "request body too large"},
-    503: {"description": "too many runs in progress; retry after the Retry-After seconds"},
+log = logging.getLogger("nmkane.backend")
+
+try:
+    VERSION = metadata.version("nmkane")
+except metadata.PackageNotFoundError:       # running from a source tree without install
+    VERSION = "0.1.0"
+
+RUN_ID = Path(description="the run's id, as returned by POST /api/runs", min_length=1, max_length=64)
+
+_ERR = {"model": ErrorResponse}
+POST_RESPONSES = {
+    201: {"description": "the run result document (also for runs that ended singular, diverged or timeout)",
+          "links": {"GetRun": {"operationId": "get_run", "parameters": {"run_id": "$response.body#/id"},
+                               "description": "the stored run"},
+                    "GetRunCsv": {"operationId": "get_run_csv", "parameters": {"run_id": "$response.body#/id"},
+                                  "description": "the stored run as CSV"}}},
+    413: {**_ERR, "description": "request body larger than max_request_bytes"},
+    422: {**_ERR, "description": "invalid settings: field path, value, reason and what is allowed"},
+    503: {**_ERR, "description": "queue_limit runs already admitted; retry after Retry-After seconds",
+          "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}}},
 }
+NOT_FOUND = {404: {**_ERR, "description": "no run with this id"},
+             422: {**_ERR, "description": "malformed id"}}
+_ERR_JSON = {"content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorResponse"}}}}
+NOT_FOUND_CSV = {404: {**_ERR_JSON, "description": "no run with this id"},
+                 422: {**_ERR_JSON, "description": "malformed id"}}
 
 
-def _plain(value):
-    """A JSON-safe copy of an offending input value (non-finite numbers as strings)."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return repr(value)
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if value is None or isinstance(value, (str, int, float, bool)):
-        return value
-    return repr(value)
+class JSONBytes(JSONResponse):
+    """JSON already encoded (orjson); documented by the route's ``response_model``."""
+
+    def render(self, content) -> bytes:
+        return content
 
 
-def _error(status: int, detail, headers=None) -> JSONResponse:
-    return JSONResponse(status_code=status, content={"detail": detail}, headers=headers)
+class CSVResponse(Response):
+    media_type = "text/csv"
 
 
-class _Service:
-    """Worker pool, admission control and the run store of one app."""
-
-    def __init__(self, settings: Settings):
-        self.settings = settings
-        self._lock = threading.Lock()
-        self.admitted = 0
-        self.store = None
-        self.pool = None
-        self.open()
-
-    def open(self) -> None:
-        """(Re)open the store and the pool: an app can go through several lifespans."""
-        with self._lock:
-            if self.store is None:
-                self.store = RunStore(self.settings.database)
-            if self.pool is None:
-                self.pool = ThreadPoolExecutor(max_workers=self.settings.max_concurrent_runs,
-                                               thread_name_prefix="run")
-
-    def admit(self) -> bool:
-        self.open()
-        with self._lock:
-            if self.admitted >= self.settings.queue_limit:
-                return False
-            self.admitted += 1
-            return True
-
-    def release(self) -> None:
-        with self._lock:
-            self.admitted -= 1
-
-    def check_limits(self, plan) -> None:
-        s = self.settings
-        if not plan.integrator.adaptive:
-            steps = math.ceil(plan.t_final / plan.dt - 1e-9)
-            if steps > s.max_steps:
-                raise InputError("dt", plan.dt, f"t_final/dt ≤ {s.max_steps:,} steps on this service "
-                                 f"(dt ≥ {plan.t_final / s.max_steps:.3g} s for t_final = {plan.t_final:g} s)",
-                                 f"{steps:,} steps")
-            rows = steps // plan.every + 2
-            if rows > s.max_rows:
-                raise InputError("every", plan.every, f"an integer ≥ {math.ceil(steps / s.max_rows)} "
-                                 f"(at most {s.max_rows:,} output rows on this service)", f"{rows:,} rows")
-
-    def execute(self, settings: RunSettings) -> tuple[str, bytes]:
-        plan = resolve(settings)
-        self.check_limits(plan)
-        run = simulate(plan, progress=False, time_limit=self.settings.max_wall_time_s)
-        run_id = secrets.token_urlsafe(16)
-        doc = {"id": run_id, "system": run.system, "settings": run.settings, "t": run.t, "state": run.state,
-               "energy": run.energy, "violation": run.violation, "summary": run.summary}
-        body = orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)
-        self.store.add(run_id, run.system, run.status, run.settings, run.summary, body)
-        return run_id, body
-
-    def close(self) -> None:
-        """Finish the runs in flight (each is stored before its 201), then release."""
-        with self._lock:
-            pool, store, self.pool, self.store = self.pool, self.store, None, None
-        if pool is not None:
-            pool.shutdown(wait=True)
-        if store is not None:
-            store.close()
+class _BodyTooLarge(StarletteHTTPException):
+    def __init__(self):
+        super().__init__(status_code=413, detail="request body too large")
 
 
-class _BodyLimit:
-    """Pure ASGI middleware: refuse bodies over ``limit`` bytes with 413, streamed or not."""
+class _BodySizeLimit:
+    """Pure ASGI: refuse request bodies over ``limit`` bytes with 413 (in the one error shape).
+
+    A declared Content-Length over the limit is refused before anything is read; a body
+    without one (chunked) is counted as it is read, and reading stops past the limit.
+    (FastAPI's own ``max_body_size`` answers such requests in plain text.)
+    """
 
     def __init__(self, app, limit: int):
         self.app, self.limit = app, limit
@@ -140,156 +97,153 @@ class _BodyLimit:
     async def __call__(self, scope, receive, send):
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
-        headers = dict(scope.get("headers") or [])
-        length = headers.get(b"content-length")
-        too_big = JSONResponse(status_code=413, content={"detail": [{
-            "loc": ["body"], "msg": f"request body larger than {self.limit} bytes", "type": "too_large"}]})
-        if length is not None:
-            try:
-                if int(length) > self.limit:
-                    return await too_big(scope, receive, send)
-            except ValueError:
-                return await _error(400, "bad Content-Length")(scope, receive, send)
+        for name, value in scope.get("headers") or ():
+            if name == b"content-length" and value.isdigit() and int(value) > self.limit:
+                response = error_response(413, [_too_large(int(value), self.limit)])
+                return await response(scope, receive, send)
         seen = 0
 
-        async def limited():
+        async def counted():
             nonlocal seen
             message = await receive()
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > self.limit:
-                    raise _TooLarge()
+                    raise _BodyTooLarge()         # FastAPI passes HTTPExceptions to the handlers
             return message
 
-        try:
-            await self.app(scope, limited, send)
-        except _TooLarge:
-            await too_big(scope, receive, send)
+        return await self.app(scope, counted, send)
 
 
-class _TooLarge(Exception):
-    pass
+def _too_large(size, limit: int) -> dict:
+    return item(["body"], "too_large", size, "request body too large", f"at most {limit:,} bytes")
+
+
+@lru_cache(maxsize=1)
+def _catalog() -> dict:
+    data = catalog()
+    # the core's catalog lists only "none"; the schema's choices are the full list
+    data["projections"] = list(get_args(RunSettings.model_fields["projection"].annotation))
+    return data
+
+
+def _iso(ts: float) -> str:
+    return dt.datetime.fromtimestamp(ts, dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+
+
+def _csv(doc: bytes) -> str:
+    """The CLI's CSV (``Run.to_csv``) of a stored document."""
+    d = orjson.loads(doc)
+    arr = lambda v: np.asarray(v, dtype=float)  # noqa: E731
+    run = Run(system=d["system"], settings=d["settings"], t=arr(d["t"]),
+              state={k: arr(v) for k, v in d["state"].items()},
+              energy=None if d["energy"] is None else arr(d["energy"]),
+              violation={k: arr(v) for k, v in d["violation"].items()}, summary=d["summary"])
+    return run.to_csv()
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     """The FastAPI app (one per settings; tests build one against a temporary database)."""
-    settings = settings or Settings()
-
-    svc = _Service(settings)
+    settings = settings if settings is not None else Settings()
+    svc = RunService(settings)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI):
-        if settings.warm_kernels:       # load (or compile once) the kernels before serving
-            await asyncio.get_running_loop().run_in_executor(svc.pool, _warm)
-        svc.open()
+        svc.start()
+        if settings.warm_kernels:
+            await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm)
         try:
             yield
         finally:
-            svc.close()
+            await asyncio.get_running_loop().run_in_executor(None, svc.stop)
 
-    app = FastAPI(title="nmkane", version="0.1.0", lifespan=lifespan,
-                  description="Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005): run simulations "
-                              "of the Appell–Hamel mechanism and the sliding particle, and fetch them by id.")
-    app.state.svc = svc
+    app = FastAPI(
+        title="nmkane", version=VERSION, lifespan=lifespan,
+        description="Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005) as a service: run "
+                    "simulations of the Appell–Hamel mechanism and the sliding particle, and fetch "
+                    "them later by id. Limits are listed in GET /api/systems under `service_limits`. "
+                    "Every error answers `{\"detail\": [{loc, field, value, reason, allowed, msg, type}]}`.")
+    app.state.settings = settings
+    app.state.service = svc
     if settings.cors_origins:
         from fastapi.middleware.cors import CORSMiddleware
 
         app.add_middleware(CORSMiddleware, allow_origins=list(settings.cors_origins),
-                           allow_methods=["GET", "POST"], allow_headers=["content-type"])
-    app.add_middleware(_BodyLimit, limit=settings.max_request_bytes)
+                           allow_methods=["GET", "POST"], allow_headers=["content-type"],
+                           expose_headers=["location", "retry-after"])
+    install_error_handlers(app)
+    app.add_middleware(_BodySizeLimit, limit=settings.max_request_bytes)
 
-    def service(request: Request) -> _Service:
-        return request.app.state.svc
+    async def service() -> RunService:
+        if svc.pool is None:          # an app used without its lifespan (a bare TestClient)
+            svc.start()
+        return svc
 
-    @app.exception_handler(RequestValidationError)
-    async def _validation(request: Request, exc: RequestValidationError):
-        detail = [{"loc": list(e.get("loc", ())), "msg": e.get("msg", ""), "type": e.get("type", ""),
-                   "input": _plain(e.get("input"))} for e in exc.errors()]
-        return _error(422, detail)
+    @app.get("/", include_in_schema=False)
+    def root():
+        return RedirectResponse("/docs")
 
-    @app.exception_handler(StarletteHTTPException)
-    async def _http_error(request: Request, exc: StarletteHTTPException):
-        headers = dict(exc.headers or {})
-        if exc.status_code == 405:      # list every method of every route on this path
-            methods = set()
-            for route in app.routes:
-                match = getattr(route, "path_regex", None)
-                if match is not None and match.match(request.url.path) and getattr(route, "methods", None):
-                    methods |= set(route.methods)
-            headers["Allow"] = ", ".join(sorted(methods))
-        return _error(exc.status_code, exc.detail, headers=headers)
+    @app.get("/api/health", response_model=Health, operation_id="health")
+    def health(svc: RunService = Depends(service)):
+        return Health(status="ok", version=VERSION, runs_stored=svc.store.count(), runs_in_flight=svc.admitted,
+                      runs_running=svc.running, queue_limit=settings.queue_limit)
 
-    @app.exception_handler(InputError)
-    async def _input_error(request: Request, exc: InputError):
-        loc = ["body", *exc.field.split(".")]
-        return _error(422, [{"loc": loc, "msg": str(exc), "type": "value_error", "input": _plain(exc.value),
-                             "allowed": exc.allowed, "reason": exc.reason}])
+    @app.get("/api/systems", response_model=Catalog, operation_id="systems")
+    def systems():
+        """Systems, parameters (defaults, ranges, units), models or formulations, constraint names,
+        integrators, projections, and the limits of the library and of this service."""
+        return {**_catalog(), "service_limits": settings.limits(),
+                "service_limit_descriptions": dict(LIMIT_DESCRIPTIONS)}
 
-    @app.get("/api/health")
-    def health(svc: _Service = Depends(service)):
-        svc.open()
-        return {"status": "ok", "runs_stored": svc.store.count(), "runs_in_flight": svc.admitted}
-
-    @app.get("/api/systems")
-    def systems(svc: _Service = Depends(service)):
-        data = catalog()
-        data["service_limits"] = svc.settings.limits()
-        return data
-
-    @app.post("/api/runs", status_code=201, response_model=RunResult, responses=ERROR_RESPONSES)
-    async def create_run(body: RunSettings, svc: _Service = Depends(service)):
+    @app.post("/api/runs", status_code=201, response_model=RunResult, response_class=JSONBytes,
+              responses=POST_RESPONSES, operation_id="create_run")
+    async def create_run(body: RunSettings, svc: RunService = Depends(service)):
+        """Run a simulation and store it; answers 201 with the run result document and its
+        `Location`. Omitted fields take the system's defaults."""
         if not svc.admit():
-            return _error(503, f"{svc.settings.queue_limit} runs already admitted; retry shortly",
-                          headers={"Retry-After": "1"})
+            wait = svc.retry_after()
+            return error_response(503, [item([], "overloaded", None, f"{settings.queue_limit} runs already "
+                                             "admitted", f"retry after {wait} s")],
+                                  headers={"Retry-After": str(wait)})
         try:
-            run_id, doc = await asyncio.get_running_loop().run_in_executor(svc.pool, svc.execute, body)
+            run_id, doc = await svc.run(body)
         finally:
             svc.release()
-        return Response(doc, status_code=201, media_type="application/json",
-                        headers={"Location": f"/api/runs/{run_id}"})
+        return JSONBytes(doc, status_code=201, headers={"Location": f"/api/runs/{run_id}"})
 
-    @app.get("/api/runs")
-    def list_runs(limit: int = Query(20, ge=1, le=200), offset: int = Query(0, ge=0, le=10**9),
-                  svc: _Service = Depends(service)):
-        svc.open()
-        return {"runs": svc.store.list(limit, offset), "limit": limit, "offset": offset}
+    @app.get("/api/runs", response_model=RunList, response_class=JSONBytes, operation_id="list_runs")
+    def list_runs(limit: int = Query(20, ge=1, le=200, description="runs per page"),
+                  offset: int = Query(0, ge=0, le=2**62, description="runs to skip (newest first)"),
+                  system: Optional[str] = Query(None, max_length=64, description="only runs of this system"),
+                  status: Optional[STATUSES] = Query(None, description="only runs with this status"),
+                  svc: RunService = Depends(service)):
+        """Recent runs, newest first: id, time, system, status, resolved settings and summary."""
+        runs = svc.store.list(limit, offset, system, status)
+        for r in runs:
+            r["created"] = _iso(r["created"])
+        return JSONBytes(orjson.dumps({"runs": runs, "total": svc.store.count(system, status),
+                                       "limit": limit, "offset": offset}))
 
-    @app.get("/api/runs/{run_id}.csv", response_class=PlainTextResponse,
-             responses={404: {"description": "no such run"}})
-    def run_csv(run_id: str, svc: _Service = Depends(service)):
-        svc.open()
+    @app.get("/api/runs/{run_id}.csv", response_class=CSVResponse, responses=NOT_FOUND_CSV, operation_id="get_run_csv")
+    def get_run_csv(run_id: str = RUN_ID, svc: RunService = Depends(service)):
+        """The stored run as CSV: t, the state, energy, violation_<constraint> (one row per output step)."""
         doc = svc.store.document(run_id)
         if doc is None:
-            return _error(404, f"no run with id {run_id!r}")
-        return PlainTextResponse(_to_csv(orjson.loads(doc)), media_type="text/csv",
-                                 headers={"Content-Disposition": f'attachment; filename="{run_id}.csv"'})
+            return _not_found(run_id)
+        return CSVResponse(_csv(doc), headers={"Content-Disposition": f'attachment; filename="{run_id}.csv"'})
 
-    @app.get("/api/runs/{run_id}", response_model=RunResult, responses={404: {"description": "no such run"}})
-    def get_run(run_id: str, svc: _Service = Depends(service)):
-        svc.open()
+    @app.get("/api/runs/{run_id}", response_model=RunResult, response_class=JSONBytes, responses=NOT_FOUND,
+             operation_id="get_run")
+    def get_run(run_id: str = RUN_ID, svc: RunService = Depends(service)):
+        """The stored run result document, exactly as POST /api/runs answered it."""
         doc = svc.store.document(run_id)
         if doc is None:
-            return _error(404, f"no run with id {run_id!r}")
-        return Response(doc, media_type="application/json")
+            return _not_found(run_id)
+        return JSONBytes(doc)
 
     return app
 
 
-def _warm() -> None:
-    for name in system_names():
-        system = get_system(name)
-        for variant in system.variants:
-            system.kernel(variant)
-    simulate({"system": "appell-hamel", "t_final": 0.1}, progress=False)
-
-
-def _to_csv(doc: dict) -> str:
-    cols = {"t": doc["t"], **doc["state"]}
-    if doc.get("energy") is not None:
-        cols["energy"] = doc["energy"]
-    cols.update({f"violation_{k}": v for k, v in doc["violation"].items()})
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(cols)
-    w.writerows(zip(*[np.asarray(c, float).tolist() for c in cols.values()]))
-    return buf.getvalue()
+def _not_found(run_id: str):
+    return error_response(404, [item(["path", "run_id"], "not_found", run_id, "no run with this id",
+                                     "an id returned by POST /api/runs")])

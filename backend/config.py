@@ -1,54 +1,111 @@
 """Service settings: where runs are stored and the limits every request is held to.
 
-Each limit is exposed in ``GET /api/systems`` under ``service_limits``; environment
-variables override the defaults (``NMKANE_DATA_DIR``, ``NMKANE_DB``,
-``NMKANE_MAX_CONCURRENT_RUNS``, ``NMKANE_QUEUE_LIMIT``, ``NMKANE_MAX_STEPS``,
-``NMKANE_MAX_ROWS``, ``NMKANE_MAX_REQUEST_BYTES``, ``NMKANE_MAX_WALL_TIME_S``,
-``NMKANE_CORS_ORIGINS`` — comma separated, empty by default: CORS closed).
+Every field can be given to :class:`Settings` directly (tests do) or through an
+environment variable (``nmkane serve`` does).  The limits are exposed, with the
+descriptions below, in ``GET /api/systems`` under ``service_limits``.
+
+=============================  ===========================  =================================
+setting                        environment variable         default
+=============================  ===========================  =================================
+``data_dir``                   ``NMKANE_DATA_DIR``          ``./data``
+``db_path``                    ``NMKANE_DB``                ``data_dir/runs.sqlite3``
+``max_concurrent_runs``        ``NMKANE_MAX_CONCURRENT_RUNS``  number of CPU cores
+``queue_limit``                ``NMKANE_QUEUE_LIMIT``       64
+``max_steps``                  ``NMKANE_MAX_STEPS``         2,000,000
+``max_rows``                   ``NMKANE_MAX_ROWS``          100,000
+``max_request_bytes``          ``NMKANE_MAX_REQUEST_BYTES`` 65,536
+``max_wall_time_s``            ``NMKANE_MAX_WALL_TIME_S``   10 s
+``cors_origins``               ``NMKANE_CORS_ORIGINS``      none (comma-separated list)
+=============================  ===========================  =================================
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
+__all__ = ["Settings", "LIMIT_DESCRIPTIONS"]
 
-def _env(name, default, cast):
-    value = os.environ.get(name)
-    return default if value in (None, "") else cast(value)
+#: What each limit means (also served in ``GET /api/systems``).
+LIMIT_DESCRIPTIONS = {
+    "max_concurrent_runs": "simulations running at once (worker threads; the compiled loops release "
+                           "the GIL, so they run in parallel)",
+    "queue_limit": "runs admitted at once, running plus waiting; past it POST /api/runs answers 503 "
+                   "with a Retry-After header instead of queueing more",
+    "max_steps": "fixed steps per run (t_final/dt); a request over it is refused with 422 before the "
+                 "run starts. Adaptive and scipy integrators are bounded by max_wall_time_s instead",
+    "max_rows": "output rows per run; a fixed-step request over it is refused with 422 (raise `every`); "
+                "an adaptive run's output is thinned to it (the summary still covers every step, and a "
+                "warning says so)",
+    "max_request_bytes": "size of a request body; a larger one is refused with 413",
+    "max_wall_time_s": "integration wall time per run, s; a run past it ends with status 'timeout' "
+                       "and keeps what it computed so far",
+}
+
+
+def _env(name: str, default, cast):
+    raw = os.environ.get(name)
+    if raw is None or raw.strip() == "":
+        return default
+    try:
+        return cast(raw.strip())
+    except ValueError:
+        raise ValueError(f"environment variable {name}={raw!r} is not a valid {cast.__name__}") from None
+
+
+def _origins(raw: str) -> tuple[str, ...]:
+    return tuple(o.strip() for o in raw.split(",") if o.strip())
 
 
 @dataclass
 class Settings:
-    #: directory of the embedded database
+    """Where the service keeps its runs, and its limits (see the module docstring)."""
+
+    #: directory of the embedded database (created if missing)
     data_dir: Path = field(default_factory=lambda: Path(_env("NMKANE_DATA_DIR", "data", str)))
-    #: the SQLite file (default: data_dir/runs.sqlite3)
+    #: the SQLite file; None means ``data_dir/runs.sqlite3``
     db_path: Path | None = field(default_factory=lambda: _env("NMKANE_DB", None, Path))
-    #: simulations running at once (worker threads; the compiled loops release the GIL)
-    max_concurrent_runs: int = field(default_factory=lambda: _env("NMKANE_MAX_CONCURRENT_RUNS",
-                                                                 os.cpu_count() or 2, int))
-    #: runs admitted (running + waiting); past it POST /api/runs answers 503 + Retry-After
+    #: simulations running at once
+    max_concurrent_runs: int = field(
+        default_factory=lambda: _env("NMKANE_MAX_CONCURRENT_RUNS", os.cpu_count() or 2, int))
+    #: runs admitted at once (running + waiting); past it: 503 + Retry-After
     queue_limit: int = field(default_factory=lambda: _env("NMKANE_QUEUE_LIMIT", 64, int))
-    #: fixed steps per run (t_final/dt); more is refused with 422 before the run starts
+    #: fixed steps per run; more is refused with 422 before the run starts
     max_steps: int = field(default_factory=lambda: _env("NMKANE_MAX_STEPS", 2_000_000, int))
-    #: output rows per run (t_final/dt/every); more is refused with 422 (use `every`)
+    #: output rows per run; more is refused with 422 (fixed step) or thinned (adaptive)
     max_rows: int = field(default_factory=lambda: _env("NMKANE_MAX_ROWS", 100_000, int))
-    #: request body size; more is refused with 413
+    #: request body size in bytes; more is refused with 413
     max_request_bytes: int = field(default_factory=lambda: _env("NMKANE_MAX_REQUEST_BYTES", 65_536, int))
-    #: wall time per run; a run past it ends with status "timeout" and what it computed
+    #: integration wall time per run, s; a run past it ends with status "timeout"
     max_wall_time_s: float = field(default_factory=lambda: _env("NMKANE_MAX_WALL_TIME_S", 10.0, float))
-    #: origins allowed by CORS (none by default)
-    cors_origins: tuple[str, ...] = field(default_factory=lambda: tuple(
-        o for o in _env("NMKANE_CORS_ORIGINS", "", str).split(",") if o))
-    #: load the compiled kernels when the app starts (tests may turn it off)
+    #: origins allowed by CORS; empty (the default) means CORS stays closed
+    cors_origins: tuple[str, ...] = field(default_factory=lambda: _origins(_env("NMKANE_CORS_ORIGINS", "", str)))
+    #: load the compiled kernels when the app starts, so no request pays for it
     warm_kernels: bool = True
+
+    def __post_init__(self) -> None:
+        self.data_dir = Path(self.data_dir)
+        self.db_path = None if self.db_path is None else Path(self.db_path)
+        if isinstance(self.cors_origins, str):
+            self.cors_origins = _origins(self.cors_origins)
+        self.cors_origins = tuple(self.cors_origins)
+        for name, low in (("max_concurrent_runs", 1), ("queue_limit", 0), ("max_steps", 1),
+                          ("max_rows", 2), ("max_request_bytes", 1)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < low:
+                raise ValueError(f"Settings.{name} = {value!r}: an integer ≥ {low} is needed")
+        if not (isinstance(self.max_wall_time_s, (int, float)) and self.max_wall_time_s > 0):
+            raise ValueError(f"Settings.max_wall_time_s = {self.max_wall_time_s!r}: a number > 0 s is needed")
+        if "*" in self.cors_origins:
+            raise ValueError("Settings.cors_origins: list the allowed origins; '*' is not accepted")
 
     @property
     def database(self) -> Path:
-        return Path(self.db_path) if self.db_path else Path(self.data_dir) / "runs.sqlite3"
+        """The SQLite file the runs are stored in."""
+        return self.db_path if self.db_path is not None else self.data_dir / "runs.sqlite3"
 
     def limits(self) -> dict:
-        d = asdict(self)
-        return {k: d[k] for k in ("max_concurrent_runs", "queue_limit", "max_steps", "max_rows",
-                                  "max_request_bytes", "max_wall_time_s")}
+        """The limits as served in ``GET /api/systems``."""
+        return {name: getattr(self, name) for name in LIMIT_DESCRIPTIONS}
+

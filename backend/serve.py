@@ -1,4 +1,10 @@
-"""Serve the REST API (uvicorn) and the 3D web app (viser) together; stop both on Ctrl-C."""
+"""``nmkane serve``: the REST API (uvicorn) and the 3D web app (viser) side by side.
+
+viser runs its own websocket server on its own port, so the two are separate servers in
+one process: uvicorn in a thread, the web app started by ``web.app.launch`` (it runs in
+its own threads), and the main thread waiting for Ctrl-C or SIGTERM, then stopping both
+(VISER-GUIDE §6, layout A).
+"""
 
 from __future__ import annotations
 
@@ -12,44 +18,77 @@ import uvicorn
 from .app import create_app
 from .config import Settings
 
+__all__ = ["serve"]
+
 log = logging.getLogger("nmkane.serve")
+
+
+def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server, threading.Thread, int]:
+    config = uvicorn.Config(create_app(settings), host=host, port=port, log_level="warning",
+                            lifespan="on", server_header=False,
+                            # let runs in flight finish (each is stored before its 201), within bounds
+                            timeout_graceful_shutdown=int(settings.max_wall_time_s) + 5)
+    server = uvicorn.Server(config)
+    thread = threading.Thread(target=server.run, name="nmkane-api", daemon=True)
+    thread.start()
+    while not server.started and thread.is_alive():     # lifespan (kernel warm-up) runs first
+        time.sleep(0.05)
+    if not server.started:
+        thread.join(1)
+        raise SystemExit(f"nmkane serve: the REST API could not start on {host}:{port} "
+                         "(is the port in use? see the message above)")
+    bound = server.servers[0].sockets[0].getsockname()[1] if server.servers else port
+    return server, thread, bound
+
+
+def _stop_api(server: uvicorn.Server, thread: threading.Thread) -> None:
+    server.should_exit = True
+    thread.join(server.config.timeout_graceful_shutdown + 10)
 
 
 def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080, web: bool = True,
           settings: Settings | None = None) -> None:
-    """Run until SIGINT/SIGTERM. Binds to loopback unless told otherwise."""
+    """Serve until SIGINT or SIGTERM, then stop both servers. Binds to loopback by default.
+
+    Port 0 picks a free port (the URLs printed show the real ones).
+    """
+    settings = settings if settings is not None else Settings()
     stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    app = create_app(settings or Settings())
-    config = uvicorn.Config(app, host=host, port=api_port, log_level="warning", lifespan="on")
-    server = uvicorn.Server(config)
-    server.install_signal_handlers = lambda: None      # the main thread handles signals
-    thread = threading.Thread(target=server.run, name="uvicorn", daemon=True)
-    thread.start()
-    while not server.started and thread.is_alive() and not stop.is_set():
-        time.sleep(0.05)
-    if not thread.is_alive():
-        raise SystemExit(f"nmkane serve: the REST service could not start on {host}:{api_port}")
-    port = server.servers[0].sockets[0].getsockname()[1] if server.servers else api_port
-    print(f"nmkane REST API   http://{host}:{port}/api   (docs: http://{host}:{port}/docs)", flush=True)
+    in_main = threading.current_thread() is threading.main_thread()
+    previous = {}
+    if in_main:
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda *_: stop.set())
     handle = None
-    if web:
-        try:
-            from web.app import launch
-        except ImportError as e:  # the web app is optional for the API
-            print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
-        else:
-            handle = launch(host, viser_port)
-            print(f"nmkane 3D web app http://{host}:{handle.port}/", flush=True)
-    print("press Ctrl-C to stop", flush=True)
+    server = thread = None
     try:
+        server, thread, port = _start_api(host, api_port, settings)
+        url_host = f"[{host}]" if ":" in host else host
+        print(f"nmkane REST API    http://{url_host}:{port}/api   (docs: http://{url_host}:{port}/docs; "
+              f"runs stored in {settings.database})", flush=True)
+        if web:
+            try:
+                from web.app import launch
+            except ImportError as e:        # the 3D web app is optional for the API
+                log.warning("3D web app not available (%s); serving the REST API only", e)
+                print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
+            else:
+                handle = launch(host, viser_port)
+                print(f"nmkane 3D web app  http://{url_host}:{handle.port}/", flush=True)
+        print("press Ctrl-C to stop", flush=True)
         while not stop.wait(0.5):
             if not thread.is_alive():
+                log.error("the REST API stopped unexpectedly")
                 break
     finally:
         if handle is not None:
-            handle.stop()
-        server.should_exit = True
-        thread.join(10)
-        print("nmkane: stopped", flush=True)
+            try:
+                handle.stop()
+            except Exception:                       # keep stopping the API
+                log.exception("stopping the 3D web app failed")
+        if server is not None:
+            _stop_api(server, thread)
+        for sig, h in previous.items():
+            signal.signal(sig, h)
+        if server is not None:
+            print("nmkane: stopped", flush=True)

@@ -8,10 +8,13 @@ import subprocess
 import sys
 import threading
 import time
-import zlib
 
 import httpx
-import orjson
+
+from backend.store import RunStore
+from nmkane_core.schema import RunResult
+
+RUN = {"system": "appell-hamel", "dt": 0.005, "t_final": 20}     # 4001 rows
 
 
 def _free_port():
@@ -21,62 +24,74 @@ def _free_port():
 
 
 def _start(db, port):
-    env = {**os.environ, "NMKANE_DB": str(db), "NMKANE_MAX_CONCURRENT_RUNS": "2"}
-    proc = subprocess.Popen([sys.executable, "-m", "backend", "--port", str(port)], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    env = {**os.environ, "NMKANE_MAX_CONCURRENT_RUNS": "2"}
+    proc = subprocess.Popen([sys.executable, "-m", "backend", "--port", str(port), "--db", str(db)], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
     while time.time() < deadline:
+        assert proc.poll() is None, "the server exited"
         try:
             if httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=1).status_code == 200:
                 return proc
         except httpx.HTTPError:
-            time.sleep(0.2)
+            time.sleep(0.1)
     proc.kill()
     raise RuntimeError("server did not start")
 
 
-def test_sigkill_during_runs_loses_no_acknowledged_run(tmp_path):
+def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one(tmp_path):
     db = tmp_path / "runs.sqlite3"
     port = _free_port()
     proc = _start(db, port)
-    acked, lock, stop = [], threading.Lock(), threading.Event()
+    acked, lock, stop = {}, threading.Lock(), threading.Event()
 
     def client():
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as c:
             while not stop.is_set():
                 try:
-                    r = c.post("/api/runs", json={"system": "appell-hamel", "dt": 0.005, "t_final": 20})
+                    r = c.post("/api/runs", json=RUN)
                 except httpx.HTTPError:
-                    return
+                    return                                  # the server is gone
                 if r.status_code == 201:
                     with lock:
-                        acked.append(r.json()["id"])
+                        acked[r.json()["id"]] = r.content
 
-    threads = [threading.Thread(target=client) for _ in range(6)]
+    threads = [threading.Thread(target=client) for _ in range(8)]
     for th in threads:
         th.start()
-    time.sleep(3.0)
+    deadline = time.time() + 30
+    while len(acked) < 30 and time.time() < deadline:       # killed in full flow, runs in flight
+        time.sleep(0.05)
     proc.send_signal(signal.SIGKILL)
     proc.wait(10)
     stop.set()
     for th in threads:
         th.join(30)
-    assert len(acked) > 5
-    # every acknowledged run is there and complete; nothing half-written exists
+    assert len(acked) >= 30
+
+    # the file is a sound database; every row is a whole, valid run document
     con = sqlite3.connect(db)
-    rows = con.execute("SELECT id, document FROM runs").fetchall()
+    assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
     con.close()
-    stored = {}
-    for run_id, blob in rows:
-        doc = orjson.loads(zlib.decompress(blob))        # a partial row would not decompress/parse
-        assert doc["id"] == run_id and len(doc["t"]) == 4001
-        stored[run_id] = doc
-    assert set(acked) <= set(stored)
-    # and a restarted server serves them
+    store = RunStore(db)
+    try:
+        ids = [r["id"] for r in store.list(limit=10**6, offset=0)]
+        assert store.count() == len(ids) >= len(acked)
+        for run_id in ids:
+            doc = RunResult.model_validate_json(store.document(run_id))
+            assert doc.id == run_id and doc.summary.status == "ok"
+            assert len(doc.t) == 4001 and doc.t[-1] == 20.0 and all(len(v) == 4001 for v in doc.state.values())
+        assert set(acked) <= set(ids)                        # no acknowledged run lost
+    finally:
+        store.close()
+
+    # and a restarted server serves each acknowledged run exactly as it was acknowledged
     proc = _start(db, port)
     try:
-        for run_id in acked[:5]:
-            assert httpx.get(f"http://127.0.0.1:{port}/api/runs/{run_id}", timeout=10).json()["id"] == run_id
+        with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as c:
+            for run_id, content in acked.items():
+                assert c.get(f"/api/runs/{run_id}").content == content
+            assert c.post("/api/runs", json=RUN).status_code == 201
     finally:
         proc.send_signal(signal.SIGTERM)
-        proc.wait(20)
+        assert proc.wait(30) == 0

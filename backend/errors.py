@@ -1,0 +1,189 @@
+"""One error shape for every 4xx/5xx answer.
+
+    {"detail": [{"loc": ["body", "params", "rho"], "field": "params.rho",
+                 "value": -1.0, "reason": "out of range",
+                 "allowed": "a finite number in (0, 1000] kg/m^3",
+                 "msg": "params.rho: got -1.0 (out of range); allowed: ...",
+                 "type": "value_error"}]}
+
+Schema errors found by pydantic (types, NaN/Infinity, ranges, unknown fields), checks
+made by nmkane (``InputError``: unknown system or model, steps over the cap, an
+inconsistent initial state), oversize bodies, unknown ids and overload all answer this
+way: ``loc`` is the path (FastAPI's convention, starting with ``body``, ``query`` or
+``path``), ``field`` the same path as the CLI writes it, ``value`` what was given
+(JSON-safe, long values shortened), ``reason`` what is wrong with it, ``allowed`` what
+would be accepted, and ``msg`` all of it in one sentence.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import Any, Optional, Union
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from pydantic import BaseModel, Field
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from nmkane_core.errors import InconsistentStateError, InputError
+from nmkane_core.schema import RunSettings
+
+__all__ = ["ErrorItem", "ErrorResponse", "error_response", "install_error_handlers", "plain"]
+
+log = logging.getLogger("nmkane.backend")
+
+
+class ErrorItem(BaseModel):
+    loc: list[Union[str, int]] = Field(description="where: path of the offending input, e.g. [\"body\", \"dt\"]")
+    field: str = Field(description="the same path, dotted, without the body/query/path prefix")
+    msg: str = Field(description="one sentence: field, value, reason and what is allowed")
+    type: str = Field(description="machine-readable error kind, e.g. greater_than, finite_number, value_error")
+    value: Any = Field(None, description="the value given (JSON-safe; long values shortened)")
+    reason: Optional[str] = Field(None, description="what is wrong with the value")
+    allowed: Optional[str] = Field(None, description="what would be accepted")
+
+
+class ErrorResponse(BaseModel):
+    detail: list[ErrorItem]
+
+
+def plain(value: Any, depth: int = 0) -> Any:
+    """A short, JSON-safe copy of an offending input value (non-finite numbers as strings)."""
+    if value is None or isinstance(value, (bool, int)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else repr(value).replace("nan", "NaN").replace("inf", "Infinity")
+    if isinstance(value, str):
+        return value if len(value) <= 200 else value[:200] + f"… ({len(value)} characters)"
+    if depth >= 3:
+        return "…"
+    if isinstance(value, dict):
+        items = list(value.items())
+        out = {str(k)[:100]: plain(v, depth + 1) for k, v in items[:20]}
+        if len(items) > 20:
+            out["…"] = f"{len(items) - 20} more"
+        return out
+    if isinstance(value, (list, tuple)):
+        out = [plain(v, depth + 1) for v in value[:20]]
+        if len(value) > 20:
+            out.append(f"… {len(value) - 20} more")
+        return out
+    if hasattr(value, "tolist"):                     # numpy arrays and scalars
+        return plain(value.tolist(), depth)
+    return plain(repr(value), depth)
+
+
+def _field(loc: list) -> str:
+    rest = loc[1:] if loc and loc[0] in ("body", "query", "path", "header") else loc
+    return ".".join(str(p) for p in rest) or (str(loc[0]) if loc else "")
+
+
+def _sentence(field: str, value: Any, reason: str | None, allowed: str | None) -> str:
+    text = f"{field or 'request'}: got {value!r}" if value is not None else f"{field or 'request'}"
+    if reason:
+        text += f" ({reason})"
+    if allowed:
+        text += f"; allowed: {allowed}"
+    return text
+
+
+def item(loc: list, type: str, value: Any = None, reason: str | None = None,
+         allowed: str | None = None, msg: str | None = None) -> dict:
+    field = _field(loc)
+    value = plain(value)
+    return {"loc": loc, "field": field, "msg": msg or _sentence(field, value, reason, allowed), "type": type,
+            "value": value, "reason": reason, "allowed": allowed}
+
+
+def error_response(status: int, items: list[dict], headers: dict | None = None) -> JSONResponse:
+    return JSONResponse(status_code=status, content={"detail": items}, headers=headers)
+
+
+_TYPE_ALLOWED = {
+    "float_type": "a number", "float_parsing": "a number", "int_type": "an integer",
+    "int_parsing": "an integer", "int_from_float": "an integer", "bool_type": "true or false",
+    "bool_parsing": "true or false", "string_type": "a string", "dict_type": "a JSON object",
+    "list_type": "a JSON array", "model_attributes_type": "a JSON object with the run settings",
+    "finite_number": "a finite number (NaN and Infinity are not JSON numbers)",
+    "json_invalid": "a JSON object with the run settings", "missing": "a value (required)",
+}
+_BOUNDS = {"gt": ">", "ge": "≥", "lt": "<", "le": "≤"}
+
+
+def _allowed(err: dict) -> str | None:
+    ctx = err.get("ctx") or {}
+    kind = err.get("type", "")
+    bounds = [f"{_BOUNDS[k]} {ctx[k]}" for k in ("gt", "ge", "lt", "le") if k in ctx]
+    if bounds:
+        return "a number " + " and ".join(bounds)
+    if kind == "literal_error" and "expected" in ctx:
+        return str(ctx["expected"])
+    if kind == "extra_forbidden":
+        return "the documented fields: " + ", ".join(RunSettings.model_fields)
+    if kind == "string_too_long" and "max_length" in ctx:
+        return f"a string of at most {ctx['max_length']} characters"
+    return _TYPE_ALLOWED.get(kind)
+
+
+def validation_items(exc: RequestValidationError) -> list[dict]:
+    items = []
+    for err in exc.errors():
+        loc = list(err.get("loc", ()))
+        kind = err.get("type", "value_error")
+        reason = err.get("msg", "")
+        if kind == "json_invalid":
+            reason = f"not valid JSON: {(err.get('ctx') or {}).get('error', 'decode error')}"
+            value = None
+        else:
+            value = err.get("input")
+            reason = reason.replace("Input should be", "should be")
+        items.append(item(loc, kind, value, reason, _allowed(err)))
+    return items
+
+
+def input_error_item(exc: InputError) -> dict:
+    loc = ["body", *[int(p) if p.isdigit() else p for p in str(exc.field).split(".")]]
+    kind = "inconsistent_state" if isinstance(exc, InconsistentStateError) else "value_error"
+    return item(loc, kind, exc.value, exc.reason, exc.allowed, msg=str(exc))
+
+
+def install_error_handlers(app: FastAPI) -> None:
+    """Render every error in the one shape above."""
+
+    @app.exception_handler(RequestValidationError)
+    async def _validation(request: Request, exc: RequestValidationError):
+        return error_response(422, validation_items(exc))
+
+    @app.exception_handler(InputError)
+    async def _input_error(request: Request, exc: InputError):
+        return error_response(422, [input_error_item(exc)])
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http_error(request: Request, exc: StarletteHTTPException):
+        headers = dict(exc.headers or {})
+        status = exc.status_code
+        if status == 413:
+            limit = request.app.state.settings.max_request_bytes
+            it = item(["body"], "too_large", None, "request body too large", f"at most {limit:,} bytes")
+        elif status == 404:
+            it = item(["path"], "not_found", request.url.path, "no such resource",
+                      "the routes listed at /docs")
+        elif status == 405:
+            methods = sorted({m for route in request.app.routes
+                              if getattr(route, "path_regex", None) is not None
+                              and route.path_regex.match(request.url.path)
+                              for m in (getattr(route, "methods", None) or ())})
+            headers["Allow"] = ", ".join(methods)
+            it = item(["method"], "method_not_allowed", request.method, "method not allowed on this path",
+                      ", ".join(methods))
+        else:
+            it = item([], f"http_{status}", None, str(exc.detail), None, msg=str(exc.detail))
+        return error_response(status, [it], headers=headers)
+
+    @app.exception_handler(Exception)
+    async def _unexpected(request: Request, exc: Exception):
+        log.exception("unexpected error on %s %s", request.method, request.url.path)
+        return error_response(500, [item([], "internal_error", None, type(exc).__name__,
+                                         msg="internal error: the failure was logged on the server")])

@@ -1,0 +1,52 @@
+"""Response models of the service's own endpoints (runs use the core's ``RunResult``)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from nmkane_core.schema import RunSummary
+
+__all__ = ["Health", "RunListItem", "RunList", "Catalog", "STATUSES"]
+
+STATUSES = Literal["ok", "singular", "diverged", "timeout", "failed"]
+
+
+class Health(BaseModel):
+    status: Literal["ok"]
+    version: str
+    runs_stored: int = Field(description="runs in the database")
+    runs_in_flight: int = Field(description="runs admitted: running plus waiting for a worker")
+    runs_running: int = Field(description="runs being simulated now")
+    queue_limit: int = Field(description="runs admitted at once before POST /api/runs answers 503")
+
+
+class RunListItem(BaseModel):
+    id: str
+    created: str = Field(description="when the run was stored (ISO 8601, UTC)")
+    system: str
+    status: STATUSES
+    settings: dict = Field(description="the fully resolved settings")
+    summary: RunSummary
+
+
+class RunList(BaseModel):
+    runs: list[RunListItem] = Field(description="newest first")
+    total: int = Field(description="runs matching the filters")
+    limit: int
+    offset: int
+
+
+class Catalog(BaseModel):
+    """What can be run, with which parameters, and the limits (library's and service's)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    systems: list[dict] = Field(description="name, parameters with defaults and ranges, models or "
+                                "formulations, coordinates and speeds, constraint names, defaults")
+    integrators: dict[str, str] = Field(description="name: description")
+    projections: list[str]
+    limits: dict[str, float] = Field(description="the library's limits")
+    service_limits: dict[str, float] = Field(description="this service's limits (see service_limit_descriptions)")
+    service_limit_descriptions: dict[str, str]

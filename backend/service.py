@@ -1,0 +1,191 @@
+"""The run service: admission, the worker pool, the service's limits, and the store.
+
+``execute`` is the whole life of a run, in a worker thread: resolve the settings (every
+check of the core library), hold them to the service's limits, simulate with the wall
+time limit, encode the run result document once (orjson, straight from the numpy
+arrays), store it in one transaction, and hand the same bytes back for the 201.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import secrets
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import orjson
+
+from nmkane_core.errors import InputError
+from nmkane_core.schema import RunSettings, RunSummary
+from nmkane_core.simulate import Plan, Run, resolve, simulate
+from nmkane_core.system import get_system, system_names
+
+from .config import Settings
+from .store import RunStore
+
+__all__ = ["RunService", "checked_summary", "encode_document", "new_run_id", "thin"]
+
+
+def new_run_id() -> str:
+    """128 random bits, URL-safe: unguessable."""
+    return secrets.token_urlsafe(16)
+
+
+def checked_summary(run: Run) -> dict:
+    """The run summary as JSON-ready data, checked against ``RunSummary`` (the schema)."""
+    return RunSummary.model_validate(run.summary).model_dump(mode="json", by_alias=True)
+
+
+def encode_document(run: Run, run_id: str, summary: dict | None = None) -> bytes:
+    """The run result document (``RunResult``) as JSON bytes, arrays straight from numpy.
+
+    Equal to ``run.document(run_id).model_dump_json(by_alias=True)`` parsed, without
+    building a million Python floats; the summary (small) goes through ``RunSummary`` so
+    the document keeps to the schema.
+    """
+    if summary is None:
+        summary = checked_summary(run)
+    doc = {"id": run_id, "system": run.system, "settings": run.settings, "t": run.t, "state": run.state,
+           "energy": run.energy, "violation": run.violation, "summary": summary}
+    return orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)
+
+
+def thin(run: Run, max_rows: int) -> None:
+    """Keep at most ``max_rows`` output rows (evenly spaced, the last one kept)."""
+    n = run.t.size
+    if n <= max_rows:
+        return
+    k = math.ceil((n - 1) / (max_rows - 1))
+    idx = np.unique(np.r_[np.arange(0, n, k), n - 1])
+    run.t = run.t[idx]
+    run.state = {name: v[idx] for name, v in run.state.items()}
+    run.energy = None if run.energy is None else run.energy[idx]
+    run.violation = {name: v[idx] for name, v in run.violation.items()}
+    run.summary["warnings"] = [*run.summary.get("warnings", []),
+                               f"output thinned from {n:,} to {idx.size:,} rows (service limit max_rows = "
+                               f"{max_rows:,}); the summary covers every step"]
+
+
+class RunService:
+    """Worker pool, admission control and the run store of one app."""
+
+    def __init__(self, settings: Settings):
+        self.settings = settings
+        self._lock = threading.Lock()
+        self._stopping = threading.Event()
+        self.admitted = 0            # running + waiting
+        self.running = 0
+        self._mean_run_s = 0.05      # moving average of a run's time in a worker (for Retry-After)
+        self.store: RunStore | None = None
+        self.pool: ThreadPoolExecutor | None = None     # simulations (CPU)
+        self.writer: ThreadPoolExecutor | None = None   # commits (disk), one at a time
+
+    # -- life ---------------------------------------------------------------------------
+    def start(self) -> None:
+        """Open the store and the pool (again, after a stop: an app can have several lifespans)."""
+        with self._lock:
+            self._stopping.clear()
+            if self.store is None:
+                self.store = RunStore(self.settings.database)
+            if self.pool is None:
+                self.pool = ThreadPoolExecutor(max_workers=self.settings.max_concurrent_runs,
+                                               thread_name_prefix="nmkane-run")
+            if self.writer is None:
+                self.writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="nmkane-store")
+
+    def stop(self) -> None:
+        """Stop: running simulations end now (as ``timeout``), queued ones are dropped; every
+        run handed to the writer is committed before the store closes."""
+        self._stopping.set()
+        with self._lock:
+            pool, writer, store = self.pool, self.writer, self.store
+            self.pool = self.writer = self.store = None
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+        if writer is not None:
+            writer.shutdown(wait=True)
+        if store is not None:
+            store.close()
+
+    def warm(self) -> None:
+        """Load (or compile once) every kernel and loop, so no request pays for it."""
+        for name in system_names():
+            system = get_system(name)
+            for variant in system.variants:
+                base = {"system": name, system.option: variant, "t_final": 0.05}
+                simulate(base, progress=False)
+                simulate({**base, "integrator": "kutta-merson-adaptive"}, progress=False)
+
+    # -- admission ----------------------------------------------------------------------
+    def admit(self) -> bool:
+        with self._lock:
+            if self.pool is None or self.admitted >= self.settings.queue_limit:
+                return False
+            self.admitted += 1
+            return True
+
+    async def run(self, settings: RunSettings) -> tuple[str, bytes]:
+        """Simulate in a run worker, then commit in the writer thread (so run workers never
+        wait for the disk); returns once the run is on disk. The caller holds an admission."""
+        loop = asyncio.get_running_loop()
+        pool, writer, store = self.pool, self.writer, self.store
+        if pool is None or writer is None or store is None:
+            raise RuntimeError("the run service is not running")
+        run_id, body, record = await loop.run_in_executor(pool, self.execute, settings)
+        await loop.run_in_executor(writer, store.insert, record)
+        return run_id, body
+
+    def release(self) -> None:
+        with self._lock:
+            self.admitted -= 1
+
+    def retry_after(self) -> int:
+        """Seconds until the queue has drained, roughly (at least 1)."""
+        with self._lock:
+            backlog = max(self.admitted, 1) * self._mean_run_s / self.settings.max_concurrent_runs
+        return int(min(60, max(1, math.ceil(backlog))))
+
+    # -- a run --------------------------------------------------------------------------
+    def check_limits(self, plan: Plan) -> None:
+        """The service's own limits (the library's are checked by ``resolve``)."""
+        s = self.settings
+        if plan.integrator.adaptive:
+            return                                  # bounded by max_wall_time_s; rows thinned
+        steps = math.ceil(plan.t_final / plan.dt - 1e-9)
+        if steps > s.max_steps:
+            raise InputError("dt", plan.dt,
+                             f"t_final/dt ≤ {s.max_steps:,} steps on this service "
+                             f"(dt ≥ {plan.t_final / s.max_steps:.3g} s for t_final = {plan.t_final:g} s)",
+                             f"{steps:,} steps")
+        rows = steps // plan.every + (1 if steps % plan.every else 0) + 1
+        if rows > s.max_rows:
+            raise InputError("every", plan.every,
+                             f"an integer ≥ {math.ceil(steps / (s.max_rows - 1))} "
+                             f"(at most {s.max_rows:,} output rows on this service)", f"{rows:,} rows")
+
+    def execute(self, settings: RunSettings) -> tuple[str, bytes, tuple]:
+        """Resolve, check, simulate, encode (in a run worker); returns the id, the document
+        bytes and the record for :meth:`RunStore.insert` (in the writer thread)."""
+        with self._lock:
+            self.running += 1
+        t0 = time.perf_counter()
+        try:
+            plan = resolve(settings)
+            self.check_limits(plan)
+            run = simulate(plan, progress=False, time_limit=self.settings.max_wall_time_s,
+                           cancel=self._stopping.is_set)
+            thin(run, self.settings.max_rows)
+            run_id = new_run_id()
+            summary = checked_summary(run)
+            body = encode_document(run, run_id, summary)
+            store = self.store
+            if store is None:
+                raise RuntimeError("the service is stopping")
+            return run_id, body, store.record(run_id, run.system, run.status, run.settings, summary, body)
+        finally:
+            with self._lock:
+                self.running -= 1
+                self._mean_run_s += 0.1 * (time.perf_counter() - t0 - self._mean_run_s)

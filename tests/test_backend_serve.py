@@ -1,0 +1,81 @@
+"""``serve()``: the REST API and the 3D web app side by side, both stopped by SIGTERM/Ctrl-C."""
+
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+
+import httpx
+import pytest
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _serve(tmp_path, code):
+    env = {**os.environ, "NMKANE_DB": str(tmp_path / "runs.sqlite3"), "PYTHONUNBUFFERED": "1"}
+    return subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+
+
+def _read_until(proc, pattern, timeout=120):
+    lines, deadline = [], time.time() + timeout
+    while time.time() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        if re.search(pattern, line):
+            return "".join(lines)
+    proc.kill()
+    pytest.fail("no line matching %r in:\n%s" % (pattern, "".join(lines)))
+
+
+def _stop(proc, sig=signal.SIGTERM):
+    proc.send_signal(sig)
+    out, _ = proc.communicate(timeout=30)
+    return proc.returncode, out
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_serve_starts_api_and_web_app_and_stops_both(tmp_path, sig):
+    api, ui = _free_port(), _free_port()
+    proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={api}, viser_port={ui})")
+    out = _read_until(proc, "Ctrl-C")
+    assert f"http://127.0.0.1:{api}/api" in out and f"http://127.0.0.1:{api}/docs" in out
+    assert f"http://127.0.0.1:{ui}/" in out
+    assert httpx.get(f"http://127.0.0.1:{api}/api/health", timeout=5).json()["status"] == "ok"
+    assert httpx.get(f"http://127.0.0.1:{ui}/", timeout=5).status_code == 200
+    code, rest = _stop(proc, sig)
+    assert code == 0 and "stopped" in rest, rest
+    for port in (api, ui):                                   # nobody listens any more
+        with pytest.raises(ConnectionRefusedError), socket.create_connection(("127.0.0.1", port), timeout=2):
+            pass
+
+
+def test_serve_runs_the_api_alone_when_the_web_app_cannot_be_imported(tmp_path):
+    api = _free_port()
+    code = ("import sys; sys.modules['web.app'] = None\n"     # makes `from web.app import launch` fail
+            f"from backend.serve import serve; serve(api_port={api}, viser_port=0)")
+    proc = _serve(tmp_path, code)
+    out = _read_until(proc, "Ctrl-C")
+    assert "3D web app not available" in out
+    assert httpx.get(f"http://127.0.0.1:{api}/api/health", timeout=5).status_code == 200
+    code, _ = _stop(proc)
+    assert code == 0
+
+
+def test_serve_reports_a_port_in_use(tmp_path):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={port}, web=False)")
+        out, _ = proc.communicate(timeout=120)
+    assert proc.returncode != 0 and "could not start" in out
