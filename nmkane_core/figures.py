@@ -58,6 +58,10 @@ PRECORRECTION_SAMPLES = 500  # states of a projection run re-stepped without cor
 
 PASS, FAIL, INFO, NOT_RUN = "PASS", "FAIL", "INFO", "NOT RUN"
 
+#: the REST service's default limits (backend/config.py; NMKANE_MAX_STEPS, NMKANE_MAX_ROWS),
+#: quoted so the report can say which runs need them raised (the core does not import backend)
+REST_DEFAULT_LIMITS = {"max_steps": 2_000_000, "max_rows": 100_000}
+
 
 # --------------------------------------------------------------------------- runs
 def run_plan(quick: bool = False) -> dict[str, dict]:
@@ -758,10 +762,11 @@ def _draw_fig18(fig, runs):
                         label=f"{name}: |φ| one step before the correction (sampled)")
     ax.axhline(2.22e-16, color="0.5", lw=0.8, ls=":", label="machine ε = 2.2e−16")
     ax.set_ylabel(r"$|\phi|$ (m)" + f"\nmax per {window:.2g} s window")
-    ax.set_ylim(floor / 2, None)
+    top = max([float(np.max(line.get_ydata())) for line in ax.get_lines() if len(line.get_ydata())] + [1e-12])
+    ax.set_ylim(floor / 2, top * 3e4)          # room above the curves for the legend
     _log_ticks(ax)
     ax.tick_params(labelbottom=False)
-    ax.legend(fontsize=6.5, loc="center right", framealpha=0.95)
+    ax.legend(fontsize=6.5, loc="upper center", ncol=2, framealpha=0.95)
     if missing:
         ax.text(0.02, 0.04, "\n".join(missing), transform=ax.transAxes, fontsize=7, color="#c0392b")
     ax2.axhline(0, color="0.6", lw=0.6)
@@ -898,13 +903,13 @@ FIGURES: tuple[FigureSpec, ...] = (
     FigureSpec(18, "phi_baumgarte_blajer_yoon",
                r'Figure 18. Example 2: Constraint violation $\phi$: $\Delta t = 0.01$ s; "1" Baumgarte, '
                r'"2" Blajer, "3" Yoon et al.',
-               ("sp-fig18-baumgarte", "sp-fig18-blajer", "sp-fig18-yoon"), _draw_fig18,
+               ("sp-fig18-baumgarte", "sp-fig18-blajer", "sp-fig18-yoon", "sp-fig18-oneshot"), _draw_fig18,
                "Two ways to stop the drift. Baumgarte changes the equations of motion so that drift decays "
                "on its own; the post-step corrections of Blajer and of Yoon et al. leave the equations alone "
                "and, after every step, move the state back onto the surface (positions, then speeds). "
                "{f18_verdict} The two papers' texts were not available, so the presets follow the family "
                "both belong to (see nmkane_core.projection and the claims table for the numbers).",
-               note="Fig. 18's horizon is not stated in the paper; 500 s is used, as for Figs. 11–15. The "
+               note="Fig. 18's horizon is not stated in the paper; 500 s is used, as for Figs. 11–15 (100 s in quick mode). The "
                     "upper panel shows the maximum of |φ| per window on a log scale (a signed linear plot "
                     "would show the projections as a flat line at zero)."),
 )
@@ -1032,6 +1037,9 @@ class Report:
         for c in self.claims:
             lines.append(f"  [{c.status:7}] Fig. {c.label}: {c.claim}")
             lines.append(f"            {c.measured}")
+        for f in self.figures:
+            if f.error:
+                lines.append(f"  figure {f.number} NOT DRAWN: {f.error}")
         n = self.counts
         lines.append(f"claims: {n[PASS]} pass, {n[FAIL]} fail, {n[NOT_RUN]} not run")
         lines.append(f"time: {self.timings['total_s']:.1f} s (runs {self.timings['runs_s']:.1f} s, "
@@ -1083,6 +1091,8 @@ class Report:
             else:
                 md += ["(CLI: not expressible — the projection switches are REST/library settings)", ""]
             md += ["```sh", r["rest"], "```", ""]
+            if r.get("rest_note"):
+                md += [f"REST: {_md(r['rest_note'])}.", ""]
             if "error" in r:
                 md += [f"**Not run:** {_md(r['error'])}", ""]
             else:
@@ -1107,7 +1117,7 @@ table{{border-collapse:collapse;font-size:.88em;width:100%}} td,th{{border:1px s
 th{{background:#f2f2f2}} .PASS{{background:#dff3df;font-weight:bold}} .FAIL{{background:#f8d7d7;font-weight:bold}}
 .NOTRUN{{background:#f3ecd0;font-weight:bold}} .INFO{{background:#e6eef8}}
 .fig{{display:flex;gap:1.2em;align-items:flex-start;flex-wrap:wrap;border-top:2px solid #ddd;padding-top:1em;margin-top:1.5em}}
-.fig img{{max-width:620px;width:100%;border:1px solid #ddd}} .fig .side{{flex:1;min-width:380px}}
+.fig .plot{{flex:0 1 640px;min-width:320px}} .fig img{{width:100%;border:1px solid #ddd}} .fig .side{{flex:1 1 420px;min-width:340px}}
 .caption{{font-style:italic}} pre{{background:#f6f6f6;padding:.5em;overflow-x:auto;font-size:.85em;white-space:pre-wrap}}
 </style></head><body>
 <h1>Bajodah, Hodges &amp; Chen (2005): figures regenerated, claims checked</h1>
@@ -1121,7 +1131,7 @@ in {self.timings['total_s']:.1f} s. Claims: <b>{n[PASS]} PASS, {n[FAIL]} FAIL</b
             table = (f"<table><tr><th>claim</th><th>paper</th><th>measured now</th><th>result</th></tr>{crow}</table>"
                      if f.claims else "<p>(no numerical claim in the paper for this figure)</p>")
             runs = ", ".join(f"<a href='#run-{e(k)}'><code>{e(k)}</code></a>" for k in f.runs)
-            parts.append(f"""<div class="fig" id="fig{f.number}"><div><img src="{e(f.file)}" alt="{e(_plain_caption(f.caption))}">
+            parts.append(f"""<div class="fig" id="fig{f.number}"><div class="plot"><img src="{e(f.file)}" alt="{e(_plain_caption(f.caption))}">
 <p class="caption">{e(_plain_caption(f.caption))}</p></div><div class="side"><h2>Figure {f.number}</h2>
 {f'<p><b>Figure not drawn:</b> {e(f.error)}</p>' if f.error else ''}{table}
 <p><b>What this shows.</b> {e(f.explain)}</p>{f'<p><i>Note.</i> {e(f.note)}</p>' if f.note else ''}<p>Runs: {runs}</p></div></div>""")
@@ -1133,8 +1143,9 @@ in {self.timings['total_s']:.1f} s. Claims: <b>{n[PASS]} PASS, {n[FAIL]} FAIL</b
                    "<p>(CLI: not expressible — the projection switches are REST/library settings)</p>")
             status = (f"<p><b>Not run:</b> {e(r['error'])}</p>" if "error" in r else
                       f"<p>{e(_summary_line(r['summary']))}</p>")
+            note = f"<p>REST: {e(r['rest_note'])}.</p>" if r.get("rest_note") else ""
             parts.append(f"<h3 id='run-{e(key)}'><code>{e(key)}</code> — {e(r['label'])}</h3>{cli}"
-                         f"<pre>{e(r['rest'])}</pre>{status}")
+                         f"<pre>{e(r['rest'])}</pre>{note}{status}")
         parts.append("<h2>Timings</h2><table>" + "".join(f"<tr><td>{e(k)}</td><td>{v:.2f} s</td></tr>"
                                                           for k, v in self.timings.items()) + "</table>")
         parts.append("</body></html>")
@@ -1249,10 +1260,13 @@ def make_figures(out_dir: str, progress: bool | None = None, quick: bool = False
         for spec in specs:
             fname = f"fig{spec.number:02d}_{spec.slug}.png"
             err = None
+            path = os.path.join(out_dir, fname)
             try:
-                draw_figure(spec, runs, os.path.join(out_dir, fname))
+                draw_figure(spec, runs, path)
             except Exception as e:  # one broken figure must not lose the others or the report
                 err = f"{type(e).__name__}: {e}"
+                if os.path.exists(path):       # never show a stale image from an earlier run
+                    os.remove(path)
             fig_claims = [c for c in claims if spec.number in c.figures]
             explain = _explain(spec.explain, facts)
             if spec.number != 18 and any(c.status == FAIL for c in fig_claims):   # Fig. 18's text follows the numbers
@@ -1271,6 +1285,14 @@ def make_figures(out_dir: str, progress: bool | None = None, quick: bool = False
     for key, settings in runs.settings.items():
         doc = {"label": RUN_LABELS.get(key, key), "settings": settings,
                "cli": cli_command(settings, out=f"{key}.json"), "rest": _rest_command(settings)}
+        steps = math.ceil(settings["t_final"] / settings["dt"] - 1e-9)
+        rows = steps // settings.get("every", 1) + 2
+        if steps > REST_DEFAULT_LIMITS["max_steps"] or rows > REST_DEFAULT_LIMITS["max_rows"]:
+            doc["rest_note"] = (f"{steps:,} steps, {rows:,} output rows: above the REST service's default "
+                                f"limits ({REST_DEFAULT_LIMITS['max_steps']:,} steps, "
+                                f"{REST_DEFAULT_LIMITS['max_rows']:,} rows); start it with "
+                                f"NMKANE_MAX_STEPS={max(steps, REST_DEFAULT_LIMITS['max_steps'])} "
+                                f"NMKANE_MAX_ROWS={max(rows, REST_DEFAULT_LIMITS['max_rows'])}")
         if key in runs.results:
             doc["summary"] = {k: v for k, v in runs.results[key].summary.items()
                               if k in ("status", "message", "steps", "wall_time_s", "max_abs_violation",
@@ -1329,6 +1351,8 @@ def main(argv: list[str] | None = None) -> int:
     report = make_figures(args.out, progress=False if args.no_progress else None, quick=args.quick)
     print(report.summary_text())
     n = report.counts
+    if any(f.error for f in report.figures):
+        return 1
     return 1 if args.strict and (n[FAIL] or n[NOT_RUN]) else 0
 
 

@@ -120,6 +120,18 @@ def test_report_records_settings_that_rerun_through_the_rest_schema(report):
         assert doc["summary"]["status"] == "ok"
 
 
+def test_quoted_rest_limits_match_the_service_defaults(monkeypatch):
+    """The report tells which runs need the REST limits raised; its numbers are the service's."""
+    from backend.config import Settings
+
+    from nmkane_core.figures import REST_DEFAULT_LIMITS
+
+    monkeypatch.delenv("NMKANE_MAX_STEPS", raising=False)
+    monkeypatch.delenv("NMKANE_MAX_ROWS", raising=False)
+    service = Settings()
+    assert REST_DEFAULT_LIMITS == {"max_steps": service.max_steps, "max_rows": service.max_rows}
+
+
 def test_cli_command_in_the_report_reproduces_the_run(report, tmp_path):
     """Re-running a recorded `nmkane run ...` line gives the report's numbers exactly."""
     doc = report.runs["ah-linear"]
