@@ -506,7 +506,11 @@ def evaluate_claims(runs: Runs) -> list[Claim]:
 
     def fig18_order():
         m = {name: runs[key].summary["max_abs_violation"]["surface"] for name, key in f18.items()}
-        pre = {name: runs.extra.get(f"precorrection:{key}") for name, key in f18.items() if name != "Baumgarte"}
+        pre = {}
+        for name, key in f18.items():
+            p = runs.extra.get(f"precorrection:{key}")
+            if name != "Baumgarte":
+                pre[name] = p and {k: p[k] for k in ("max", "median", "samples", "stride")}
         smallest = min(m, key=m.get)
         ok = smallest == "Baumgarte"
         text = "max|φ| (m): " + ", ".join(f"{k} {v:.2e}" for k, v in m.items())
