@@ -859,14 +859,14 @@ FIGURES: tuple[FigureSpec, ...] = (
                r"Figure 11. Example 2: Constraint violation, $\phi$: $\Gamma_1 = \Gamma_2 = 0$, $\Delta t = 0.01$ s.",
                ("sp-undamped-dt0.01",), _draw_ex2("sp-undamped-dt0.01", "phi"),
                "φ measures how far the computed particle is off the bowl's surface. The nonminimal "
-               "equations only enforce the surface through its second derivative (zero acceleration "
-               "off the surface), so each step's small error is integrated twice and piles up: φ "
-               "oscillates with the motion and its envelope keeps growing (lower panel, log scale)."),
+               "equations hold the particle on the surface only through the surface's second time "
+               "derivative (φ̈ = 0), so nothing pulls back the small error each step makes in φ and φ̇: "
+               "it is integrated twice and piles up, and |φ| keeps growing (lower panel, log scale)."),
     FigureSpec(12, "phi_undamped_dt0.001",
                r"Figure 12. Example 2: Constraint violation, $\phi$: $\Gamma_1 = \Gamma_2 = 0$, $\Delta t = 0.001$ s.",
                ("sp-undamped-dt0.001",), _draw_ex2("sp-undamped-dt0.001", "phi"),
                "The same with a ten times smaller step: the drift still grows with time, but it is about "
-               "{phi_ratio:.0e} times smaller — paid for with ten times more steps."),
+               "{phi_ratio:.2g} times smaller — paid for with ten times more steps."),
     FigureSpec(13, "energy_undamped_dt0.01",
                r"Figure 13. Example 2: Energy integral: $\Gamma_1 = \Gamma_2 = 0$, $\Delta t = 0.01$ s.",
                ("sp-undamped-dt0.01",), _draw_ex2("sp-undamped-dt0.01", "energy"),
@@ -902,7 +902,7 @@ FIGURES: tuple[FigureSpec, ...] = (
                r"$\Delta t = 0.001$ s.",
                ("sp-damped-dt0.001",), _draw_ex2("sp-damped-dt0.001", "energy"),
                "The price of the stabilization: the Baumgarte terms are extra forces that do work, so the "
-               "energy error is larger than without them at the same step (×{e17_ratio:.0f} Fig. 14's), "
+               "energy error is larger than without them at the same step (about {e17_ratio:.0f} times Fig. 14's), "
                "even though the constraint is now held (Fig. 15)."),
     FigureSpec(18, "phi_baumgarte_blajer_yoon",
                r'Figure 18. Example 2: Constraint violation $\phi$: $\Delta t = 0.01$ s; "1" Baumgarte, '
