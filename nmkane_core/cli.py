@@ -86,6 +86,14 @@ def _build_parser() -> argparse.ArgumentParser:
     run.add_argument("--gamma1", type=_finite, help="Γ1 (holonomic, s⁻¹), e.g. -20")
     run.add_argument("--gamma2", type=_finite, help="Γ2 (holonomic, s⁻²), e.g. -100")
     run.add_argument("--projection", default="none", help="post-step correction: none | blajer | yoon")
+    run.add_argument("--projection-weight", dest="projection_weight", choices=("identity", "mass"),
+                     help="override the projection's weighting matrix W")
+    run.add_argument("--projection-iterations", dest="projection_iterations", type=_positive_int,
+                     help="override the Newton iterations of the position correction (1 = one-shot)")
+    run.add_argument("--projection-jacobian", dest="projection_jacobian", choices=("updated", "frozen"),
+                     help="override: position Jacobian updated each iteration or frozen")
+    run.add_argument("--projection-energy", dest="projection_energy", choices=("yes", "no"),
+                     help="override: restore the initial energy after each correction")
     run.add_argument("--integrator", choices=integrator_names(), metavar="NAME",
                      help=" | ".join(integrator_names()))
     run.add_argument("--dt", type=_finite, help="step size in s (initial step for adaptive methods)")
@@ -171,8 +179,11 @@ def _settings_from_args(args) -> dict:
     settings = {"system": args.system, "every": args.every, "projection": args.projection,
                 "params": dict(args.set), "initial": dict(args.init),
                 "switching": not args.no_switching, "project_initial": args.project_initial}
+    if args.projection_energy is not None:
+        settings["projection_energy"] = args.projection_energy == "yes"
     for key in ("model", "formulation", "gamma", "gamma1", "gamma2", "integrator", "dt", "t_final",
-                "rtol", "atol", "rcond_min", "rcond_switch"):
+                "rtol", "atol", "rcond_min", "rcond_switch", "projection_weight", "projection_iterations",
+                "projection_jacobian"):
         v = getattr(args, key)
         if v is not None:
             settings[key] = v
