@@ -172,6 +172,9 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:      # output piped into `head` and closed: not an error of ours
+        sys.stderr.close()
+        return 0
     return 0
 
 
