@@ -26,15 +26,16 @@ from typing import Optional, get_args
 import numpy as np
 import orjson
 from fastapi import Depends, FastAPI, Path, Query
-from fastapi.responses import JSONResponse, RedirectResponse, Response
+from fastapi_offline import FastAPIOffline
+from fastapi.responses import JSONResponse, RedirectResponse, Response, StreamingResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from nmkane_core.schema import RunResult, RunSettings
+from nmkane_core.schema import RunResult
 from nmkane_core.simulate import Run, catalog
 
 from .config import LIMIT_DESCRIPTIONS, Settings
 from .errors import ErrorResponse, error_response, install_error_handlers, item
-from .models import STATUSES, Catalog, Health, RunList
+from .models import STATUSES, Catalog, Health, RunList, RunSettings
 from .service import RunService
 
 __all__ = ["create_app"]
@@ -55,6 +56,7 @@ POST_RESPONSES = {
                                "description": "the stored run"},
                     "GetRunCsv": {"operationId": "get_run_csv", "parameters": {"run_id": "$response.body#/id"},
                                   "description": "the stored run as CSV"}}},
+    400: {**_ERR, "description": "the body could not be read as text (e.g. not UTF-8)"},
     413: {**_ERR, "description": "request body larger than max_request_bytes"},
     422: {**_ERR, "description": "invalid settings: field path, value, reason and what is allowed"},
     503: {**_ERR, "description": "queue_limit runs already admitted; retry after Retry-After seconds",
@@ -131,15 +133,25 @@ def _iso(ts: float) -> str:
     return dt.datetime.fromtimestamp(ts, dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
-def _csv(doc: bytes) -> str:
-    """The CLI's CSV (``Run.to_csv``) of a stored document."""
+def _csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
+    """The CLI's CSV (``Run.to_csv``) of a stored document, in chunks of rows.
+
+    Each chunk is ``Run.to_csv`` of a slice (header kept on the first only), so the text is
+    exactly the CLI's, and a long run streams without holding the GIL for seconds.
+    """
     d = orjson.loads(doc)
     arr = lambda v: np.asarray(v, dtype=float)  # noqa: E731
-    run = Run(system=d["system"], settings=d["settings"], t=arr(d["t"]),
-              state={k: arr(v) for k, v in d["state"].items()},
-              energy=None if d["energy"] is None else arr(d["energy"]),
-              violation={k: arr(v) for k, v in d["violation"].items()}, summary=d["summary"])
-    return run.to_csv()
+    t = arr(d["t"])
+    state = {k: arr(v) for k, v in d["state"].items()}
+    energy = None if d["energy"] is None else arr(d["energy"])
+    violation = {k: arr(v) for k, v in d["violation"].items()}
+    del d
+    for start in range(0, max(t.size, 1), rows_per_chunk):
+        part = slice(start, start + rows_per_chunk)
+        text = Run(system="", settings={}, t=t[part], state={k: v[part] for k, v in state.items()},
+                   energy=None if energy is None else energy[part],
+                   violation={k: v[part] for k, v in violation.items()}, summary={}).to_csv()
+        yield text if start == 0 else text.split("\n", 1)[1]
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
@@ -157,7 +169,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         finally:
             await asyncio.get_running_loop().run_in_executor(None, svc.stop)
 
-    app = FastAPI(
+    app = FastAPIOffline(                   # /docs served with local assets: works offline
         title="nmkane", version=VERSION, lifespan=lifespan,
         description="Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005) as a service: run "
                     "simulations of the Appell–Hamel mechanism and the sliding particle, and fetch "
@@ -230,7 +242,8 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         doc = svc.store.document(run_id)
         if doc is None:
             return _not_found(run_id)
-        return CSVResponse(_csv(doc), headers={"Content-Disposition": f'attachment; filename="{run_id}.csv"'})
+        return StreamingResponse(_csv_chunks(doc), media_type=CSVResponse.media_type,
+                                 headers={"Content-Disposition": f'attachment; filename="{run_id}.csv"'})
 
     @app.get("/api/runs/{run_id}", response_model=RunResult, response_class=JSONBytes, responses=NOT_FOUND,
              operation_id="get_run")

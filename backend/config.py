@@ -36,8 +36,8 @@ LIMIT_DESCRIPTIONS = {
     "max_steps": "fixed steps per run (t_final/dt); a request over it is refused with 422 before the "
                  "run starts. Adaptive and scipy integrators are bounded by max_wall_time_s instead",
     "max_rows": "output rows per run; a fixed-step request over it is refused with 422 (raise `every`); "
-                "an adaptive run's output is thinned to it (the summary still covers every step, and a "
-                "warning says so)",
+                "an adaptive run stops when its output reaches it (status 'timeout', the message says why, "
+                "results up to there kept)",
     "max_request_bytes": "size of a request body; a larger one is refused with 413",
     "max_wall_time_s": "integration wall time per run, s; a run past it ends with status 'timeout' "
                        "and keeps what it computed so far",
@@ -73,7 +73,7 @@ class Settings:
     queue_limit: int = field(default_factory=lambda: _env("NMKANE_QUEUE_LIMIT", 64, int))
     #: fixed steps per run; more is refused with 422 before the run starts
     max_steps: int = field(default_factory=lambda: _env("NMKANE_MAX_STEPS", 2_000_000, int))
-    #: output rows per run; more is refused with 422 (fixed step) or thinned (adaptive)
+    #: output rows per run; more is refused with 422 (fixed step) or stops the run (adaptive)
     max_rows: int = field(default_factory=lambda: _env("NMKANE_MAX_ROWS", 100_000, int))
     #: request body size in bytes; more is refused with 413
     max_request_bytes: int = field(default_factory=lambda: _env("NMKANE_MAX_REQUEST_BYTES", 65_536, int))

@@ -6,9 +6,18 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from nmkane_core.schema import RunSettings as CoreRunSettings
 from nmkane_core.schema import RunSummary
 
-__all__ = ["Health", "RunListItem", "RunList", "Catalog", "STATUSES"]
+__all__ = ["RunSettings", "Health", "RunListItem", "RunList", "Catalog", "STATUSES"]
+
+
+class RunSettings(CoreRunSettings):
+    """The run settings as a REST body: the core's schema, validated strictly, so JSON that
+    violates the documented schema is refused (no booleans or numeric strings for numbers,
+    no 2.0 for an integer) instead of being coerced."""
+
+    model_config = ConfigDict(strict=True)
 
 STATUSES = Literal["ok", "singular", "diverged", "timeout", "failed"]
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 import asyncio
 import math
 import secrets
+import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
@@ -19,6 +20,7 @@ import numpy as np
 import orjson
 
 from nmkane_core.errors import InputError
+from nmkane_core.integrators import ScipyMethod
 from nmkane_core.schema import RunSettings, RunSummary
 from nmkane_core.simulate import Plan, Run, resolve, simulate
 from nmkane_core.system import get_system, system_names
@@ -26,12 +28,52 @@ from nmkane_core.system import get_system, system_names
 from .config import Settings
 from .store import RunStore
 
-__all__ = ["RunService", "checked_summary", "encode_document", "new_run_id", "thin"]
+__all__ = ["RunService", "OutputGuard", "checked_summary", "encode_document", "make_finite", "new_run_id", "thin"]
 
 
 def new_run_id() -> str:
     """128 random bits, URL-safe: unguessable."""
     return secrets.token_urlsafe(16)
+
+
+FLOAT_MAX = sys.float_info.max
+
+
+def _finite_copy(value, path: str, fixed: list[str]):
+    if isinstance(value, float) and not math.isfinite(value):
+        fixed.append(path)
+        return -FLOAT_MAX if value < 0 else FLOAT_MAX
+    if isinstance(value, dict):
+        return {k: _finite_copy(v, f"{path}.{k}" if path else str(k), fixed) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite_copy(v, f"{path}[{i}]", fixed) for i, v in enumerate(value)]
+    return value
+
+
+def make_finite(run: Run) -> None:
+    """Keep the document valid JSON that conforms to ``RunResult``: JSON has no NaN/Infinity.
+
+    A summary number that overflowed (a diverged run's maximum violation or energy drift
+    can be ``inf``) is reported as ±1.7976931348623157e308, named in a warning.  Output rows
+    from the first non-finite one on are dropped, like the library does for the state.
+    """
+    fixed: list[str] = []
+    run.summary = _finite_copy(run.summary, "", fixed)
+    if fixed:
+        run.summary["warnings"] = [*run.summary.get("warnings", []),
+                                   "overflowed to infinity, reported as ±1.8e308: " + ", ".join(fixed)]
+    cols = [run.t, *run.state.values(), *run.violation.values()] + ([run.energy] if run.energy is not None else [])
+    good = np.logical_and.reduce([np.isfinite(c) for c in cols])
+    if not good.all():
+        keep = max(1, int(np.argmin(good)))
+        run.t = run.t[:keep]
+        run.state = {k: np.nan_to_num(v[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX) for k, v in run.state.items()}
+        run.violation = {k: np.nan_to_num(v[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX)
+                         for k, v in run.violation.items()}
+        if run.energy is not None:
+            run.energy = np.nan_to_num(run.energy[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX)
+        run.summary["warnings"] = [*run.summary.get("warnings", []),
+                                   f"output rows from t = {run.t[-1]:.6g} s on were not finite and are left out"]
 
 
 def checked_summary(run: Run) -> dict:
@@ -67,6 +109,52 @@ def thin(run: Run, max_rows: int) -> None:
     run.summary["warnings"] = [*run.summary.get("warnings", []),
                                f"output thinned from {n:,} to {idx.size:,} rows (service limit max_rows = "
                                f"{max_rows:,}); the summary covers every step"]
+
+
+class OutputGuard:
+    """The ``cancel`` callable of a run: stops it when the service stops, and stops an adaptive
+    run before its output passes ``max_rows`` (memory stays bounded whatever the tolerances).
+
+    The library calls ``cancel()`` between chunks of work; what a chunk can add is known:
+    the compiled adaptive loop writes at most ``ADAPTIVE_ROWS_PER_CALL`` rows per call, the
+    scipy adapter checks every ``SCIPY_STEPS_PER_CALL`` steps.  (A ``max_rows`` argument to
+    ``simulate`` would make this exact; see the notes to the core.)  Fixed-step runs are
+    checked before they start and are not counted here.
+    """
+
+    ADAPTIVE_ROWS_PER_CALL = 4096      # nmkane_core.simulate._run_adaptive: output buffer per chunk
+    SCIPY_STEPS_PER_CALL = 200         # nmkane_core.simulate._run_scipy: checks every 200 steps
+
+    def __init__(self, plan: Plan, max_rows: int, stopping: threading.Event):
+        self.stopping = stopping
+        self.max_rows = max_rows
+        self.calls = 0
+        self.hit = False
+        if isinstance(plan.integrator, ScipyMethod):
+            per_call = max(1, math.ceil(self.SCIPY_STEPS_PER_CALL / plan.every))
+        elif plan.integrator.adaptive:
+            per_call = self.ADAPTIVE_ROWS_PER_CALL
+        else:
+            per_call = None
+        self.max_calls = None if per_call is None else (max_rows - 2) // per_call
+
+    def __call__(self) -> bool:
+        if self.stopping.is_set():
+            return True
+        if self.max_calls is not None:
+            self.calls += 1
+            if self.calls > self.max_calls:
+                self.hit = True
+                return True
+        return False
+
+    def explain(self, run: Run) -> None:
+        """Say in the summary why the run stopped early."""
+        if self.hit and run.summary["status"] == "timeout":
+            run.summary["message"] = (
+                f"stopped at t = {run.summary['t_end']:.6g} s: the output reached this service's limit of "
+                f"{self.max_rows:,} rows (max_rows); results up to there are kept — raise `every` or "
+                "shorten t_final")
 
 
 class RunService:
@@ -175,8 +263,10 @@ class RunService:
         try:
             plan = resolve(settings)
             self.check_limits(plan)
-            run = simulate(plan, progress=False, time_limit=self.settings.max_wall_time_s,
-                           cancel=self._stopping.is_set)
+            guard = OutputGuard(plan, self.settings.max_rows, self._stopping)
+            run = simulate(plan, progress=False, time_limit=self.settings.max_wall_time_s, cancel=guard)
+            guard.explain(run)
+            make_finite(run)
             thin(run, self.settings.max_rows)
             run_id = new_run_id()
             summary = checked_summary(run)

@@ -4,6 +4,7 @@ import csv
 import io
 import math
 import re
+import sys
 import threading
 import time
 import warnings
@@ -16,7 +17,7 @@ from fastapi.testclient import TestClient  # noqa: E402
 
 from backend import Settings, create_app  # noqa: E402
 from backend.errors import ErrorResponse  # noqa: E402
-from backend.service import encode_document  # noqa: E402
+from backend.service import encode_document, make_finite  # noqa: E402
 from nmkane_core.schema import RunResult  # noqa: E402
 from nmkane_core.simulate import simulate  # noqa: E402
 
@@ -117,7 +118,11 @@ def test_openapi_documents_runs_as_the_run_result_schema(client):
     assert post["responses"]["422"]["content"]["application/json"]["schema"]["$ref"].endswith("/ErrorResponse")
     get = spec["paths"]["/api/runs/{run_id}"]["get"]
     assert get["responses"]["200"]["content"]["application/json"]["schema"]["$ref"].endswith("/RunResult")
-    assert client.get("/docs").status_code == 200
+    docs = client.get("/docs")
+    assert docs.status_code == 200
+    for asset in re.findall(r'(?:src|href)="(/static-offline-docs/[^"]+)"', docs.text):   # no CDN: works offline
+        assert client.get(asset).status_code == 200, asset
+    assert "swagger-ui-bundle.js" in docs.text and "cdn." not in docs.text
 
 
 # --------------------------------------------------------------------------- bad input -> 422
@@ -126,8 +131,10 @@ def test_openapi_documents_runs_as_the_run_result_schema(client):
     ({"system": "appell-hamel", "model": "cubic"}, "model", "value_error"),          # unknown model
     ({"system": "appell-hamel", "formulation": "minimal"}, "formulation", "value_error"),  # other system's
     ({"system": "appell-hamel", "integrator": "euler"}, "integrator", "value_error"),
-    ({"system": "appell-hamel", "dt": "fast"}, "dt", "float_parsing"),               # wrong types
-    ({"system": "appell-hamel", "every": 2.5}, "every", "int_from_float"),
+    ({"system": "appell-hamel", "dt": "fast"}, "dt", "float_type"),                  # wrong types
+    ({"system": "appell-hamel", "dt": "0.01"}, "dt", "float_type"),
+    ({"system": "appell-hamel", "t_final": True}, "t_final", "float_type"),
+    ({"system": "appell-hamel", "every": 2.5}, "every", "int_type"),
     ({"system": "appell-hamel", "params": ["rho", 1]}, "params", "dict_type"),
     ({"system": 7}, "system", "string_type"),
     ({"system": "appell-hamel", "dt": 0}, "dt", "greater_than"),                     # dt <= 0
@@ -230,6 +237,29 @@ def test_singular_and_diverged_runs_are_normal_results(client):
     assert all(isinstance(v, float) and math.isfinite(v) for a in arrays for v in a)
 
 
+def test_overflowed_summary_values_stay_valid_json_numbers(client):
+    # Γ2 > 0 destabilizes the thread constraint: the maximum violation overflows to inf,
+    # which JSON cannot carry; the document still conforms to RunResult (found by fuzzing)
+    r = client.post("/api/runs", json={"system": "appell-hamel", "gamma2": 10.0})
+    assert r.status_code == 201
+    summary = RunResult.model_validate_json(r.content).summary
+    assert summary.status == "diverged"
+    assert max(summary.max_abs_violation.values()) == sys.float_info.max
+    assert any("overflowed" in w for w in summary.warnings)
+    listing = client.get("/api/runs").json()["runs"][0]
+    assert listing["summary"]["max_abs_violation"] == r.json()["summary"]["max_abs_violation"]
+
+
+def test_non_finite_output_rows_are_left_out():
+    run = simulate({**SMALL, "t_final": 0.1}, progress=False)
+    run.state["u1"][5] = float("nan")
+    run.summary["max_abs_energy_drift"] = float("inf")
+    make_finite(run)
+    assert run.t.size == 5 and all(v.size == 5 for v in run.state.values()) and run.energy.size == 5
+    assert run.summary["max_abs_energy_drift"] == sys.float_info.max and len(run.summary["warnings"]) == 2
+    RunResult.model_validate_json(encode_document(run, "x"))
+
+
 # --------------------------------------------------------------------------- limits
 def test_run_past_wall_time_limit_ends_with_status_timeout(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_wall_time_s=0.05)
@@ -252,12 +282,25 @@ def test_service_step_and_row_caps_refuse_before_running(tmp_path):
         assert c.get("/api/health").json()["runs_stored"] == 1
 
 
-def test_adaptive_run_output_is_thinned_to_the_row_cap(tmp_path):
+@pytest.mark.parametrize("integrator,rows", [("kutta-merson-adaptive", 20_000), ("rk45", 1_000)])
+def test_adaptive_run_stops_at_the_row_cap_with_bounded_memory(tmp_path, integrator, rows):
+    # tolerances this tight make millions of rows (GBs) within the wall-time limit otherwise
+    s = Settings(data_dir=tmp_path, warm_kernels=False, max_rows=rows)
+    with TestClient(create_app(s)) as c:
+        r = c.post("/api/runs", json={"system": "sliding-particle", "integrator": integrator,
+                                      "rtol": 1e-12, "atol": 1e-14, "t_final": 1e5})
+        assert r.status_code == 201
+        doc = r.json()
+        assert doc["summary"]["status"] == "timeout" and "max_rows" in doc["summary"]["message"]
+        assert rows / 10 < len(doc["t"]) <= rows and doc["t"][-1] == doc["summary"]["t_end"]
+
+
+def test_output_over_the_row_cap_is_thinned_keeping_the_last_row(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_rows=50)
     with TestClient(create_app(s)) as c:
         doc = c.post("/api/runs", json={"system": "appell-hamel", "integrator": "kutta-merson-adaptive",
-                                        "t_final": 5, "rtol": 1e-10}).json()
-        assert len(doc["t"]) <= 50 and doc["t"][-1] == 5.0 and doc["summary"]["steps"] > 50
+                                        "t_final": 20, "rtol": 1e-12}).json()
+        assert len(doc["t"]) <= 50 and doc["t"][-1] == doc["summary"]["t_end"] > doc["t"][-2]
         assert any("thinned" in w for w in doc["summary"]["warnings"])
 
 
