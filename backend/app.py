@@ -18,7 +18,6 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import datetime as dt
-import logging
 from functools import lru_cache
 from importlib import metadata
 from typing import Optional, get_args
@@ -26,8 +25,8 @@ from typing import Optional, get_args
 import numpy as np
 import orjson
 from fastapi import Depends, FastAPI, Path, Query
-from fastapi_offline import FastAPIOffline
 from fastapi.responses import JSONResponse, RedirectResponse, Response, StreamingResponse
+from fastapi_offline import FastAPIOffline
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from nmkane_core.schema import RunResult
@@ -39,8 +38,6 @@ from .models import STATUSES, Catalog, Health, RunList, RunSettings
 from .service import RunService
 
 __all__ = ["create_app"]
-
-log = logging.getLogger("nmkane.backend")
 
 try:
     VERSION = metadata.version("nmkane")

@@ -66,7 +66,7 @@ def _start_service(db: str) -> tuple[subprocess.Popen, str]:
     proc = subprocess.Popen([sys.executable, "-m", "backend", "--port", str(port), "--db", db], cwd=root,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     base = f"http://127.0.0.1:{port}"
-    deadline = time.time() + 180
+    deadline = time.time() + 600      # a cold kernel cache compiles first
     while True:
         try:
             if httpx.get(f"{base}/api/health", timeout=1).status_code == 200:

@@ -335,6 +335,20 @@ def test_past_queue_limit_answers_503_with_retry_after(tmp_path):
         assert c.post("/api/runs", json=SMALL).status_code == 201          # admitted again
 
 
+def test_at_most_max_concurrent_runs_simulate_at_once_the_rest_wait(tmp_path):
+    s = Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=1, max_wall_time_s=0.3)
+    with TestClient(create_app(s)) as c:
+        jobs = [_in_background(c, LONG) for _ in range(3)]
+        _wait_running(c)
+        seen = []
+        while any(th.is_alive() for th, _ in jobs):
+            h = c.get("/api/health").json()
+            seen.append((h["runs_running"], h["runs_in_flight"]))
+            time.sleep(0.02)
+        assert max(r for r, _ in seen) == 1 and max(f for _, f in seen) == 3
+        assert [out["r"].status_code for _, out in jobs] == [201, 201, 201]
+
+
 def test_a_running_simulation_does_not_block_the_event_loop(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=1, max_wall_time_s=1.5)
     with TestClient(create_app(s)) as c:

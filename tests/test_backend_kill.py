@@ -27,7 +27,7 @@ def _start(db, port):
     env = {**os.environ, "NMKANE_MAX_CONCURRENT_RUNS": "2"}
     proc = subprocess.Popen([sys.executable, "-m", "backend", "--port", str(port), "--db", str(db)], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 120
+    deadline = time.time() + 600      # a cold kernel cache compiles first
     while time.time() < deadline:
         assert proc.poll() is None, "the server exited"
         try:

@@ -24,7 +24,7 @@ def _serve(tmp_path, code):
                             stderr=subprocess.STDOUT, text=True)
 
 
-def _read_until(proc, pattern, timeout=120):
+def _read_until(proc, pattern, timeout=600):        # a cold kernel cache compiles first
     lines, deadline = [], time.time() + timeout
     while time.time() < deadline:
         line = proc.stdout.readline()
@@ -77,5 +77,5 @@ def test_serve_reports_a_port_in_use(tmp_path):
         taken.listen()
         port = taken.getsockname()[1]
         proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={port}, web=False)")
-        out, _ = proc.communicate(timeout=120)
+        out, _ = proc.communicate(timeout=600)
     assert proc.returncode != 0 and "could not start" in out
