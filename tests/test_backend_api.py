@@ -143,6 +143,7 @@ def test_openapi_documents_runs_as_the_run_result_schema(client):
     ({"system": "appell-hamel", "dt": 1e-6, "t_final": 100, "every": 1000}, "dt", "value_error"),  # steps cap
     ({"system": "appell-hamel", "params": {"rho": -1}}, "params.rho", "value_error"),
     ({"system": "appell-hamel", "params": {"mass": 1}}, "params.mass", "value_error"),
+    ({"system": "appell-hamel", "params": {"rho": "2*3"}}, "params.rho", "float_type"),  # never evaluated
     ({"system": "appell-hamel", "initial": {"u3": 7}}, "initial.u3", "value_error"),
     ({"system": "appell-hamel", "initial": {"theta": 0, "phi": 0, "x": 0, "y": 0, "z": 30, "u1": 1, "u2": 1,
                                             "u3": 2, "u4": 5, "u5": -0.5}}, "initial", "inconsistent_state"),
@@ -354,14 +355,14 @@ def test_at_most_max_concurrent_runs_simulate_at_once_the_rest_wait(tmp_path):
 
 
 def test_a_running_simulation_does_not_block_the_event_loop(tmp_path):
-    s = Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=1, max_wall_time_s=1.5)
+    s = Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=1, max_wall_time_s=3.0)
     with TestClient(create_app(s)) as c:
         th, out = _in_background(c, LONG)
         _wait_running(c)
         for path in ("/api/health", "/api/systems", "/api/runs"):
             t0 = time.perf_counter()
             assert c.get(path).status_code == 200
-            assert time.perf_counter() - t0 < 0.5, path
+            assert time.perf_counter() - t0 < 1.0, path           # not after the 3 s run
         th.join(30)
         assert out["r"].status_code == 201
 
