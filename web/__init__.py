@@ -1,1 +1,1 @@
-"""nmkane web app: the Appell–Hamel mechanism and the sliding particle in viser."""
+"""nmkane web app: the Appell–Hamel mechanism and the sliding particle in viser (``python -m web``)."""

@@ -1,24 +1,23 @@
 """The 3D web app: the Appell–Hamel mechanism (and the sliding particle) live in a browser.
 
-Every connected browser gets its own :class:`Session` — its own controls, scene and
-trajectory — so students exploring at once do not change each other's view.  A slider
-change is snapshotted and handed to the session's :class:`LatestWorker`, which coalesces
-bursts (a drag fires one event per step) and re-simulates off the GUI thread with the
-compiled kernels; one animation thread moves every session's scene at 30 frames per
-second and refreshes the plots a few times per second.
+Every connected browser gets its own :class:`MechanismApp` — its own controls, scene,
+camera and trajectory — so students exploring at once do not change each other's view.
+A control change snapshots the controls and hands them to the session's
+:class:`~web.worker.LatestWorker`, which re-simulates off the GUI thread with the compiled
+kernels (bursts coalesce, the newest wins) and installs the new trajectory.  One
+animation thread (:class:`WebApp`) poses every session's scene at ``FPS`` and refreshes
+plot markers, the time scrubber and readouts at ``REFRESH_HZ``.
 
-Scene tree (geometry in :mod:`web.geometry`, animation here)::
+Geometry lives in :mod:`web.geometry` and :mod:`web.scene`, plot data in
+:mod:`web.plots`, the derived-matrices panel in :mod:`web.matrices`.
 
-    /ah/frame                  pose = P's horizontal position, heading θ
-    /ah/frame/wheel/spin       the wheel's spin φ about its axle (child of the heading frame)
-    /ah/frame/load, /thread    the hanging load and the thread over the pulleys
-    /ah/ghost/...              the other constraint model (compare), translucent
-    /ah/trace                  P's intercept on the plane (the paper's Fig. 7)
-    /pt/lane{0,1,2}/particle   minimal | undamped nonminimal | damped nonminimal
+``launch()`` starts the server in the background (for ``nmkane serve``), ``main()``
+blocks (``python -m web``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import signal
 import threading
@@ -34,103 +33,66 @@ from nmkane_core.simulate import simulate as core_simulate
 from nmkane_core.system import get_system
 
 from . import geometry as geo
+from . import matrices as mx
+from . import plots as pl
+from .scene import LANES, MechanismScene, ParticleScene, mechanism_targets
+from .worker import LatestWorker
 
-FPS = 30.0
-PLOT_HZ = 4.0
-AH_PARAMS = ("a", "b", "rho", "m", "M", "I", "g")
-INTEGRATORS = ("kutta-merson", "rk4", "kutta-merson-adaptive", "dop853", "rk45")
+FPS = 40.0                    # poses sent per second (the target is ≥ 30)
+REFRESH_HZ = 4.0              # plot markers, scrubber, readouts
+TARGET_ROWS = 4000            # output rows kept per run for the animation (`every`)
+TIME_LIMIT_S = 10.0           # a run that takes longer stops with status 'timeout'
+AH, PT = "Appell–Hamel mechanism", "Sliding particle (Example 2)"
+INTEGRATORS = ("kutta-merson", "rk4", "kutta-merson-adaptive", "rk45", "dop853", "radau")
+VIEWS = ("whole mechanism", "wheel", "load P")
+VIEW_TARGET = {"whole mechanism": "mechanism", "wheel": "wheel", "load P": "load"}
+VIEW_OFFSET = {"whole mechanism": np.array([-0.5, 0.85, 0.2]) * 42.0,     # in the body frame:
+               "wheel": np.array([-0.55, 0.75, 0.36]) * 9.0,               # behind, drum side, above
+               "load P": np.array([-0.45, 0.8, 0.4]) * 12.0}
+PT_CAMERA = (np.array([1.3, 0.0, -0.1]), np.array([1.3, -10.5, 2.8]))   # look_at, position
 
-
-# --------------------------------------------------------------------------- workers
-class LatestWorker:
-    """Runs ``fn`` on the newest submitted request only (bursts coalesce), off the GUI thread."""
-
-    def __init__(self, fn, debounce: float = 0.02):
-        self.fn, self.debounce = fn, debounce
-        self.cv = threading.Condition()
-        self.pending = None
-        self.busy = False
-        self.closed = False
-        self.thread = threading.Thread(target=self._run, daemon=True, name="nmkane-resim")
-        self.thread.start()
-
-    def submit(self, request) -> None:
-        with self.cv:
-            self.pending = request
-            self.cv.notify_all()
-
-    def _run(self) -> None:
-        while True:
-            with self.cv:
-                while self.pending is None and not self.closed:
-                    self.cv.wait()
-                if self.closed:
-                    return
-                self.busy = True
-            time.sleep(self.debounce)            # let a slider drag settle, keep the newest
-            with self.cv:
-                request, self.pending = self.pending, None
-            try:
-                self.fn(request)
-            finally:
-                with self.cv:
-                    self.busy = False
-                    self.cv.notify_all()
-
-    def wait_idle(self, timeout: float = 30.0) -> bool:
-        end = time.time() + timeout
-        with self.cv:
-            while self.pending is not None or self.busy:
-                left = end - time.time()
-                if left <= 0:
-                    return False
-                self.cv.wait(left)
-        return True
-
-    def close(self) -> None:
-        with self.cv:
-            self.closed = True
-            self.cv.notify_all()
-        self.thread.join(5)
+# the controls' defaults: the paper's Example 1 (no stabilization) and Example 2 (Fig. 16-like)
+AH_DEFAULTS = {"model": "nonlinear", "integrator": "kutta-merson", "gamma": 0.0, "gamma1": 0.0,
+               "gamma2": 0.0, "log_dt": -2.0, "t_final": 20.0, "theta_dot0": 1.0, "phi_dot0": 1.0}
+PT_DEFAULTS = {"pt_integrator": "kutta-merson", "pt_gamma1": -20.0, "pt_gamma2": -100.0,
+               "pt_log_dt": -1.3, "pt_t_final": 300.0, "x0": 1.0}
+AH_PARAM_RANGES = {"a": (0.2, 3.0, 0.05), "b": (0.05, 2.0, 0.05), "rho": (1.0, 15.0, 0.1),
+                   "m": (0.1, 20.0, 0.1), "M": (0.5, 50.0, 0.5), "I": (0.1, 50.0, 0.1),
+                   "g": (0.0, 20.0, 0.01), "z0": (0.0, 100.0, 1.0)}
+PT_PARAM_RANGES = {"l0": (0.2, 3.0, 0.05), "m": (0.1, 10.0, 0.1), "g": (0.0, 20.0, 0.01)}
+DT_MARKS = ((-4.0, "1e-4"), (-3.0, "1e-3"), (-2.0, "0.01"), (-1.0, "0.1"))
+COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")
+LANE_COLORS = {"M": "#2b6ed6", "N": "#dc5023", "DN": "#1ea04b"}
+PT_ORDER = ("N", "DN", "M")   # series order in the particle plots
 
 
-# --------------------------------------------------------------------------- matrices
-_MATRIX_TEXT: dict = {}
-_MATRIX_LOCK = threading.Lock()
+def dt_of(log_dt: float) -> float:
+    """The step size of the log-scale slider, rounded to two significant digits."""
+    return float(f"{10.0 ** float(log_dt):.2g}")
 
 
-def matrices_markdown(system: str, variant: str) -> str:
-    """The derived A1, A2 and T of a model as readable text (cached, computed once)."""
-    key = (system, variant)
-    with _MATRIX_LOCK:
-        if key in _MATRIX_TEXT:
-            return _MATRIX_TEXT[key]
-    import sympy as sp
+def _every(dt: float, t_final: float) -> int:
+    return max(1, int(round(t_final / dt / TARGET_ROWS)))
 
-    d = get_system(system).derivation(variant)
-    parts = [f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), speeds "
-             f"[u_I, u_D] = {[str(s) for s in d.u_perm]}"]
-    for name, title in (("A1", "A1 = [−A  I]  (22)"), ("A2", "A2 = [I  Aᵀ]  (40)"), ("T", "T = [A1; A2 Q]  (44)")):
-        mat = d.matrix(name).applyfunc(lambda e: sp.simplify(e) if sp.count_ops(e) < 120 else e)
-        text = sp.pretty(mat, use_unicode=True, wrap_line=False)
-        parts.append(f"{title}\n```\n{text}\n```")
-    md = "\n\n".join(parts)
-    with _MATRIX_LOCK:
-        _MATRIX_TEXT[key] = md
-    return md
+
+def _fmt(v) -> str:
+    return "—" if v is None else f"{v:.2e}"
 
 
 # --------------------------------------------------------------------------- trajectories
 @dataclass
 class Trajectory:
-    """What a session animates: the runs of one request, and when they were computed."""
+    """What a session animates: the runs of one request, prepared for display."""
 
-    kind: str                       # "ah" | "pt"
-    settings: dict
-    runs: dict                      # label -> nmkane_core Run
+    kind: str                        # "ah" | "pt"
+    request: dict
+    runs: dict                       # label -> nmkane_core Run (first = main)
     params: dict
-    computed_at: float = field(default_factory=time.time)
+    plots: dict                      # plot key -> plots.Curves
+    t_request: float                 # perf_counter when the controls were read
     compute_s: float = 0.0
+    installed_at: float = 0.0
+    seq: int = 0
 
     @property
     def main(self):
@@ -138,212 +100,301 @@ class Trajectory:
 
     @property
     def t_end(self) -> float:
-        return float(self.main.t[-1])
+        return max(float(r.t[-1]) for r in self.runs.values())
+
+    def row(self, label: str, t_now: float) -> dict:
+        run = self.runs[label]
+        k = geo.index_at(run.t, t_now)
+        return {n: float(v[k]) for n, v in run.state.items()}
 
 
-def _status_line(run) -> str:
-    s = run.summary
-    return f"**{s['status']}** — {s['message']}"
+def _ah_plots(runs: dict) -> dict:
+    labels = list(runs)
+    main = runs[labels[0]]
+    t = main.t
+    out = {}
+    dEs = {lab: np.interp(t, r.t, r.energy - r.energy[0]) for lab, r in runs.items()}
+    factor, unit = pl.readable(list(dEs.values()), "J")
+    out["energy"] = pl.curves(t, [dEs[lab] / factor for lab in labels], [f"ΔE {lab} [{unit}]" for lab in labels])
+    ys, names = [], []
+    for lab, r in runs.items():
+        for c, v in r.violation.items():
+            ys.append(pl.log10_abs(np.interp(t, r.t, v)))
+            names.append(f"{c}" if lab == labels[0] else f"{c} ({lab})")
+    out["violation"] = pl.curves(t, ys, names)
+    out["theta"] = pl.curves(t, [np.interp(t, r.t, r.state["theta"]) for r in runs.values()],
+                             [f"θ {lab} [rad]" for lab in labels])
+    out["phidot"] = pl.curves(t, [np.interp(t, r.t, r.state["u2"]) for r in runs.values()],
+                              [f"φ̇ {lab} [rad/s]" for lab in labels])
+    return out
+
+
+def _pt_plots(runs: dict) -> dict:
+    t = runs["N"].t
+    order = PT_ORDER
+    dEs = {lab: np.interp(t, runs[lab].t, runs[lab].energy - runs[lab].energy[0]) for lab in order}
+    factor, unit = pl.readable(list(dEs.values()), "J")
+    return {
+        "energy": pl.curves(t, [dEs[lab] / factor for lab in order], [f"ΔE {lab} [{unit}]" for lab in order]),
+        "violation": pl.curves(t, [pl.log10_abs(np.interp(t, runs[lab].t, runs[lab].violation["surface"]))
+                                   for lab in order], [f"{lab}" for lab in order]),
+        "x": pl.curves(t, [np.interp(t, runs[lab].t, runs[lab].state["x"]) for lab in order],
+                       [f"x {lab} [m]" for lab in order]),
+        "y": pl.curves(t, [np.interp(t, runs[lab].t, runs[lab].state["y"]) for lab in order],
+                       [f"y {lab} [m]" for lab in order]),
+    }
 
 
 # --------------------------------------------------------------------------- session
-class Session:
-    """The controls, scene and trajectory of one browser (or of a test)."""
+class MechanismApp:
+    """The controls, scene, camera and trajectory of one browser (or of a test).
 
-    def __init__(self, gui, scene, *, client=None, simulate=core_simulate, sync: bool = False):
-        self.gui, self.scene, self.client = gui, scene, client
+    ``target`` is a :class:`viser.ClientHandle` (the per-browser case) or a
+    :class:`viser.ViserServer` (tests, a single shared view).  With ``sync=True`` every
+    control change simulates in the calling thread (deterministic tests); otherwise a
+    :class:`LatestWorker` does it in the background.
+    """
+
+    def __init__(self, target, *, simulate=core_simulate, sync: bool = False):
+        self.target = target
+        self.client = target if isinstance(target, viser.ClientHandle) else None
+        self.gui, self.scene = target.gui, target.scene
         self._simulate = simulate
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()
         self.traj: Trajectory | None = None
-        self.anim_t = 0.0
-        self.last_error = ""
-        self.sim_log: list[dict] = []          # settings of every simulation (tests read it)
+        self.t_now = 0.0
+        self.playing = True
+        self.closed = False
+        self.sim_log: list[dict] = []              # settings of every simulation (tests read them)
+        self.latencies: list[float] = []           # control change -> new trajectory installed, s
+        self._seq = 0
+        self._installs = 0
+        self._quiet = False                        # while resetting: one request at the end
+        self._writing_time = False
+        self._shown_t = None
+        self._matrices_key = None
+        self._cam_offset = None                    # camera − target while following
+        self._cam_reset_at = 0.0
+        self._ah_params = {p.name: p.default for p in get_system("appell-hamel").parameters}
+        self._pt_params = {p.name: p.default for p in get_system("sliding-particle").parameters}
+        self.mechanism = MechanismScene(self.scene, self._ah_params)
+        self.particle = ParticleScene(self.scene, self._pt_params["l0"])
         self._build_gui()
-        self._build_scene()
         self.worker = None if sync else LatestWorker(self._compute)
+        if self.client is not None:
+            self.client.camera.on_update(self._on_camera)
+        self._aim_camera(reset=True)
         self.request()
 
     # ---------------------------------------------------------------- GUI
     def _build_gui(self) -> None:
         gui = self.gui
-        ah = get_system("appell-hamel")
-        self.scene_choice = gui.add_dropdown("Scene", options=("Appell–Hamel", "Sliding particle"),
-                                             initial_value="Appell–Hamel")
-        self.status = gui.add_markdown("computing …")
+        gui.add_markdown("Nonminimal Kane's equations — Bajodah, Hodges & Chen (2005)")
+        self.scene_choice = gui.add_dropdown("Scene", options=(AH, PT), initial_value=AH)
+        self.status = gui.add_markdown("computing … (the first run loads the compiled kernels)")
+
         with gui.add_folder("Playback"):
-            self.playing = gui.add_checkbox("Play", initial_value=True)
-            self.speed = gui.add_slider("Speed ×", min=0.1, max=10.0, step=0.1, initial_value=1.0)
-            self.scrub = gui.add_slider("Time t [s]", min=0.0, max=20.0, step=0.01, initial_value=0.0)
+            self.play = gui.add_button("❚❚ Pause")
+            self.speed = gui.add_slider("Speed ×", min=0.1, max=20.0, step=0.1, initial_value=1.0)
+            self.time = gui.add_slider("Time t [s]", min=0.0, max=20.0, step=0.01, initial_value=0.0)
             self.follow = gui.add_checkbox("Camera follows", initial_value=True)
-            self.cam_dist = gui.add_slider("Camera distance [m]", min=5.0, max=120.0, step=1.0, initial_value=19.0)
-        self.ah_folder = gui.add_folder("Appell–Hamel")
+            self.view = gui.add_dropdown("Camera target", options=VIEWS, initial_value=VIEWS[0])
+            self.view_reset = gui.add_button("Reset view")
+
+        self.ah_folder = gui.add_folder("Simulation: Appell–Hamel")
         with self.ah_folder:
             self.model = gui.add_dropdown("Constraint model", options=("nonlinear", "linear"),
-                                          initial_value="nonlinear")
-            self.integrator = gui.add_dropdown("Integrator", options=INTEGRATORS, initial_value="kutta-merson")
-            self.gamma = gui.add_slider("Γ (nonholonomic)", min=-50.0, max=10.0, step=0.5, initial_value=0.0)
-            self.log_dt = gui.add_slider("log10 Δt [s]", min=-4.0, max=math.log10(0.2), step=0.05,
-                                         initial_value=-2.0)
-            self.t_final = gui.add_slider("Final time [s]", min=1.0, max=200.0, step=1.0, initial_value=20.0)
-            self.theta_dot0 = gui.add_slider("θ̇0 [rad/s]", min=-3.0, max=3.0, step=0.05, initial_value=1.0)
-            self.phi_dot0 = gui.add_slider("φ̇0 [rad/s]", min=-3.0, max=3.0, step=0.05, initial_value=1.0)
+                                          initial_value=AH_DEFAULTS["model"])
+            self.integrator = gui.add_dropdown("Integrator", options=INTEGRATORS,
+                                               initial_value=AH_DEFAULTS["integrator"])
+            self.gamma = gui.add_slider("Γ (nonholonomic)", min=-50.0, max=10.0, step=0.5,
+                                        initial_value=AH_DEFAULTS["gamma"])
+            self.gamma1 = gui.add_slider("Γ1 (holonomic) [1/s]", min=-50.0, max=10.0, step=0.5,
+                                         initial_value=AH_DEFAULTS["gamma1"])
+            self.gamma2 = gui.add_slider("Γ2 (holonomic) [1/s²]", min=-500.0, max=50.0, step=5.0,
+                                         initial_value=AH_DEFAULTS["gamma2"])
+            self.log_dt = gui.add_slider("log₁₀ Δt [s]", min=-4.0, max=math.log10(0.2), step=0.05,
+                                         initial_value=AH_DEFAULTS["log_dt"], marks=DT_MARKS,
+                                         hint="step size on a log scale: −4 → 1e−4 s … −0.7 → 0.2 s")
+            self.t_final = gui.add_slider("Final time [s]", min=1.0, max=200.0, step=1.0,
+                                          initial_value=AH_DEFAULTS["t_final"])
+            self.theta_dot0 = gui.add_slider("θ̇0 [rad/s]", min=-3.0, max=3.0, step=0.05,
+                                             initial_value=AH_DEFAULTS["theta_dot0"])
+            self.phi_dot0 = gui.add_slider("φ̇0 [rad/s]", min=-3.0, max=3.0, step=0.05,
+                                           initial_value=AH_DEFAULTS["phi_dot0"],
+                                           hint="ẋ0, ẏ0, ż0 are completed by the constraint solve")
             self.compare = gui.add_checkbox("Compare: ghost of the other model", initial_value=False)
             with gui.add_folder("Physical parameters", expand_by_default=False):
-                self.params = {p.name: gui.add_slider(f"{p.name} [{p.unit}]" if p.unit else p.name,
-                                                      min=max(p.min, 0.0) + (0.05 if not p.min_inclusive else 0.0),
-                                                      max=min(p.max, 4 * p.default + 1), step=0.05,
-                                                      initial_value=p.default)
-                               for p in ah.parameters if p.name in AH_PARAMS}
+                self.params = {}
+                for p in get_system("appell-hamel").parameters:
+                    lo, hi, step = AH_PARAM_RANGES[p.name]
+                    label = {"rho": "ρ"}.get(p.name, p.name)
+                    self.params[p.name] = gui.add_slider(f"{label} [{p.unit}]", min=lo, max=hi, step=step,
+                                                         initial_value=p.default, hint=p.description)
             self.reset = gui.add_button("Reset to the paper's values")
-        self.pt_folder = gui.add_folder("Sliding particle", visible=False)
-        with self.pt_folder:
-            self.gamma1 = gui.add_slider("Γ1 [1/s]", min=-50.0, max=10.0, step=0.5, initial_value=-20.0)
-            self.gamma2 = gui.add_slider("Γ2 [1/s²]", min=-500.0, max=50.0, step=5.0, initial_value=-100.0)
-            self.pt_log_dt = gui.add_slider("log10 Δt [s] ", min=-4.0, max=math.log10(0.2), step=0.05,
-                                            initial_value=-2.0)
-            self.pt_t_final = gui.add_slider("Final time [s] ", min=1.0, max=500.0, step=1.0, initial_value=60.0)
-            self.x0 = gui.add_slider("x0 [m]", min=-1.5, max=1.5, step=0.05, initial_value=1.0)
-        with gui.add_folder("Plots"):
-            x_scale = {"x": uplot.Scale(time=False, auto=False, range=(0.0, 20.0))}
-            z2 = (np.zeros(2), np.zeros(2))
-            self.plot_energy = gui.add_uplot(data=z2, series=(
-                uplot.Series(label="t [s]"), uplot.Series(label="ΔE [J]", stroke="#1f77b4", width=2)),
-                title="Energy drift ΔE(t)", scales=dict(x_scale), aspect=2.0)
-            self.plot_viol = gui.add_uplot(data=z2 + (np.zeros(2), np.zeros(2)), series=(
-                uplot.Series(label="t [s]"), uplot.Series(label="c1", stroke="#2ca02c", width=2),
-                uplot.Series(label="c2", stroke="#ff7f0e", width=2), uplot.Series(label="c3", stroke="#9467bd", width=2)),
-                title="log10 |constraint violation|", scales=dict(x_scale), aspect=2.0)
-            self.plot_state = gui.add_uplot(data=z2 + (np.zeros(2),), series=(
-                uplot.Series(label="t [s]"), uplot.Series(label="θ [rad]", stroke="#8c564b", width=2),
-                uplot.Series(label="φ̇ [rad/s]", stroke="#e377c2", width=2)),
-                title="θ(t) and φ̇(t)", scales=dict(x_scale), aspect=2.0)
-        with gui.add_folder("Derived matrices", expand_by_default=False):
-            self.matrices = gui.add_markdown("(computed in the background …)")
 
-        for h in (self.model, self.integrator, self.gamma, self.log_dt, self.t_final, self.theta_dot0,
-                  self.phi_dot0, self.compare, self.gamma1, self.gamma2, self.pt_log_dt, self.pt_t_final,
-                  self.x0, *self.params.values()):
+        self.pt_folder = gui.add_folder("Simulation: sliding particle", visible=False)
+        with self.pt_folder:
+            self.pt_integrator = gui.add_dropdown("Integrator ", options=INTEGRATORS,
+                                                  initial_value=PT_DEFAULTS["pt_integrator"])
+            self.pt_gamma1 = gui.add_slider("Γ1 of DN [1/s]", min=-50.0, max=10.0, step=0.5,
+                                            initial_value=PT_DEFAULTS["pt_gamma1"])
+            self.pt_gamma2 = gui.add_slider("Γ2 of DN [1/s²]", min=-500.0, max=50.0, step=5.0,
+                                            initial_value=PT_DEFAULTS["pt_gamma2"])
+            self.pt_log_dt = gui.add_slider("log₁₀ Δt [s] ", min=-4.0, max=math.log10(0.2), step=0.05,
+                                            initial_value=PT_DEFAULTS["pt_log_dt"], marks=DT_MARKS)
+            self.pt_t_final = gui.add_slider("Final time [s] ", min=1.0, max=3600.0, step=1.0,
+                                             initial_value=PT_DEFAULTS["pt_t_final"])
+            self.x0 = gui.add_slider("x0 [m]", min=-1.5, max=1.5, step=0.05, initial_value=PT_DEFAULTS["x0"])
+            with gui.add_folder("Physical parameters ", expand_by_default=False):
+                self.pt_params = {}
+                for p in get_system("sliding-particle").parameters:
+                    lo, hi, step = PT_PARAM_RANGES[p.name]
+                    self.pt_params[p.name] = gui.add_slider(f"{p.name} [{p.unit}] ", min=lo, max=hi, step=step,
+                                                            initial_value=p.default, hint=p.description)
+            self.pt_reset = gui.add_button("Reset to the paper's values ")
+
+        with gui.add_folder("Plots and summary"):
+            self.summary = gui.add_markdown("")
+            x_scale = {"x": uplot.Scale(time=False, auto=False, range=(0.0, 20.0))}
+            self.plot_handles = {}
+            for key, title in (("energy", "Energy drift ΔE(t)"), ("violation", "log₁₀ |constraint violation|"),
+                               ("theta", "θ(t)"), ("phidot", "φ̇(t)")):
+                self.plot_handles[("ah", key)] = self._add_plot(title, x_scale)
+            for key, title in (("energy", "Energy drift ΔE(t) "), ("violation", "log₁₀ |ψ| (surface) "),
+                               ("x", "x(t) "), ("y", "y(t) (down) ")):
+                self.plot_handles[("pt", key)] = self._add_plot(title, x_scale, visible=False)
+
+        with gui.add_folder("Derived matrices", expand_by_default=False):
+            self.matrices_intro = gui.add_markdown("(computed in the background …)")
+            blank = np.full((2, 2, 4), 255, np.uint8)
+            self.matrix_images = {name: gui.add_image(blank, label=None, format="png", visible=False)
+                                  for name in (*mx.MATRICES, "where")}
+            self.matrices_latex = gui.add_markdown("", visible=False)
+
+        # wiring: every simulation input re-simulates; playback controls do not
+        sim_inputs = (self.model, self.integrator, self.gamma, self.gamma1, self.gamma2, self.log_dt,
+                      self.t_final, self.theta_dot0, self.phi_dot0, self.compare, *self.params.values(),
+                      self.pt_integrator, self.pt_gamma1, self.pt_gamma2, self.pt_log_dt, self.pt_t_final,
+                      self.x0, *self.pt_params.values())
+        for h in sim_inputs:
             h.on_update(lambda _: self.request())
         self.scene_choice.on_update(lambda _: self._on_scene())
-        self.reset.on_click(lambda _: self._reset())
-        self.scrub.on_update(self._on_scrub)
+        self.reset.on_click(lambda _: self.reset_to_paper())
+        self.pt_reset.on_click(lambda _: self.reset_to_paper())
+        self.play.on_click(lambda _: self.set_playing(not self.playing))
+        self.time.on_update(self._on_time)
+        self.view.on_update(lambda _: self.reset_view())
+        self.view_reset.on_click(lambda _: self.reset_view())
+        self.follow.on_update(lambda _: self._aim_camera(reset=True) if self.follow.value else None)
 
-    def _reset(self) -> None:
-        ah = get_system("appell-hamel")
-        for p in ah.parameters:
-            if p.name in self.params:
-                self.params[p.name].value = p.default
-        self.gamma.value, self.log_dt.value, self.t_final.value = 0.0, -2.0, 20.0
-        self.theta_dot0.value, self.phi_dot0.value = 1.0, 1.0
-        self.model.value, self.integrator.value = "nonlinear", "kutta-merson"
-        self.gamma1.value, self.gamma2.value, self.x0.value = -20.0, -100.0, 1.0
+    def _add_plot(self, title: str, x_scale: dict, visible: bool = True):
+        z = np.zeros(2)
+        return self.gui.add_uplot(
+            data=(z, z), series=(uplot.Series(label="t [s]"), uplot.Series(label="—", stroke=COLORS[0], width=2)),
+            title=title, scales=x_scale, axes=pl.marker_axes(0.0), aspect=1.9, visible=visible)
+
+    @property
+    def kind(self) -> str:
+        return "ah" if self.scene_choice.value == AH else "pt"
+
+    # ---------------------------------------------------------------- control actions
+    def set_playing(self, playing: bool) -> None:
+        self.playing = bool(playing)
+        self.play.label = "❚❚ Pause" if self.playing else "▶ Play"
+
+    def reset_view(self) -> None:
+        """The camera preset of the current scene and target, seen at the current heading."""
+        with self.lock:
+            self._aim_camera(reset=True)
+
+    def seek(self, t: float) -> None:
+        """Show time t (the scrubber, or a test)."""
+        with self.lock:
+            self.t_now = float(t)
+            if self.traj is not None:
+                self.t_now = min(max(self.t_now, 0.0), self.traj.t_end)
+                self.show_time(self.t_now)
+                self._refresh(force=True)
+
+    def _on_time(self, _event) -> None:
+        if not self._writing_time:                 # a person (or a test) moved the scrubber
+            self.seek(float(self.time.value))
+
+    def reset_to_paper(self) -> None:
+        """Every control of the current scene back to the paper's values: one re-simulation."""
+        self._quiet = True
+        try:
+            if self.kind == "ah":
+                for name, v in AH_DEFAULTS.items():
+                    getattr(self, name).value = v
+                for p in get_system("appell-hamel").parameters:
+                    self.params[p.name].value = p.default
+                self.compare.value = False
+            else:
+                for name, v in PT_DEFAULTS.items():
+                    getattr(self, name).value = v
+                for p in get_system("sliding-particle").parameters:
+                    self.pt_params[p.name].value = p.default
+        finally:
+            self._quiet = False
         self.request()
 
     def _on_scene(self) -> None:
-        is_ah = self.scene_choice.value == "Appell–Hamel"
-        self.ah_folder.visible = is_ah
-        self.pt_folder.visible = not is_ah
-        self.ah_root.visible = is_ah
-        self.pt_root.visible = not is_ah
+        ah = self.kind == "ah"
+        self.ah_folder.visible, self.pt_folder.visible = ah, not ah
+        self.view.visible = ah
+        self.mechanism.root.visible, self.particle.root.visible = ah, not ah
+        for (kind, _), h in self.plot_handles.items():
+            h.visible = kind == self.kind
+        self.speed.value = 1.0 if ah else 5.0
+        self._aim_camera(reset=True)
         self.request()
 
-    def _on_scrub(self, event) -> None:
-        if event.client is not None or not self.playing.value:   # a person moved the scrubber
-            with self.lock:
-                self.anim_t = float(self.scrub.value)
-
-    # ---------------------------------------------------------------- scene
-    def _build_scene(self) -> None:
-        sc = self.scene
-        self.ah_root = sc.add_frame("/ah", show_axes=False)
-        sc.add_grid("/ah/ground", width=300.0, height=300.0, plane="xy", cell_size=5.0, section_size=25.0,
-                    infinite_grid=True, fade_distance=250.0)
-        self.trace = sc.add_line_segments("/ah/trace", points=np.zeros((1, 2, 3), np.float32),
-                                          colors=(220, 60, 30), thickness=0.25)
-        self.frame = sc.add_frame("/ah/frame", show_axes=False)
-        self.ghost = sc.add_frame("/ah/ghost", show_axes=False, visible=False)
-        self._frame_parts = {}
-        self._shape_frame(geo_params=get_system("appell-hamel").resolve_params({}), z_min=0.0)
-        self.pt_root = sc.add_frame("/pt", show_axes=False, visible=False)
-        self.pt_particles = []
-        for i, (label, color) in enumerate((("M  minimal (137)", (40, 120, 220)),
-                                             ("N  nonminimal, Γ1 = Γ2 = 0", (220, 90, 40)),
-                                             ("DN damped nonminimal", (40, 170, 80)))):
-            sc.add_frame(f"/pt/lane{i}", show_axes=False, position=(3.8 * (i - 1), 0.0, 0.0))
-            sc.add_label(f"/pt/lane{i}/label", label, position=(-0.9, 0.0, 1.9))
-            self.pt_particles.append(sc.add_icosphere(f"/pt/lane{i}/particle", radius=0.07, color=color))
-        self._shape_troughs(1.0)
-
-    def _shape_frame(self, geo_params: dict, z_min: float) -> None:
-        """(Re)build the frame, wheel and pulleys for the parameters (sizes are geometry)."""
-        sc, p = self.scene, geo_params
-        h = geo.pulley_height(p)
-        a, b, rho = p["a"], p["b"], p["rho"]
-        axle = (math.cos(math.pi / 4), math.sin(math.pi / 4), 0.0, 0.0)   # cylinder axis z -> y
-        bottom = min(z_min - 1.0, -1.0)
-        for root, opacity in (("/ah/frame", None), ("/ah/ghost", 0.35)):
-            full = root == "/ah/frame"
-            if full:
-                sc.add_box(f"{root}/beam", dimensions=(rho, 0.18, 0.18), color=(110, 110, 120),
-                           position=(-rho / 2, 0.0, h))
-                sc.add_box(f"{root}/leg", dimensions=(0.18, 0.18, h), color=(110, 110, 120),
-                           position=(-rho, a * 0.9 + 0.4, h / 2))
-                sc.add_box(f"{root}/leg_beam", dimensions=(0.18, a * 0.9 + 0.4, 0.18), color=(110, 110, 120),
-                           position=(-rho, (a * 0.9 + 0.4) / 2, h))
-                sc.add_box(f"{root}/bar", dimensions=(0.12, 0.12, h - bottom), color=(150, 150, 160),
-                           position=(0.0, 0.0, (h + bottom) / 2))
-                sc.add_box(f"{root}/shaft", dimensions=(0.9, 0.9, -bottom), color=(40, 40, 40), opacity=0.35,
-                           position=(0.0, 0.0, bottom / 2))
-                for name, xp in (("pulley_wheel", -rho), ("pulley_bar", 0.0)):
-                    sc.add_cylinder(f"{root}/{name}", radius=0.35, height=0.15, color=(200, 160, 40),
-                                    wxyz=axle, position=(xp, 0.0, h))
-            sc.add_frame(f"{root}/wheel", show_axes=False, position=geo.wheel_centre_local(p))
-            spin = sc.add_frame(f"{root}/wheel/spin", show_axes=False)
-            sc.add_cylinder(f"{root}/wheel/spin/disk", radius=a, height=0.12 * a + 0.05, color=(60, 90, 200),
-                            wxyz=axle, opacity=opacity)
-            sc.add_cylinder(f"{root}/wheel/spin/drum", radius=b, height=0.35 * a + 0.1, color=(230, 200, 60),
-                            wxyz=axle, opacity=opacity)
-            sc.add_box(f"{root}/wheel/spin/spoke", dimensions=(1.9 * a, 0.2 * a + 0.05, 0.12 * a),
-                       color=(240, 240, 240), opacity=opacity)
-            load = sc.add_icosphere(f"{root}/load", radius=0.45, color=(30, 170, 60), opacity=opacity)
-            thread = sc.add_line_segments(f"{root}/thread", points=geo.thread_local(p, p["z0"]),
-                                          colors=(20, 20, 20), thickness=0.06)
-            self._frame_parts[root] = {"spin": spin, "load": load, "thread": thread}
-        self._shaped_for = (dict(p), bottom)
-
-    def _shape_troughs(self, l0: float) -> None:
-        verts, faces = geo.parabola_trough(l0)
-        for i in range(3):
-            self.scene.add_mesh_simple(f"/pt/lane{i}/trough", verts, faces, color=(180, 190, 200),
-                                       opacity=0.6, side="double")
-
     # ---------------------------------------------------------------- simulation
-    def current_request(self) -> dict:
-        """A snapshot of the controls (taken on the GUI thread; values are read live)."""
-        if self.scene_choice.value == "Appell–Hamel":
-            dt = 10 ** self.log_dt.value
-            t_final = float(self.t_final.value)
-            return {"kind": "ah", "compare": bool(self.compare.value), "settings": {
+    def snapshot(self) -> dict:
+        """The controls now (read on the caller's thread: browser callbacks read live values)."""
+        self._seq += 1
+        req = {"kind": self.kind, "seq": self._seq, "t_request": time.perf_counter()}
+        if req["kind"] == "ah":
+            dt, t_final = dt_of(self.log_dt.value), float(self.t_final.value)
+            req["compare"] = bool(self.compare.value)
+            req["settings"] = {
                 "system": "appell-hamel", "model": self.model.value, "integrator": self.integrator.value,
-                "gamma": float(self.gamma.value), "dt": dt, "t_final": t_final,
-                "every": max(1, int(round(t_final / dt / 3000))), "rtol": 1e-9, "atol": 1e-10,
+                "gamma": float(self.gamma.value), "gamma1": float(self.gamma1.value),
+                "gamma2": float(self.gamma2.value), "dt": dt, "t_final": t_final,
+                "every": _every(dt, t_final), "rtol": 1e-9, "atol": 1e-10,
                 "initial": {"u1": float(self.theta_dot0.value), "u2": float(self.phi_dot0.value)},
-                "params": {k: float(h.value) for k, h in self.params.items()}}}
-        dt = 10 ** self.pt_log_dt.value
-        t_final = float(self.pt_t_final.value)
-        return {"kind": "pt", "settings": {
-            "system": "sliding-particle", "dt": dt, "t_final": t_final,
-            "every": max(1, int(round(t_final / dt / 3000))), "initial": {"x": float(self.x0.value)},
-            "gamma1": float(self.gamma1.value), "gamma2": float(self.gamma2.value)}}
+                "params": {k: float(h.value) for k, h in self.params.items()}}
+        else:
+            dt, t_final = dt_of(self.pt_log_dt.value), float(self.pt_t_final.value)
+            req["settings"] = {
+                "system": "sliding-particle", "integrator": self.pt_integrator.value, "dt": dt,
+                "t_final": t_final, "every": _every(dt, t_final), "rtol": 1e-9, "atol": 1e-10,
+                "initial": {"x": float(self.x0.value)},
+                "gamma1": float(self.pt_gamma1.value), "gamma2": float(self.pt_gamma2.value),
+                "params": {k: float(h.value) for k, h in self.pt_params.items()}}
+        return req
 
     def request(self) -> None:
-        req = self.current_request()
+        if self._quiet or self.closed:
+            return
+        req = self.snapshot()
         if self.worker is None:
             self._compute(req)
         else:
             self.worker.submit(req)
 
+    def _run(self, settings: dict):
+        self.sim_log.append(settings)
+        return self._simulate(settings, progress=False, time_limit=TIME_LIMIT_S, cancel=self._superseded)
+
+    def _superseded(self) -> bool:
+        """A newer request is waiting (or the browser left): stop the run in progress."""
+        return self.closed or (self.worker is not None and self.worker.pending is not None)
+
     def _compute(self, req: dict) -> None:
+        """Simulate a request and install the result (the worker thread, or the caller's)."""
         t0 = time.perf_counter()
         s = req["settings"]
         try:
@@ -352,211 +403,310 @@ class Session:
                 if req.get("compare"):
                     other = "linear" if s["model"] == "nonlinear" else "nonlinear"
                     runs[other] = self._run({**s, "model": other})
-                params = runs[s["model"]].settings["params"]
+                plots = _ah_plots(runs)
             else:
                 base = {k: v for k, v in s.items() if k not in ("gamma1", "gamma2")}
                 runs = {"M": self._run({**base, "formulation": "minimal"}),
                         "N": self._run({**base, "formulation": "nonminimal"}),
-                        "DN": self._run({**base, "formulation": "nonminimal", "gamma1": s["gamma1"],
-                                         "gamma2": s["gamma2"]})}
-                params = runs["N"].settings["params"]
+                        "DN": self._run({**base, "formulation": "nonminimal",
+                                         "gamma1": s["gamma1"], "gamma2": s["gamma2"]})}
+                plots = _pt_plots(runs)
         except InputError as e:
-            self.last_error = str(e)
-            self.status.content = f"**input refused** — {e}"
+            self.status.content = f"**input refused** — {e}  \nthe previous motion keeps playing"
             return
-        traj = Trajectory(req["kind"], s, runs, params, compute_s=time.perf_counter() - t0)
+        except Exception as e:                     # never a frozen panel: say what happened
+            self.status.content = f"**failed** — {type(e).__name__}: {e}"
+            raise
+        params = dict(next(iter(runs.values())).settings["params"])
+        traj = Trajectory(req["kind"], req, runs, params, plots, req["t_request"],
+                          compute_s=time.perf_counter() - t0, seq=req["seq"])
+        if self._superseded() or req["kind"] != self.kind:
+            return                                 # a newer request follows: show that one
         self._install(traj)
 
-    def _run(self, settings: dict):
-        self.sim_log.append(settings)
-        return self._simulate(settings, progress=False, time_limit=10.0)
-
     def _install(self, traj: Trajectory) -> None:
-        """Show a new trajectory: geometry that depends on it, plots, summary; restart time."""
-        if traj.kind == "ah":
-            main = traj.main
-            z_min = float(min(r.state["z"].min() for r in traj.runs.values()))
-            if self._shaped_for[0] != traj.params or z_min - 1.0 < self._shaped_for[1] - 0.5 \
-                    or z_min - 1.0 > self._shaped_for[1] + 20:
-                self._shape_frame(traj.params, z_min)
-            idx = geo.decimate(len(main.t), 4000)
-            pts = np.column_stack([main.state["x"][idx], main.state["y"][idx], np.full(len(idx), 0.03)])
-            self.trace.points = np.stack([pts[:-1], pts[1:]], axis=1).astype(np.float32) if len(pts) > 1 \
-                else np.zeros((1, 2, 3), np.float32)
-            self.ghost.visible = len(traj.runs) > 1
-            threading.Thread(target=self._fill_matrices, args=("appell-hamel", traj.settings["model"]),
-                             daemon=True).start()
-        else:
-            self._shape_troughs(traj.params["l0"])
-            threading.Thread(target=self._fill_matrices, args=("sliding-particle", "nonminimal"),
-                             daemon=True).start()
-        with self.lock:
+        """Show a new trajectory: geometry that depends on it, trace, plots, summary."""
+        with self.lock, self._atomic():
+            if traj.kind == "ah":
+                z_min = min(float(r.state["z"].min()) for r in traj.runs.values())
+                self.mechanism.shape(traj.params, z_min)
+                self.mechanism.set_trace(traj.main.state["x"], traj.main.state["y"])
+                self.mechanism.show_ghost(len(traj.runs) > 1)
+                self._matrices("appell-hamel", traj.request["settings"]["model"])
+            else:
+                l0 = traj.params["l0"]
+                self.particle.shape(l0, max(1.6 * l0, 1.25 * abs(float(traj.request["settings"]["initial"]["x"]))))
+                self._matrices("sliding-particle", "nonminimal")
             self.traj = traj
-            self.anim_t = 0.0
-        self.scrub.max = max(traj.t_end, 0.01)
-        self._write_summary(traj)
-        self._write_plots(traj, 0.0)
-        self.show_time(0.0)
+            self.t_now = min(self.t_now, traj.t_end)
+            self._writing_time = True
+            try:
+                self.time.max = max(traj.t_end, 0.01)
+            finally:
+                self._writing_time = False
+            self._installs += 1
+            self._write_plots(traj)
+            self._write_summary(traj)
+            self.show_time(self.t_now)
+            self._refresh(force=True)
+            traj.installed_at = time.perf_counter()
+            self.latencies.append(traj.installed_at - traj.t_request)
+            self.status.content = self._status_text(traj)
+        self.target.flush()                        # out now, not at the next 1/60 s window
 
-    def _fill_matrices(self, system: str, variant: str) -> None:
-        try:
-            self.matrices.content = matrices_markdown(system, variant)
-        except Exception as e:  # a display aid must never take the session down
-            self.matrices.content = f"(matrices unavailable: {e})"
+    @contextlib.contextmanager
+    def _atomic(self):
+        with self.target.atomic():
+            yield
 
-    def _write_summary(self, traj: Trajectory) -> None:
-        lines = []
+    # ---------------------------------------------------------------- panel text
+    def _status_text(self, traj: Trajectory) -> str:
+        lines, groups = [], {}
+        for label, run in traj.runs.items():          # runs with the same outcome share a line
+            groups.setdefault((run.summary["status"], run.summary["message"]), []).append(label)
+        for (status, message), labels in groups.items():
+            flag = "" if status == "ok" else "⚠ "
+            lines.append(f"{flag}**{', '.join(labels)}: {status}** — {message}")
         for label, run in traj.runs.items():
             s = run.summary
-            viol = ", ".join(f"{k} {v:.2e}" for k, v in s["max_abs_violation"].items())
-            de = "—" if s["max_abs_energy_drift"] is None else f"{s['max_abs_energy_drift']:.2e}"
-            lines.append(f"**{label}**: {_status_line(run)}  \nmax \\|ΔE\\| {de}; max \\|φ\\| {viol}")
             for sw in s.get("switches", []):
-                lines.append(f"  ↪ t = {sw['t']:.3f} s: {sw['from']} → {sw['to']} (rcond {sw['rcond']:.1e})")
+                lines.append(f"↪ {label}: t = {sw['t']:.3f} s: {sw['from']} → {sw['to']} (rcond {sw['rcond']:.1e})")
             for w in s.get("warnings", []):
-                lines.append(f"  ⚠ {w}")
-        lines.append(f"computed in {traj.compute_s * 1e3:.0f} ms")
-        self.last_error = ""
-        self.status.content = "\n\n".join(lines)
+                lines.append(f"⚠ {label}: {w}")
+        st = traj.request["settings"]
+        lines.append(f"Δt = {st['dt']:g} s · update {self._installs} (#{traj.seq}) in "
+                     f"{(time.perf_counter() - traj.t_request) * 1e3:.0f} ms "
+                     f"(simulation {traj.compute_s * 1e3:.0f} ms)")
+        return "  \n".join(lines)
+
+    def _write_summary(self, traj: Trajectory) -> None:
+        labels = list(traj.runs)
+        rows = ["| | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
+        rows.append("| status | " + " | ".join(r.summary["status"] for r in traj.runs.values()) + " |")
+        rows.append("| max \\|ΔE\\| [J] | " + " | ".join(_fmt(r.summary["max_abs_energy_drift"])
+                                                       for r in traj.runs.values()) + " |")
+        names = []
+        for r in traj.runs.values():
+            names += [n for n in r.summary["max_abs_violation"] if n not in names]
+        for n in names:
+            rows.append(f"| max \\|φ\\| {n} | " + " | ".join(_fmt(r.summary["max_abs_violation"].get(n))
+                                                         for r in traj.runs.values()) + " |")
+        rows.append("| t_end [s] | " + " | ".join(f"{float(r.t[-1]):g}" for r in traj.runs.values()) + " |")
+        self.summary.content = "\n".join(rows)
 
     # ---------------------------------------------------------------- plots
-    def _write_plots(self, traj: Trajectory, t_now: float) -> None:
-        """Curves drawn up to the animation's current time (the curve's end is "now"),
-        on a time axis fixed to the whole run; tiny values rescaled so ticks stay readable."""
-        def upto(run):
-            idx = geo.decimate(len(run.t), 1500)
-            k = int(np.searchsorted(run.t[idx], t_now, side="right"))
-            return idx[:max(k, 2)]
-
-        def scaled(y, unit):
-            big = float(np.abs(y).max()) if len(y) else 0.0
-            if big == 0.0 or 1e-2 <= big < 1e4:
-                return y, unit
-            e = int(math.floor(math.log10(big)))
-            return y / 10.0 ** e, f"×1e{e} {unit}"
-
+    def _write_plots(self, traj: Trajectory) -> None:
         end = max(traj.t_end, 1e-3)
-        if traj.kind == "ah":
-            run = traj.main
-            full_dE = run.energy - run.energy[0]
-            _, unit = scaled(full_dE, "J")
-            e = 0 if "×1e" not in unit else int(unit.split("×1e")[1].split()[0])
-            idx = upto(run)
-            t = run.t[idx]
-            names = list(run.violation)
-            logs = [np.log10(np.maximum(np.abs(run.violation[n][idx]), 1e-17)) for n in names]
-            while len(logs) < 3:
-                logs.append(logs[-1])
-                names.append("—")
-            data = [(self.plot_energy, (t, full_dE[idx] / 10.0 ** e), ("t [s]", f"ΔE [{unit}]")),
-                    (self.plot_viol, (t, *logs[:3]), ("t [s]", *names[:3])),
-                    (self.plot_state, (t, run.state["theta"][idx], run.state["u2"][idx]),
-                     ("t [s]", "θ [rad]", "φ̇ [rad/s]"))]
-        else:
-            n, dn = traj.runs["N"], traj.runs["DN"]
-            idx = upto(n)
-            t = n.t[idx]
-            dE = n.energy - n.energy[0]
-            _, unit = scaled(np.concatenate([dE, dn.energy - dn.energy[0]]), "J")
-            e = 0 if "×1e" not in unit else int(unit.split("×1e")[1].split()[0])
-            data = [(self.plot_energy, (t, dE[idx] / 10.0 ** e), ("t [s]", f"ΔE N [{unit}]")),
-                    (self.plot_viol, (t, np.log10(np.maximum(np.abs(n.violation["surface"][idx]), 1e-17)),
-                                      np.log10(np.maximum(np.abs(dn.violation["surface"][idx]), 1e-17)),
-                                      np.log10(np.maximum(np.abs(traj.runs["M"].violation["surface"][idx]), 1e-17))),
-                     ("t [s]", "N (undamped)", "DN (damped)", "M (minimal)")),
-                    (self.plot_state, (t, n.state["y"][idx], dn.state["y"][idx]), ("t [s]", "y N [m]", "y DN [m]"))]
-        for plot, arrays, labels in data:
-            if plot.scales["x"].get("range") != (0.0, end):
-                plot.scales = {"x": uplot.Scale(time=False, auto=False, range=(0.0, end))}
-            series = tuple({**ser, "label": lab} for ser, lab in zip(plot.series, labels))
-            if series != tuple(plot.series):
-                plot.series = series
-            plot.data = tuple(np.asarray(a, float) for a in arrays)
-        self.plots_t = t_now
+        for key, curves in traj.plots.items():
+            h = self.plot_handles[(traj.kind, key)]
+            n = len(curves.ys)
+            series = [uplot.Series(label="t [s]")]
+            for i, lab in enumerate(curves.labels):
+                if traj.kind == "pt":                          # one colour per lane: M, N, DN
+                    style = {"stroke": LANE_COLORS[PT_ORDER[i]]}
+                elif key == "violation":                       # one colour per constraint; other model dashed
+                    per_model = len(traj.main.violation)
+                    style = {"stroke": COLORS[i % per_model], **({"dash": (6.0, 4.0)} if i >= per_model else {})}
+                else:                                          # main model solid, compare model dashed
+                    style = {"stroke": COLORS[min(i, 1)], **({"dash": (6.0, 4.0)} if i else {})}
+                series.append(uplot.Series(label=lab, width=2, **style))
+            series = tuple(series)
+            scales = {"x": uplot.Scale(time=False, auto=False, range=(0.0, end))}
+            if tuple(h.series) != series:
+                h.series = series
+            if h.scales != scales:
+                h.scales = scales
+            h.data = curves.data()
+            h.axes = pl.marker_axes(self.t_now)
+
+    def _refresh(self, force: bool = False) -> None:
+        """The slow-rate part of a frame: plot markers, scrubber, readouts."""
+        traj = self.traj
+        if traj is None or (not force and self._shown_t == self.t_now):
+            return
+        self._shown_t = self.t_now
+        for key in traj.plots:
+            self.plot_handles[(traj.kind, key)].axes = pl.marker_axes(self.t_now)
+        self._writing_time = True
+        try:
+            self.time.value = round(min(self.t_now, self.time.max), 2)
+        finally:
+            self._writing_time = False
+        if traj.kind == "pt":
+            texts = []
+            for lab, _, _ in LANES:
+                r = traj.row(lab, self.t_now)
+                psi = r["y"] + r["x"] ** 2 / traj.params["l0"] - traj.params["l0"]
+                texts.append(f"ψ = {psi:+.1e} m")
+            self.particle.readouts(texts)
 
     # ---------------------------------------------------------------- animation
-    def advance(self, dt_wall: float) -> float:
-        with self.lock:
-            if self.traj is None:
-                return 0.0
-            if self.playing.value:
-                self.anim_t += dt_wall * float(self.speed.value)
-                if self.anim_t > self.traj.t_end:
-                    self.anim_t = 0.0
-            return self.anim_t
-
     def show_time(self, t_now: float) -> None:
-        """Put every node where the state at time t_now puts it."""
+        """Put every node where the state at time t_now puts it (and the camera, if following)."""
         traj = self.traj
         if traj is None:
             return
         if traj.kind == "ah":
-            for label, run, root in zip(traj.runs, traj.runs.values(), ("/ah/frame", "/ah/ghost")):
-                k = min(int(np.searchsorted(run.t, t_now)), len(run.t) - 1)
-                st = run.state
-                node = self.frame if root == "/ah/frame" else self.ghost
-                node.position = (float(st["x"][k]), float(st["y"][k]), 0.0)
-                node.wxyz = geo.heading_wxyz(float(st["theta"][k]))
-                parts = self._frame_parts[root]
-                parts["spin"].wxyz = geo.spin_wxyz(float(st["phi"][k]))
-                parts["load"].position = (0.0, 0.0, float(st["z"][k]))
-                parts["thread"].points = geo.thread_local(traj.params, float(st["z"][k]))
-            if self.client is not None and self.follow.value:
-                k = min(int(np.searchsorted(traj.main.t, t_now)), len(traj.main.t) - 1)
-                st = traj.main.state
-                # look between the wheel and the bar, keep the viewer's own direction and zoom
-                o = geo.wheel_centre_world(traj.params, float(st["theta"][k]), float(st["x"][k]), float(st["y"][k]))
-                target = 0.5 * (o + np.array([st["x"][k], st["y"][k], 0.0]))
-                # a fixed viewing direction at the chosen distance (untick to orbit freely)
-                offset = np.array([-9.0, -15.0, 8.0]) / 19.2 * float(self.cam_dist.value)
-                cam = self.client.camera
-                cam.look_at = target
-                cam.position = target + offset
+            labels = list(traj.runs)
+            row = traj.row(labels[0], t_now)
+            ghost = traj.row(labels[1], t_now) if len(labels) > 1 else None
+            self.mechanism.pose(row, ghost)
+            if self.follow.value:
+                self._aim_camera(row=row)
         else:
-            for run, particle in zip((traj.runs["M"], traj.runs["N"], traj.runs["DN"]), self.pt_particles):
-                k = min(int(np.searchsorted(run.t, t_now)), len(run.t) - 1)
-                particle.position = (float(run.state["x"][k]), 0.0, float(-run.state["y"][k]))
-            if self.client is not None and self.follow.value:
-                cam = self.client.camera
-                cam.look_at = (0.0, 0.0, 0.0)
-                cam.position = (0.0, -11.0 * float(self.cam_dist.value) / 19.0, 2.0)
+            self.particle.pose([traj.row(lab, t_now) for lab, _, _ in LANES])
 
-    def tick(self, dt_wall: float, plots: bool) -> None:
-        t_now = self.advance(dt_wall)
-        self.show_time(t_now)
-        if self.playing.value:
-            self.scrub.value = round(t_now, 2)
-        if plots and self.traj is not None:
-            self._write_plots(self.traj, t_now)
+    def tick(self, dt_wall: float, refresh: bool) -> None:
+        """One animation frame (called by the animation thread)."""
+        if self.closed:
+            return
+        with self.lock:
+            traj = self.traj
+            if traj is None:
+                return
+            if self.playing:
+                self.t_now += dt_wall * float(self.speed.value)
+                if self.t_now > traj.t_end:
+                    self.t_now = 0.0 if traj.t_end > 0 else traj.t_end
+            with self._atomic():
+                self.show_time(self.t_now)
+            if refresh:
+                self._refresh()
+
+    # ---------------------------------------------------------------- camera
+    def _aim_camera(self, reset: bool = False, row: dict | None = None) -> None:
+        """Point this browser's camera: a preset view (reset), or follow the mechanism while
+        keeping the viewer's own orbit and zoom.
+
+        The offset camera − target is kept here, learnt from the browser's camera reports:
+        viser's server-side camera state can be overwritten by a report the browser sent
+        before it received our last pose (observed: a reset view undone a frame later), so
+        reports right after a reset are ignored."""
+        if self.client is None:
+            return
+        cam = self.client.camera
+        try:
+            if self.kind == "pt":
+                if reset:
+                    self._cam_reset_at = time.monotonic()
+                    self._cam_offset = None
+                    cam.position = PT_CAMERA[1]            # (moves look_at along: set it after)
+                    cam.look_at = PT_CAMERA[0]
+                return
+            if row is None:
+                traj = self.traj
+                row = traj.row(next(iter(traj.runs)), self.t_now) if traj is not None and traj.kind == "ah" else \
+                    {"theta": 0.0, "phi": 0.0, "x": 0.0, "y": 0.0, "z": self._ah_params["z0"]}
+            target = self.mechanism.targets(row)[VIEW_TARGET[self.view.value]]
+            if reset:                                  # the preset seen from the wheel's drum side
+                self._cam_reset_at = time.monotonic()
+                self._cam_offset = geo.rotate(geo.heading_wxyz(row["theta"]), VIEW_OFFSET[self.view.value])
+            if self._cam_offset is None:
+                return
+            cam.position = target + self._cam_offset   # moves look_at along by the same amount
+            cam.look_at = target
+        except (AssertionError, ValueError):           # no camera message from the browser yet
+            pass
+
+    def _on_camera(self, cam) -> None:
+        """The browser moved its camera (orbit, zoom): follow with the new offset."""
+        if time.monotonic() - self._cam_reset_at < 0.75 or self.kind == "pt":
+            return
+        try:
+            offset = np.asarray(cam.position, float) - np.asarray(cam.look_at, float)
+        except AssertionError:
+            return
+        if np.all(np.isfinite(offset)) and np.linalg.norm(offset) > 1e-6:
+            self._cam_offset = offset
+
+    # ---------------------------------------------------------------- matrices panel
+    def _matrices(self, system: str, variant: str) -> None:
+        key = (system, variant)
+        if key == self._matrices_key:
+            return
+        self._matrices_key = key
+        panel = mx.cached(system, variant)
+        if panel is not None:
+            self._show_matrices(panel)
+        else:
+            self.matrices_intro.content = f"(deriving the matrices of {system}, {variant} …)"
+            threading.Thread(target=self._fill_matrices, args=key, daemon=True, name="nmkane-matrices").start()
+
+    def _fill_matrices(self, system: str, variant: str) -> None:
+        try:
+            panel = mx.panel(system, variant)
+        except Exception as e:                     # a teaching aid must never take the session down
+            panel = e
+        with self.lock:                            # not while the session closes
+            if self._matrices_key != (system, variant) or self.closed:
+                return
+            if isinstance(panel, Exception):
+                self.matrices_intro.content = f"(matrices unavailable: {panel})"
+            else:
+                self._show_matrices(panel)
+
+    def _show_matrices(self, panel: mx.Panel) -> None:
+        if self.closed:
+            return
+        self.matrices_intro.content = panel.intro + ("  \nwhere (below) names the sums in denominators."
+                                                     if panel.where is not None else "")
+        for name, h in self.matrix_images.items():
+            img = panel.where if name == "where" else panel.images.get(name)
+            if img is None:
+                h.visible = False
+            else:
+                h.image = img
+                h.visible = True
+        self.matrices_latex.content = "LaTeX:\n\n```latex\n" + "\n\n".join(panel.latex.values()) + "\n```"
+        self.matrices_latex.visible = True
+
+    # ---------------------------------------------------------------- lifecycle
+    def wait_idle(self, timeout: float = 30.0) -> bool:
+        return True if self.worker is None else self.worker.wait_idle(timeout)
 
     def close(self) -> None:
+        with self.lock:
+            self.closed = True
         if self.worker is not None:
             self.worker.close()
 
 
-# --------------------------------------------------------------------------- app
+# --------------------------------------------------------------------------- the server
 class WebApp:
-    """The viser server, one :class:`Session` per connected browser, one animation thread."""
+    """The viser server, one :class:`MechanismApp` per connected browser, one animation thread.
+
+    The handle ``launch()`` returns: ``.port`` (the port actually bound) and ``.stop()``.
+    """
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8080, simulate=core_simulate):
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
-        self.server.gui.configure_theme(control_width="large", show_share_button=False)
-        self.server.initial_camera.position = (-11.5, -15.0, 8.5)
-        self.server.initial_camera.look_at = (-2.5, 0.0, 0.5)
+        self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
+        self.server.scene.set_up_direction("+z")
+        p = {k.name: k.default for k in get_system("appell-hamel").parameters}
+        target = mechanism_targets(geo.Layout.of(p), {"theta": 0.0, "x": 0.0, "y": 0.0, "z": p["z0"]})["mechanism"]
+        self.server.initial_camera.look_at = tuple(target)
+        self.server.initial_camera.position = tuple(target + VIEW_OFFSET[VIEWS[0]])
         self.port = self.server.get_port()
-        self.sessions: dict[int, Session] = {}
+        self.host = host
+        self.sessions: dict[int, MechanismApp] = {}
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._simulate = simulate
         self.frame_times: list[float] = []
+        self.frame_work_s: list[float] = []
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
-        threading.Thread(target=_warm, daemon=True, name="nmkane-warm").start()
+        self._warm_thread = threading.Thread(target=warm, daemon=True, name="nmkane-warm")
+        self._warm_thread.start()
         self._anim = threading.Thread(target=self._animate, daemon=True, name="nmkane-animate")
         self._anim.start()
 
+    @property
+    def url(self) -> str:
+        return f"http://{self.host}:{self.port}/"
+
     def _connect(self, client: viser.ClientHandle) -> None:
-        session = Session(client.gui, client.scene, client=client, simulate=self._simulate)
+        session = MechanismApp(client, simulate=self._simulate)
         with self._lock:
             self.sessions[client.client_id] = session
 
@@ -567,27 +717,43 @@ class WebApp:
             session.close()
 
     def _animate(self) -> None:
-        last, last_plot = time.perf_counter(), 0.0
+        period = 1.0 / FPS
+        last = last_refresh = next_frame = time.perf_counter()
         while not self._stop.is_set():
             t0 = time.perf_counter()
-            dt_wall, last = t0 - last, t0
-            plots = t0 - last_plot > 1.0 / PLOT_HZ
-            if plots:
-                last_plot = t0
+            dt_wall, last = min(t0 - last, 0.25), t0
+            refresh = t0 - last_refresh >= 1.0 / REFRESH_HZ
+            if refresh:
+                last_refresh = t0
             with self._lock:
                 sessions = list(self.sessions.values())
+            connected = self.server.get_clients()
             for s in sessions:
+                if s.client is not None and s.client.client_id not in connected:
+                    continue                       # gone; its disconnect callback is on the way
                 try:
-                    s.tick(dt_wall, plots)
-                except Exception:       # a closed client mid-update: skip this frame
+                    s.tick(dt_wall, refresh)
+                except Exception:                  # a client gone mid-frame: skip it this frame
                     pass
             self.frame_times.append(t0)
-            del self.frame_times[:-300]
-            self._stop.wait(max(0.0, 1.0 / FPS - (time.perf_counter() - t0)))
+            self.frame_work_s.append(time.perf_counter() - t0)
+            del self.frame_times[:-400], self.frame_work_s[:-400]
+            next_frame = max(next_frame + period, time.perf_counter())   # fixed rate, no drift
+            self._stop.wait(max(0.0, next_frame - time.perf_counter()))
 
-    def fps(self) -> float:
-        ts = self.frame_times[-60:]
-        return (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 2 else 0.0
+    def fps(self, last: int = 120) -> float:
+        """Frames per second of the animation thread over the last frames."""
+        ts = self.frame_times[-last:]
+        return (len(ts) - 1) / (ts[-1] - ts[0]) if len(ts) > 2 and ts[-1] > ts[0] else 0.0
+
+    def wait_for_session(self, timeout: float = 30.0) -> MechanismApp:
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            with self._lock:
+                if self.sessions:
+                    return next(iter(self.sessions.values()))
+            time.sleep(0.05)
+        raise TimeoutError("no browser connected")
 
     def stop(self) -> None:
         self._stop.set()
@@ -599,19 +765,15 @@ class WebApp:
         self.server.stop()
 
 
-def _warm() -> None:
-    """Load the kernels (and the matrices text) before the first student asks."""
+def warm() -> None:
+    """Load the four compiled kernels and derive the matrices panels before anyone waits."""
     for name, variants in (("appell-hamel", ("nonlinear", "linear")), ("sliding-particle", ("nonminimal", "minimal"))):
         for v in variants:
-            try:
+            with contextlib.suppress(Exception):
                 get_system(name).kernel(v)
-            except Exception:
-                pass
-    for name, v in (("appell-hamel", "nonlinear"), ("appell-hamel", "linear"), ("sliding-particle", "nonminimal")):
-        try:
-            matrices_markdown(name, v)      # symbolic work, once per process, before anyone waits
-        except Exception:
-            pass
+    for key in (("appell-hamel", "nonlinear"), ("sliding-particle", "nonminimal"), ("appell-hamel", "linear")):
+        with contextlib.suppress(Exception):
+            mx.panel(*key)
 
 
 def launch(host: str = "127.0.0.1", port: int = 8080) -> WebApp:
@@ -620,11 +782,20 @@ def launch(host: str = "127.0.0.1", port: int = 8080) -> WebApp:
 
 
 def main() -> None:
+    """``python -m web``: serve until Ctrl-C or SIGTERM."""
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m web", description="nmkane 3D web app (viser)")
+    ap.add_argument("--host", default="127.0.0.1")
+    ap.add_argument("--port", type=int, default=8080)
+    args = ap.parse_args()
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
-    app = launch()
-    print(f"nmkane 3D web app http://127.0.0.1:{app.port}/  (Ctrl-C to stop)", flush=True)
-    while not stop.wait(0.5):
-        pass
-    app.stop()
+    app = launch(args.host, args.port)
+    print(f"nmkane 3D web app {app.url}  (Ctrl-C to stop)", flush=True)
+    try:
+        while not stop.wait(0.5):
+            pass
+    finally:
+        app.stop()

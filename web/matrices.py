@@ -1,0 +1,279 @@
+"""The derived matrices (A1, A2, T of (22), (40), (44)) drawn for the teaching panel.
+
+viser 1.1's markdown does not typeset LaTeX (tested: ``$...$`` shows as source), so the
+matrices are drawn as images with matplotlib's mathtext, entry by entry (mathtext has no
+matrix environment): each entry is simplified once, the sums that occur in denominators
+are named n₁, n₂, … (as the paper names its n's, (67)–(76)) and defined under the
+matrices, and the grid gets brackets.  The LaTeX source is kept for copying.
+
+Symbolic work is slow (about 8 s for the nonlinear model) and holds the GIL, which
+would stall the web server's threads, so :func:`panel` runs it in a child process
+(``python -m web.matrices SYSTEM VARIANT OUT``, once per model) and caches the result in memory and on disk next to the core's
+kernel cache, keyed by the core's model fingerprint and this file: a restart shows the
+panels at once.  The web app warms the cache in a background thread at startup.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import io
+import os
+import pickle
+import subprocess
+import sys
+import tempfile
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+MATRICES = ("A1", "A2", "T")
+TITLES = {"A1": "A_1", "A2": "A_2", "T": "T"}
+EQUATION = {"A1": "(22)", "A2": "(40)", "T": "(44)"}
+SPEED_NAMES = {
+    "appell-hamel": "u₁ = θ̇, u₂ = φ̇, u₃ = ẋ, u₄ = ẏ, u₅ = ż",
+    "sliding-particle": "u₁ = ẋ, u₂ = ẏ",
+}
+DPI = 170
+FONT_SIZE = 11
+
+
+@dataclass
+class Panel:
+    """What the matrices panel shows for one model."""
+
+    system: str
+    variant: str
+    images: dict[str, np.ndarray]       # name -> RGBA uint8
+    where: np.ndarray | None            # the n_k definitions, RGBA uint8 (None if none)
+    latex: dict[str, str]               # name -> LaTeX source of the whole matrix
+    intro: str                          # markdown above the images
+
+
+_cache: dict[tuple[str, str], Panel] = {}
+_locks: dict[tuple[str, str], threading.Lock] = {}
+_guard = threading.Lock()
+
+
+def panel(system: str, variant: str) -> Panel:
+    """The panel of a model: from memory, the disk cache, or derived in a subprocess
+    (concurrent callers for the same model wait for one computation)."""
+    key = (system, variant)
+    with _guard:
+        if key in _cache:
+            return _cache[key]
+        lock = _locks.setdefault(key, threading.Lock())
+    with lock:
+        if key not in _cache:
+            path = _disk_path(system, variant)
+            p = _load(path)
+            if p is None:
+                p = _compute(system, variant, path)
+            _cache[key] = p
+        return _cache[key]
+
+
+def cached(system: str, variant: str) -> Panel | None:
+    return _cache.get((system, variant))
+
+
+def _compute(system: str, variant: str, path: Path | None) -> Panel:
+    """Derive and draw in a child process (its sympy work does not hold our GIL)."""
+    fd, tmp = tempfile.mkstemp(suffix=".pickle")
+    os.close(fd)
+    try:
+        env = dict(os.environ)
+        root = str(Path(__file__).resolve().parents[1])
+        env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        done = subprocess.run([sys.executable, "-m", "web.matrices", system, variant, tmp], env=env,
+                              capture_output=True, text=True, timeout=900)
+        p = _load(Path(tmp))
+        if done.returncode != 0 or p is None:
+            raise RuntimeError(f"deriving the matrices failed: {done.stderr.strip().splitlines()[-1:] or done.returncode}")
+        _store(path, p)
+        return p
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+def _disk_path(system: str, variant: str) -> Path | None:
+    try:
+        from nmkane_core import get_system
+        from nmkane_core.codegen import cache_dir, fingerprint
+
+        sysm = get_system(system)
+        fp = fingerprint(sysm.name, variant, sysm.source_files)
+        if fp is None:
+            return None
+        import matplotlib
+
+        h = hashlib.sha256(f"{fp}\0{matplotlib.__version__}".encode())
+        h.update(Path(__file__).read_bytes())
+        return cache_dir().parent / "web-matrices" / f"{system}-{variant}-{h.hexdigest()[:16]}.pickle"
+    except Exception:                 # no cache: compute every time
+        return None
+
+
+def _load(path: Path | None) -> Panel | None:
+    if path is None or not path.exists():
+        return None
+    try:
+        with open(path, "rb") as f:
+            p = pickle.load(f)
+        return p if isinstance(p, Panel) else None
+    except Exception:
+        return None
+
+
+def _store(path: Path | None, p: Panel) -> None:
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        tmp = path.with_suffix(f".{os.getpid()}.tmp")
+        with open(tmp, "wb") as f:
+            pickle.dump(p, f)
+        os.replace(tmp, path)
+    except OSError:
+        pass
+
+
+# --------------------------------------------------------------------------- algebra
+def _nice(e):
+    """A short form of one entry: the shortest of sympy's simplify and a trig-expanded
+    cancellation (which finds e.g. −ρ cos θ in the nonlinear model's A1)."""
+    import sympy as sp
+
+    if e.is_number or sp.count_ops(e) > 400:
+        return e
+    s = sp.simplify(e)
+    forms = [s]
+    try:
+        c = sp.cancel(sp.expand_trig(s))
+        forms += [c, sp.factor(c)]
+    except Exception:                              # pragma: no cover - sympy corner cases
+        pass
+    return min(forms, key=lambda f: (sp.count_ops(f), len(str(f))))
+
+
+def _abbreviate(mats: dict):
+    """Name the sums found in denominators n_1, n_2, … across all matrices."""
+    import sympy as sp
+
+    found: list = []
+    for M in mats.values():
+        for e in M:
+            _, den = sp.fraction(sp.together(e))
+            for f in sp.Mul.make_args(sp.factor_terms(den)):
+                base = f.base if f.is_Pow else f
+                if base.is_Add and base not in found:
+                    found.append(base)
+    names = [sp.Symbol(f"n_{i + 1}") for i in range(len(found))]
+    subs = dict(zip(found, names))
+    short = {k: M.applyfunc(lambda e: sp.factor_terms(sp.together(e)).subs(subs)) for k, M in mats.items()}
+    return short, list(zip(names, found))
+
+
+def _build(system: str, variant: str) -> Panel:
+    import sympy as sp
+
+    from nmkane_core import get_system
+
+    d = get_system(system).derivation(variant)
+    mats = {name: d.matrix(name).applyfunc(_nice) for name in MATRICES}
+    short, defs = _abbreviate(mats)
+    tex = lambda e: sp.latex(e, fold_func_brackets=True).replace(r"\frac", r"\dfrac")   # noqa: E731
+    images = {name: _matrix_image(TITLES[name], [[tex(short[name][i, j]) for j in range(short[name].cols)]
+                                                  for i in range(short[name].rows)])
+              for name in MATRICES if short[name].rows and short[name].cols}
+    where = _lines_image([f"{tex(n)} = {tex(e)}" for n, e in defs]) if defs else None
+    latex = {name: f"{TITLES[name]} = {sp.latex(mats[name])}" for name in MATRICES}
+    intro = (f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
+             f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
+             f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}); {SPEED_NAMES.get(system, '')}.")
+    return Panel(system, variant, images, where, latex, intro)
+
+
+# --------------------------------------------------------------------------- drawing
+def _tex_image(tex: str, fontsize: int = FONT_SIZE) -> np.ndarray:
+    """One mathtext expression as a grey-level ink image (1 = ink), float (h, w)."""
+    from matplotlib.font_manager import FontProperties
+    from matplotlib.image import imread
+    from matplotlib.mathtext import math_to_image
+
+    buf = io.BytesIO()
+    math_to_image(f"${tex}$", buf, prop=FontProperties(size=fontsize), dpi=DPI, format="png")
+    buf.seek(0)
+    img = imread(buf)
+    ink = 1.0 - img[..., :3].mean(axis=-1)           # black on white → ink
+    if img.shape[-1] == 4:
+        ink = ink * img[..., 3]
+    return ink.astype(np.float32)
+
+
+def _blit(canvas: np.ndarray, ink: np.ndarray, top: int, left: int) -> None:
+    h, w = ink.shape
+    canvas[top:top + h, left:left + w] = np.maximum(canvas[top:top + h, left:left + w], ink)
+
+
+def _to_rgba(ink: np.ndarray, color=(20, 20, 30)) -> np.ndarray:
+    """Ink on an opaque white background (readable in light and dark panels alike)."""
+    out = np.empty(ink.shape + (4,), np.uint8)
+    a = np.clip(ink, 0.0, 1.0)[..., None]
+    rgb = (1 - a) * 255 + a * np.array(color, float)
+    out[..., :3] = rgb.clip(0, 255).astype(np.uint8)
+    out[..., 3] = 255
+    return out
+
+
+def _matrix_image(title: str, cells: list[list[str]], pad: int = 14, gap: int = 22, vgap: int = 12) -> np.ndarray:
+    inks = [[_tex_image(c) for c in row] for row in cells]
+    name = _tex_image(f"{title} =", FONT_SIZE + 1)
+    rows, cols = len(inks), len(inks[0])
+    row_h = [max(i.shape[0] for i in row) for row in inks]
+    col_w = [max(inks[r][c].shape[1] for r in range(rows)) for c in range(cols)]
+    grid_h = sum(row_h) + vgap * (rows - 1)
+    grid_w = sum(col_w) + gap * (cols - 1)
+    br = 10                                          # bracket width
+    H = grid_h + 2 * pad
+    W = pad + name.shape[1] + 8 + br + 6 + grid_w + 6 + br + pad
+    canvas = np.zeros((H, W), np.float32)
+    _blit(canvas, name, (H - name.shape[0]) // 2, pad)
+    x0 = pad + name.shape[1] + 8
+    for xb, hook in ((x0, 1), (x0 + br + 6 + grid_w + 6 + br - 2, -1)):   # [ and ]
+        canvas[pad - 4:pad + grid_h + 4, xb:xb + 2] = 1.0
+        xs = slice(xb, xb + br) if hook == 1 else slice(xb - br + 2, xb + 2)
+        canvas[pad - 4:pad - 2, xs] = 1.0
+        canvas[pad + grid_h + 2:pad + grid_h + 4, xs] = 1.0
+    top = pad
+    for r in range(rows):
+        left = x0 + br + 6
+        for c in range(cols):
+            ink = inks[r][c]
+            _blit(canvas, ink, top + (row_h[r] - ink.shape[0]) // 2, left + (col_w[c] - ink.shape[1]) // 2)
+            left += col_w[c] + gap
+        top += row_h[r] + vgap
+    return _to_rgba(canvas)
+
+
+def _lines_image(lines: list[str], pad: int = 12, vgap: int = 10) -> np.ndarray:
+    inks = [_tex_image(s) for s in lines]
+    H = sum(i.shape[0] for i in inks) + vgap * (len(inks) - 1) + 2 * pad
+    W = max(i.shape[1] for i in inks) + 2 * pad
+    canvas = np.zeros((H, W), np.float32)
+    top = pad
+    for ink in inks:
+        _blit(canvas, ink, top, pad)
+        top += ink.shape[0] + vgap
+    return _to_rgba(canvas)
+
+
+if __name__ == "__main__":          # the child process of _compute: SYSTEM VARIANT OUT
+    from web import matrices as _module              # pickle web.matrices.Panel, not __main__.Panel
+
+    _system, _variant, _out = sys.argv[1:4]
+    with open(_out, "wb") as _f:
+        pickle.dump(_module._build(_system, _variant), _f)

@@ -1,0 +1,123 @@
+"""Screenshots of the web app in headless Chromium (Playwright driving the Debian binary).
+
+    python -m web.screenshot [--out docs/screenshots]
+
+starts the app on a free port, opens one page per scene, waits until the panel is
+filled and the motion has run for a few seconds, and writes ``mechanism.png`` and
+``particle.png``.  The e2e test uses the same helpers.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
+                 "--disable-component-update", "--no-first-run"]
+
+
+def chromium_path() -> str | None:
+    """The Chromium binary (Debian's package), or None."""
+    found = shutil.which("chromium")
+    if found:
+        return found
+    return "/usr/bin/chromium" if os.path.exists("/usr/bin/chromium") else None
+
+
+def open_page(browser, url: str, width: int = 1400, height: int = 900, timeout_ms: int = 60000,
+              requests: list | None = None):
+    """A page connected to the app with its panel filled (the first trajectory installed);
+    the URLs it requests are appended to ``requests``."""
+    page = browser.new_page(viewport={"width": width, "height": height})
+    if requests is not None:
+        page.on("request", lambda r: requests.append(r.url))
+    page.goto(url)
+    page.wait_for_function("() => !document.body.innerText.includes('Connecting...')", timeout=timeout_ms)
+    page.wait_for_function("() => document.body.innerText.includes('update ')", timeout=timeout_ms)
+    close_toasts(page)
+    return page
+
+
+def close_toasts(page) -> None:
+    """Close the 'Software WebGL rendering detected' notification (headless SwiftShader)."""
+    for _ in range(3):
+        buttons = page.locator(".mantine-Notification-closeButton")
+        if buttons.count() == 0:
+            break
+        try:
+            buttons.first.click(timeout=2000)
+        except Exception:
+            break
+        time.sleep(0.2)
+
+
+def collapse(page, folder: str) -> None:
+    """Fold a GUI folder by clicking its title."""
+    page.get_by_text(folder, exact=True).first.click()
+
+
+def input_of(page, label: str):
+    """The number box next to a slider (or the box of a number input) with this label."""
+    row = page.locator("label", has_text=label).first.locator("xpath=ancestor::div[contains(@class, 'Flex-root')][1]")
+    return row.locator("input:not([type='hidden'])").last
+
+
+def capture(out_dir: str = "docs/screenshots") -> list[str]:
+    from playwright.sync_api import sync_playwright
+
+    from .app import PT, launch
+
+    exe = chromium_path()
+    if exe is None:
+        raise SystemExit("headless Chromium not found (apt-get install chromium)")
+    os.makedirs(out_dir, exist_ok=True)
+    app = launch(port=0)
+    written = []
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=exe, headless=True, args=CHROMIUM_ARGS)
+            try:
+                page = open_page(browser, f"http://127.0.0.1:{app.port}/?hideViserLogo")
+                session = app.wait_for_session()
+                session.wait_idle(60)
+                time.sleep(1.0)
+                session.set_playing(False)
+                session.seek(9.0)
+                session.reset_view()
+                collapse(page, "Simulation: Appell–Hamel")   # show the plots beside the scene
+                time.sleep(3.0)                       # camera settles, plot markers refresh
+                close_toasts(page)
+                path = os.path.join(out_dir, "mechanism.png")
+                page.screenshot(path=path)
+                written.append(path)
+                page.close()
+
+                page = open_page(browser, f"http://127.0.0.1:{app.port}/?hideViserLogo")
+                time.sleep(1.0)
+                with app._lock:
+                    session = list(app.sessions.values())[-1]
+                session.scene_choice.value = PT
+                session.wait_idle(60)
+                session.set_playing(False)
+                session.seek(160.0)
+                collapse(page, "Simulation: sliding particle")
+                time.sleep(3.0)
+                close_toasts(page)
+                path = os.path.join(out_dir, "particle.png")
+                page.screenshot(path=path)
+                written.append(path)
+            finally:
+                browser.close()
+    finally:
+        app.stop()
+    return written
+
+
+if __name__ == "__main__":
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m web.screenshot")
+    ap.add_argument("--out", default="docs/screenshots")
+    for path in capture(ap.parse_args().out):
+        print(path)
