@@ -229,9 +229,15 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
 
 @njit(cache=True, nogil=True, fastmath=FM)
 def _record(t, x, p, viol, stats, nv):
-    """Diagnostics of an accepted state; running maxima in ``stats``. Returns E, or NaN."""
+    """Diagnostics of an accepted state; running maxima in ``stats``. Returns E, or NaN
+    (and leaves the maxima untouched) when any diagnostic is not finite."""
     E = diagnostics(t, x, p, viol)
     dE = E - stats[0]
+    if not math.isfinite(dE):
+        return np.nan
+    for i in range(nv):
+        if not math.isfinite(viol[i]):
+            return np.nan
     if abs(dE) > stats[1]:
         stats[1] = abs(dE)
     stats[2] = dE
@@ -239,8 +245,6 @@ def _record(t, x, p, viol, stats, nv):
         v = abs(viol[i])
         if v > stats[STATS_FIXED + i]:
             stats[STATS_FIXED + i] = v
-        if not math.isfinite(v):
-            return np.nan
     return E
 
 

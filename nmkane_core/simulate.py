@@ -443,7 +443,8 @@ class _Switcher:
         for a, b in self.segments:
             if b > a:
                 self.home.diagnostics_rows(t[a:b], x[a:b], self.plan.p, E[a:b], V[a:b])
-                stats[5:] = np.maximum(stats[5:], np.abs(V[a:b]).max(axis=0))
+                seg = np.abs(V[a:b])
+                stats[5:] = np.maximum(stats[5:], np.where(np.isfinite(seg), seg, 0.0).max(axis=0))
 
 
 def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
