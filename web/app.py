@@ -49,7 +49,7 @@ VIEW_TARGET = {"whole mechanism": "mechanism", "wheel": "wheel", "load P": "load
 VIEW_OFFSET = {"whole mechanism": np.array([-0.5, 0.85, 0.2]) * 42.0,     # in the body frame:
                "wheel": np.array([-0.55, 0.75, 0.36]) * 9.0,               # behind, drum side, above
                "load P": np.array([-0.45, 0.8, 0.4]) * 12.0}
-PT_CAMERA = (np.array([1.3, 0.0, -0.1]), np.array([1.3, -10.5, 2.8]))   # look_at, position
+PT_CAMERA = (np.array([1.2, 0.0, -0.2]), np.array([1.2, -8.3, 2.3]))   # look_at, position
 
 # the controls' defaults: the paper's Example 1 (no stabilization) and Example 2 (Fig. 16-like)
 AH_DEFAULTS = {"model": "nonlinear", "integrator": "kutta-merson", "gamma": 0.0, "gamma1": 0.0,
@@ -343,7 +343,7 @@ class MechanismApp:
     def _on_scene(self) -> None:
         ah = self.kind == "ah"
         self.ah_folder.visible, self.pt_folder.visible = ah, not ah
-        self.view.visible = ah
+        self.view.visible = self.follow.visible = ah
         self.mechanism.root.visible, self.particle.root.visible = ah, not ah
         for (kind, _), h in self.plot_handles.items():
             h.visible = kind == self.kind
@@ -581,7 +581,7 @@ class MechanismApp:
         The offset camera − target is kept here, learnt from the browser's camera reports:
         viser's server-side camera state can be overwritten by a report the browser sent
         before it received our last pose (observed: a reset view undone a frame later), so
-        reports right after a reset are ignored."""
+        reports are ignored after a reset until one shows the preset (see :meth:`_on_camera`)."""
         if self.client is None:
             return
         cam = self.client.camera
@@ -609,15 +609,23 @@ class MechanismApp:
             pass
 
     def _on_camera(self, cam) -> None:
-        """The browser moved its camera (orbit, zoom): follow with the new offset."""
-        if time.monotonic() - self._cam_reset_at < 0.75 or self.kind == "pt":
+        """The browser reported its camera: after it has caught up with our last preset, a
+        changed offset is the viewer's own orbit or zoom, which following then keeps."""
+        if self.kind == "pt":
             return
         try:
             offset = np.asarray(cam.position, float) - np.asarray(cam.look_at, float)
         except AssertionError:
             return
-        if np.all(np.isfinite(offset)) and np.linalg.norm(offset) > 1e-6:
-            self._cam_offset = offset
+        if not np.all(np.isfinite(offset)) or np.linalg.norm(offset) < 1e-6:
+            return
+        ours = self._cam_offset
+        if self._cam_reset_at:                     # waiting for the browser to show our preset
+            caught_up = ours is not None and np.linalg.norm(offset - ours) <= 1e-3 * (1 + np.linalg.norm(ours))
+            if not caught_up and time.monotonic() - self._cam_reset_at < 5.0:
+                return                             # a report sent before our preset arrived
+            self._cam_reset_at = 0.0
+        self._cam_offset = offset
 
     # ---------------------------------------------------------------- matrices panel
     def _matrices(self, system: str, variant: str) -> None:
@@ -648,14 +656,16 @@ class MechanismApp:
     def _show_matrices(self, panel: mx.Panel) -> None:
         if self.closed:
             return
-        self.matrices_intro.content = panel.intro + ("  \nwhere (below) names the sums in denominators."
+        self.matrices_intro.content = panel.intro + ("  \nn₁, … (last image) name the sums in denominators."
                                                      if panel.where is not None else "")
+        imgs = {name: panel.where if name == "where" else panel.images.get(name) for name in self.matrix_images}
+        width = max(i.shape[1] for i in imgs.values() if i is not None)
         for name, h in self.matrix_images.items():
-            img = panel.where if name == "where" else panel.images.get(name)
+            img = imgs[name]
             if img is None:
                 h.visible = False
-            else:
-                h.image = img
+            else:                                  # one width for all: the panel scales them alike
+                h.image = np.pad(img, ((0, 0), (0, width - img.shape[1]), (0, 0)), constant_values=255)
                 h.visible = True
         self.matrices_latex.content = "LaTeX:\n\n```latex\n" + "\n\n".join(panel.latex.values()) + "\n```"
         self.matrices_latex.visible = True
@@ -762,6 +772,7 @@ class WebApp:
             sessions, self.sessions = list(self.sessions.values()), {}
         for s in sessions:
             s.close()
+        mx.shutdown()
         self.server.stop()
 
 

@@ -79,6 +79,18 @@ def cached(system: str, variant: str) -> Panel | None:
     return _cache.get((system, variant))
 
 
+_children: set = set()
+
+
+def shutdown() -> None:
+    """Stop child processes still deriving (the server is stopping)."""
+    with _guard:
+        children = list(_children)
+    for c in children:
+        with contextlib.suppress(OSError):
+            c.terminate()
+
+
 def _compute(system: str, variant: str, path: Path | None) -> Panel:
     """Derive and draw in a child process (its sympy work does not hold our GIL)."""
     fd, tmp = tempfile.mkstemp(suffix=".pickle")
@@ -87,11 +99,18 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
         env = dict(os.environ)
         root = str(Path(__file__).resolve().parents[1])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        done = subprocess.run([sys.executable, "-m", "web.matrices", system, variant, tmp], env=env,
-                              capture_output=True, text=True, timeout=900)
+        child = subprocess.Popen([sys.executable, "-m", "web.matrices", system, variant, tmp], env=env,
+                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        with _guard:
+            _children.add(child)
+        try:
+            _, err = child.communicate(timeout=900)
+        finally:
+            with _guard:
+                _children.discard(child)
         p = _load(Path(tmp))
-        if done.returncode != 0 or p is None:
-            raise RuntimeError(f"deriving the matrices failed: {done.stderr.strip().splitlines()[-1:] or done.returncode}")
+        if child.returncode != 0 or p is None:
+            raise RuntimeError(f"deriving the matrices failed: {(err or '').strip().splitlines()[-1:] or child.returncode}")
         _store(path, p)
         return p
     finally:
@@ -229,7 +248,7 @@ def _to_rgba(ink: np.ndarray, color=(20, 20, 30)) -> np.ndarray:
     return out
 
 
-def _matrix_image(title: str, cells: list[list[str]], pad: int = 14, gap: int = 22, vgap: int = 12) -> np.ndarray:
+def _matrix_image(title: str, cells: list[list[str]], pad: int = 10, gap: int = 16, vgap: int = 10) -> np.ndarray:
     inks = [[_tex_image(c) for c in row] for row in cells]
     name = _tex_image(f"{title} =", FONT_SIZE + 1)
     rows, cols = len(inks), len(inks[0])
