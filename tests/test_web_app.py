@@ -276,7 +276,9 @@ def test_matrices_panel_draws_the_derived_matrices():
 def test_launch_serves_and_stops():
     handle = launch(port=0)
     try:
-        assert handle.port > 0 and handle.fps() == 0.0 or handle.fps() > 0
+        assert handle.port > 0
+        time.sleep(1.0)
+        assert handle.fps() > 20          # the animation thread runs (40 frames/s nominal)
         import urllib.request
 
         html = urllib.request.urlopen(f"http://127.0.0.1:{handle.port}/", timeout=10).read()
