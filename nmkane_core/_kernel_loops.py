@@ -105,10 +105,10 @@ def make_workspace():
     return w
 
 
-@njit(cache=True, nogil=True, fastmath=FM, inline="always")
+@njit(cache=True, nogil=True, fastmath=FM)
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
-    terms(t, x, p, w)
+    terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here
     for i in range(N):
         K[row, i] = w[OQD + i]
     w[ORC] = 1.0
@@ -195,7 +195,7 @@ def rhs(t, x, p, G, G1, G2):
     return K[0].copy(), w[ORC], w[ORC + 1]
 
 
-@njit(cache=True, nogil=True, fastmath=FM, inline="always")
+@njit(cache=True, nogil=True, fastmath=FM)
 def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
     """Fill the stage derivatives K[i] of one explicit RK step; return a status code."""
     S = TC.shape[0]
@@ -266,7 +266,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
-    ps = make_projection_scratch()
+    ps = np.zeros(PS_SIZE)
     perm = PERM.copy()
     for k in range(k0, k1):
         t = t0 + k * dt
@@ -287,8 +287,9 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
         if not math.isfinite(total):
             return 3, k, row
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
-        if proj[0] != 0 and project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
-            return 6, k, row
+        if proj is not None:     # None (no projection) prunes this branch at compile time
+            if project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
+                return 6, k, row
         E = _record(tn, xn, p, viol, stats, NV)
         if not math.isfinite(E):
             return 3, k, row
@@ -321,7 +322,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
-    ps = make_projection_scratch()
+    ps = np.zeros(PS_SIZE)
     perm = PERM.copy()
     cap = out_t.shape[0]
     row = 0
@@ -354,8 +355,9 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
         err = math.sqrt(errsum / n2) if finite else np.inf
         if err <= 1.0:
             tn = t_final if last else t + h
-            if proj[0] != 0 and project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
-                return 6, t, h, row, accepted, attempts
+            if proj is not None:
+                if project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
+                    return 6, t, h, row, accepted, attempts
             E = _record(tn, xn, p, viol, stats, NV)
             if not math.isfinite(E):
                 return 3, t, h, row, accepted, attempts
@@ -437,16 +439,20 @@ def make_projection_scratch():
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
-def _weighted_correction(w, ps, mrows, weight, in_q, N, M, perm):
+def _weighted_correction(w, ps, mrows, metric, N, M, perm):
     """δ = W⁻¹Gᵀ (G W⁻¹ Gᵀ)⁻¹ r for G (mrows×n) and r stored at ps[PS_OG:].
 
-    ``weight`` 0: W = I (Moore–Penrose); 1: the kinetic-energy metric — W = Q for a speed
-    correction, and W = C⁻ᵀ Q C⁻¹ (so W⁻¹ = C Q⁻¹ Cᵀ) for a coordinate correction
-    (``in_q``).  Needs Q (``terms``) and C (``positions``) in ``w`` when weighted.
+    ``metric`` 0: W = I (Moore–Penrose); 1: the kinetic-energy metric for a speed
+    correction, W = Q; 2: the same for a coordinate correction, W = C⁻ᵀ Q C⁻¹ (so
+    W⁻¹ = C Q⁻¹ Cᵀ).  Needs Q (``terms``) and C (``positions``) in ``w`` when weighted.
     δ is left at ps[PS_OD:PS_OD + N]; returns the pivot-ratio rcond of G W⁻¹ Gᵀ.
     """
     # dimensions arrive as runtime values here (not the module constants): this cold path
-    # then compiles to compact loops instead of fully unrolled ones
+    # then compiles to compact loops instead of fully unrolled ones.  Every integer passed
+    # on is a runtime value too (``zero``, ``one``), never a literal: numba would compile
+    # one copy of the callee per literal value.
+    zero = N - N
+    one = zero + 1
     PS_OY = N * N
     PS_OZ = PS_OY + N * M
     PS_OS = PS_OZ + N * M
@@ -457,18 +463,18 @@ def _weighted_correction(w, ps, mrows, weight, in_q, N, M, perm):
     for i in range(N):
         for r in range(mrows):
             ps[PS_OY + i * mrows + r] = ps[PS_OG + r * N + i]          # Y = Gᵀ
-    if weight == 1:
+    if metric > 0:
         for i in range(N):                                              # Q, model order
             for j in range(N):
                 ps[perm[i] * N + perm[j]] = w[OQ + i * N + j]
-        if in_q:
+        if metric == 2:
             for i in range(N):                                          # Z = Cᵀ Gᵀ
                 for r in range(mrows):
                     acc = 0.0
                     for k in range(N):
                         acc += w[OC + k * N + i] * ps[PS_OY + k * mrows + r]
                     ps[PS_OZ + i * mrows + r] = acc
-            lu_solve_call(ps, 0, N, PS_OZ, mrows, N, mrows)            # Z = Q⁻¹Cᵀ Gᵀ
+            lu_solve_call(ps, zero, N, PS_OZ, mrows, N, mrows)         # Z = Q⁻¹Cᵀ Gᵀ
             for i in range(N):                                          # Y = C Z
                 for r in range(mrows):
                     acc = 0.0
@@ -476,7 +482,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q, N, M, perm):
                         acc += w[OC + i * N + k] * ps[PS_OZ + k * mrows + r]
                     ps[PS_OY + i * mrows + r] = acc
         else:
-            lu_solve_call(ps, 0, N, PS_OY, mrows, N, mrows)            # Y = Q⁻¹Gᵀ
+            lu_solve_call(ps, zero, N, PS_OY, mrows, N, mrows)         # Y = Q⁻¹Gᵀ
     for a in range(mrows):
         for b in range(mrows):
             acc = 0.0
@@ -484,7 +490,7 @@ def _weighted_correction(w, ps, mrows, weight, in_q, N, M, perm):
                 acc += ps[PS_OG + a * N + i] * ps[PS_OY + i * mrows + b]
             ps[PS_OS + a * mrows + b] = acc
         ps[PS_OZR + a] = ps[OR_ + a]
-    rc = lu_solve_call(ps, PS_OS, mrows, PS_OZR, 1, mrows, 1)
+    rc = lu_solve_call(ps, PS_OS, mrows, PS_OZR, one, mrows, one)
     for i in range(N):
         acc = 0.0
         for a in range(mrows):
@@ -526,7 +532,7 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
                 ps[PS_OG + MH * N + a] = w[OPSI + a]
             if weight == 1:
                 terms_call(t, x, p, w)
-            if _weighted_correction(w, ps, MH, weight, True, N, M, perm) == 0.0:
+            if _weighted_correction(w, ps, MH, 2 * weight, N, M, perm) == 0.0:
                 return 1
             for i in range(N):
                 x[i] -= ps[PS_OD + i]
@@ -547,7 +553,7 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
                 ps[PS_OG + M * N + a] = w[OPHIN + a]
             for a in range(MH):
                 ps[PS_OG + M * N + MNH + a] = w[OPSID + a]
-            if _weighted_correction(w, ps, M, weight, False, N, M, perm) == 0.0:
+            if _weighted_correction(w, ps, M, weight, N, M, perm) == 0.0:
                 return 1
             for i in range(N):
                 x[N + i] -= ps[PS_OD + i]

@@ -159,14 +159,37 @@ def generate_source(derivation) -> str:
             kin.append((f"w[{off['OC'] + i * N + j}]", C[i, j], f"C[{i},{j}]"))
     parts = [
         "\n".join(head),
-        _block("terms", "t, x, p, w", kt, assign, inline=True),
+        _block("terms", "t, x, p, w", kt, assign),
         _block("positions", "t, x, p, w", kt, kin),
         _block("diagnostics", "t, x, p, viol", kt,
                [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)], returns="_E"),
         _block("outputs", "t, x, p, out", kt, [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)]),
     ]
-    loops = (Path(__file__).parent / "_kernel_loops.py").read_text()
+    loops = _paste(parts[1], (Path(__file__).parent / "_kernel_loops.py").read_text())
     return "\n\n".join(parts) + "\n\n# ---- generic part: nmkane_core/_kernel_loops.py ----\n" + loops
+
+
+def _paste(function: str, loops: str) -> str:
+    """Inline a generated function into the generic part at source level: the marked call
+    ``name(args)  # INLINE`` becomes the function's body.  (numba's own IR inlining deep-copies
+    the callee's IR and made the first compilation several times slower; calling it
+    instead blocks LLVM from forwarding the stores into ``w`` to their loads.)"""
+    lines = function.splitlines()
+    head = next(i for i, ln in enumerate(lines) if ln.startswith("def "))
+    name = lines[head][4:lines[head].index("(")]
+    body = [ln for ln in lines[head + 1:] if ln.strip() and ln.strip() != "pass"]
+    out, found = [], 0
+    for ln in loops.splitlines():
+        stripped = ln.strip()
+        if stripped.startswith(f"{name}(") and stripped.split("#", 1)[-1].strip().startswith("INLINE"):
+            indent = ln[:len(ln) - len(ln.lstrip())]
+            out += [indent + b[4:] for b in body]
+            found += 1
+        else:
+            out.append(ln)
+    if not found:
+        raise RuntimeError(f"no `{name}(...)  # INLINE` call in the generic kernel part")
+    return "\n".join(out) + "\n"
 
 
 def _source_key(source: str) -> str:

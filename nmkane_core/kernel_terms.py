@@ -62,10 +62,12 @@ def kernel_terms(d: Derivation) -> KernelTerms:
             viol_names.append(k)
             viol_exprs.append(v)
     energy = sp.sympify(md.energy) if md.energy is not None else sp.Integer(0)
+    S = _pythagorean_matrix
     return KernelTerms(
         derivation=d, args_t=md.t, args_x=list(md.q) + list(md.u), args_p=list(md.params),
-        J=J, b=d.b, phin=d.phi_nh, psid=d.psi_dot, psi=d.psi, Q=d.Q, P=d.P, qdot=d.qdot,
-        energy=energy, viol=sp.Matrix(viol_exprs) if viol_exprs else sp.zeros(0, 1),
+        J=S(J), b=S(d.b), phin=S(d.phi_nh), psid=S(d.psi_dot), psi=S(d.psi), Q=S(d.Q), P=S(d.P),
+        qdot=S(d.qdot), energy=pythagorean(energy),
+        viol=S(sp.Matrix(viol_exprs)) if viol_exprs else sp.zeros(0, 1),
         viol_names=tuple(viol_names),
         outputs=sp.Matrix(list(md.outputs.values())) if md.outputs else sp.zeros(0, 1),
         output_names=tuple(md.outputs), perm=list(d.perm), row_degree=row_degrees(d))
@@ -86,3 +88,42 @@ def row_degrees(d: Derivation) -> list:
         except (sp.PolificationFailed, sp.GeneratorsNeeded):
             out.append(1)
     return out
+
+
+def pythagorean(e):
+    """``e`` with every sum c·sin²a + c·cos²a replaced by c (same c, same a), bottom-up.
+
+    Kane's mass matrices are full of such sums (the Appell–Hamel Q[0,0] is
+    I sin²φ + I cos²φ + M(ρ² sin²θ + ρ² cos²θ) = I + Mρ²): each one left in costs the kernels
+    transcendental calls at every evaluation.  Exact, linear in the size of ``e`` (a
+    structural match: no expansion, which can blow up, and no general ``trigsimp``, which
+    costs about a second per model).
+    """
+    e = sp.sympify(e)
+    if not (e.has(sp.sin) and e.has(sp.cos)):
+        return e
+    return e.replace(lambda a: a.is_Add, _pythagorean_add)
+
+
+def _pythagorean_add(add):
+    found = {}                                  # (coefficient, argument) → {func: term index}
+    terms = list(add.args)
+    for i, term in enumerate(terms):
+        factors = sp.Mul.make_args(term)
+        for j, f in enumerate(factors):
+            if f.is_Pow and f.exp == 2 and isinstance(f.base, (sp.sin, sp.cos)):
+                key = (sp.Mul(*(factors[:j] + factors[j + 1:])), f.base.args[0])
+                found.setdefault(key, {}).setdefault(f.base.func, i)
+                break
+    drop, keep = set(), []
+    for (c, _), where in found.items():
+        if sp.sin in where and sp.cos in where:
+            drop |= {where[sp.sin], where[sp.cos]}
+            keep.append(c)
+    if not drop:
+        return add
+    return sp.Add(*[t for i, t in enumerate(terms) if i not in drop], *keep)
+
+
+def _pythagorean_matrix(m: sp.Matrix) -> sp.Matrix:
+    return m.applyfunc(pythagorean) if m.shape[0] * m.shape[1] else m

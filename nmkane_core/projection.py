@@ -54,10 +54,12 @@ class ProjectionOptions:
     jacobian: str = "updated"       # updated | frozen
     energy: bool = False
 
-    def as_array(self, info) -> np.ndarray:
-        """The compiled loops' ``proj`` argument (with the model's dimensions)."""
-        on = 0 if self.name == "none" else 1
-        return np.array([on, 1 if self.weight == "mass" else 0, self.iterations,
+    def as_array(self, info) -> np.ndarray | None:
+        """The compiled loops' ``proj`` argument (with the model's dimensions); ``None`` for
+        no projection, which lets numba prune the projection code from that loop's compile."""
+        if self.name == "none":
+            return None
+        return np.array([1, 1 if self.weight == "mass" else 0, self.iterations,
                          1 if self.jacobian == "updated" else 0, 1 if self.energy else 0,
                          info.n, info.m, len(info.nonholonomic), len(info.holonomic)], dtype=np.int64)
 

@@ -1,0 +1,88 @@
+"""Code generation: the exact rewrites applied before printing, the source-level inlining,
+and compiled functions that must stay compiled once (numba specialises on literals)."""
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from nmkane_core import get_system
+from nmkane_core.codegen import _paste, generate_source
+from nmkane_core.kernel_terms import kernel_terms, pythagorean
+from nmkane_core.simulate import kernel_for, simulate
+
+a, b, c, x, y = sp.symbols("a b c x y", real=True)
+
+
+@pytest.mark.parametrize("expr,want", [
+    (sp.sin(x) ** 2 + sp.cos(x) ** 2, sp.Integer(1)),
+    (a * sp.sin(x) ** 2 + a * sp.cos(x) ** 2 + b * (c ** 2 * sp.sin(y) ** 2 + c ** 2 * sp.cos(y) ** 2),
+     a + b * c ** 2),
+    (a * sp.sin(x) ** 2 + a * sp.cos(x) ** 2 + sp.sin(x) ** 2, a + sp.sin(x) ** 2),
+])
+def test_pythagorean_rewrite_removes_matched_pairs(expr, want):
+    assert sp.simplify(pythagorean(expr) - want) == 0
+    assert pythagorean(expr).count_ops() <= want.count_ops() + 2
+
+
+@pytest.mark.parametrize("expr", [sp.sin(x) ** 2 + sp.cos(y) ** 2, 2 * sp.sin(x) ** 2 + sp.cos(x) ** 2,
+                                  a * sp.sin(x) ** 2 + b * sp.cos(x) ** 2, sp.sin(x) + sp.cos(x)])
+def test_pythagorean_rewrite_leaves_unmatched_sums_alone(expr):
+    assert pythagorean(expr) == expr
+
+
+def test_pythagorean_rewrite_does_not_expand_large_powers():
+    big = (sum(sp.symbols("s0:12")) + sp.sin(x)) ** 12 + sp.cos(x) ** 2
+    assert pythagorean(big) == big          # returns at once: no multinomial expansion
+
+
+@pytest.mark.parametrize("name,variant", [("appell-hamel", "nonlinear"), ("appell-hamel", "linear"),
+                                          ("sliding-particle", "nonminimal")])
+def test_kernel_terms_are_the_derivations_matrices(name, variant):
+    d = get_system(name).derivation(variant)
+    kt = kernel_terms(d)
+    rng = np.random.default_rng(3)
+    syms = list(d.model.q) + list(d.model.u) + list(d.model.params)
+    for _ in range(5):
+        sub = dict(zip(syms, rng.uniform(0.3, 2.0, len(syms))))
+        for mine, theirs in [(kt.Q, d.Q), (kt.P, d.P), (kt.J[:, :d.p], d.J1), (kt.b, d.b)]:
+            diff = (mine - theirs).xreplace(sub).evalf()
+            assert max((abs(v) for v in diff), default=0) < 1e-12
+
+
+def test_appell_hamel_mass_matrix_has_no_needless_trigonometry():
+    kt = kernel_terms(get_system("appell-hamel").derivation("nonlinear"))
+    md = kt.derivation.model
+    params = {str(s): s for s in md.params}
+    assert sp.expand(kt.Q[0, 0] - (params["I"] + params["M"] * params["rho"] ** 2)) == 0
+
+
+def test_terms_are_pasted_into_the_right_hand_side():
+    src = generate_source(get_system("appell-hamel").derivation("nonlinear"))
+    body = src[src.index("def rhs_ws("):src.index("def rhs(")]
+    assert "# INLINE" not in body and "terms(t, x, p, w)" not in body
+    assert "math.sin(x_0)" in body              # the generated straight-line code is there
+
+
+def test_paste_refuses_a_generic_part_without_the_marker():
+    fn = "@njit\ndef terms(t, x, p, w):\n    w[0] = 1.0\n"
+    assert "    w[0] = 1.0" in _paste(fn, "def rhs_ws(t, x, p, w):\n    terms(t, x, p, w)  # INLINE: here\n")
+    with pytest.raises(RuntimeError, match="INLINE"):
+        _paste(fn, "def rhs_ws(t, x, p, w):\n    terms(t, x, p, w)\n")
+
+
+def test_projection_helpers_compile_once_per_run():
+    """Literal arguments (True, 0, 1) make numba compile one copy per value; the cold
+    projection path passes runtime values so each helper has a single signature."""
+    system = get_system("appell-hamel")
+    run = simulate({"system": "appell-hamel", "dt": 0.01, "t_final": 0.5, "projection": "yoon"})
+    assert run.summary["status"] == "ok"
+    mod = kernel_for(system, "nonlinear")
+    assert len(mod._weighted_correction.signatures) == 1
+    assert len(mod.lu_solve_call.signatures) == 1
+
+
+def test_unprojected_loop_is_compiled_without_the_projection():
+    mod = kernel_for(get_system("sliding-particle"), "nonminimal")
+    simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 0.2})
+    sigs = [s for s in mod.integrate_fixed.signatures if str(s[16]) == "none"]
+    assert sigs, mod.integrate_fixed.signatures
