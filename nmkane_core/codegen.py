@@ -208,6 +208,9 @@ def _import(folder: Path, key: str, source: str | None):
         tmp = path.with_suffix(f".tmp{os.getpid()}")
         tmp.write_text(source)
         os.replace(tmp, path)               # atomic: a parallel process never sees half a file
+        from . import precompile
+
+        precompile.start(folder, key)       # a new kernel: compile its loop on another core
     name = f"nmkane_kernel_{key}"
     spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(spec)

@@ -369,6 +369,9 @@ def _prime(plan: Plan, mod) -> None:
     loads from the disk cache) before its clock starts: ``time_limit`` bounds integration,
     not compilation, and the time shows as ``kernel_load_s``.  Argument types are exactly
     those of the real calls below (numba compiles one copy per type signature)."""
+    from . import precompile
+
+    precompile.wait(mod)                   # a new kernel's loop may be compiling next door
     tab = plan.integrator
     n2 = plan.x0.size
     x = plan.x0.copy()

@@ -70,15 +70,24 @@ def test_paste_refuses_a_generic_part_without_the_marker():
         _paste(fn, "def rhs_ws(t, x, p, w):\n    terms(t, x, p, w)\n")
 
 
-def test_projection_helpers_compile_once_per_run():
+def test_projection_helpers_compile_once_per_run(tmp_path):
     """Literal arguments (True, 0, 1) make numba compile one copy per value; the cold
-    projection path passes runtime values so each helper has a single signature."""
-    system = get_system("appell-hamel")
-    run = simulate({"system": "appell-hamel", "dt": 0.01, "t_final": 0.5, "projection": "yoon"})
-    assert run.summary["status"] == "ok"
-    mod = kernel_for(system, "nonlinear")
-    assert len(mod._weighted_correction.signatures) == 1
-    assert len(mod.lu_solve_call.signatures) == 1
+    projection path passes runtime values so each helper has a single signature.  (In a
+    fresh cache: helpers loaded with their caller from the disk cache list no signature.)"""
+    import os
+    import subprocess
+    import sys
+
+    code = ("from nmkane_core.simulate import simulate, kernel_for\n"
+            "from nmkane_core import get_system\n"
+            "r = simulate({'system': 'sliding-particle', 't_final': 0.1, 'projection': 'yoon'})\n"
+            "m = kernel_for(get_system('sliding-particle'), 'nonminimal')\n"
+            "print(r.summary['status'], len(m._weighted_correction.signatures), len(m.lu_solve_call.signatures))\n")
+    env = {**os.environ, "NMKANE_CACHE_DIR": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path),
+           "NMKANE_PRECOMPILE": "0"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["ok", "1", "1"]
 
 
 def test_unprojected_loop_is_compiled_without_the_projection():
@@ -86,3 +95,34 @@ def test_unprojected_loop_is_compiled_without_the_projection():
     simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 0.2})
     sigs = [s for s in mod.integrate_fixed.signatures if str(s[16]) == "none"]
     assert sigs, mod.integrate_fixed.signatures
+
+
+def test_background_precompile_signature_is_the_one_runs_use():
+    """The child process started for a new kernel compiles exactly the loop signature that
+    unprojected fixed-step runs call, so the first run loads it instead of compiling."""
+    from nmkane_core.precompile import fixed_loop_signature
+
+    for name, variant in [("appell-hamel", "nonlinear"), ("sliding-particle", "nonminimal")]:
+        system = get_system(name)
+        simulate({"system": name, system.option: variant, "dt": 0.01, "t_final": 0.1})
+        mod = kernel_for(system, variant)
+        assert fixed_loop_signature() in mod.integrate_fixed.signatures
+
+
+def test_background_precompile_fills_the_cache_for_a_new_kernel(tmp_path):
+    import subprocess
+    import sys
+
+    code = ("from nmkane_core.simulate import simulate, kernel_for\n"
+            "from nmkane_core import get_system\n"
+            "r = simulate({'system': 'sliding-particle', 't_final': 0.1})\n"
+            "m = kernel_for(get_system('sliding-particle'), 'nonminimal')\n"
+            "print(sum(m.integrate_fixed.stats.cache_hits.values()), r.summary['status'])\n")
+    env = {**__import__("os").environ, "NMKANE_CACHE_DIR": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path),
+           "NMKANE_PRECOMPILE": "1"}
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    hits, status = out.stdout.split()
+    assert status == "ok"
+    if (__import__("os").cpu_count() or 1) >= 2:
+        assert int(hits) == 1          # loaded what the child compiled
