@@ -20,6 +20,7 @@ import contextlib
 import datetime as dt
 from functools import lru_cache
 from importlib import metadata
+import sys
 from typing import Optional, get_args
 
 import numpy as np
@@ -160,7 +161,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI):
         svc.start()
         if settings.warm_kernels:
-            await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm)
+            def report(line: str) -> None:
+                print(line, file=sys.stderr, flush=True)
+
+            report("nmkane: preparing the kernels (the first start after install compiles them)")
+            await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm, report)
         try:
             yield
         finally:

@@ -22,7 +22,7 @@ import orjson
 from nmkane_core.errors import InputError
 from nmkane_core.integrators import ScipyMethod
 from nmkane_core.schema import RunSettings, RunSummary
-from nmkane_core.simulate import Plan, Run, resolve, simulate
+from nmkane_core.simulate import Plan, Run, kernel_for, resolve, simulate
 from nmkane_core.system import get_system, system_names
 
 from .config import Settings
@@ -202,15 +202,33 @@ class RunService:
         if store is not None:
             store.close()
 
-    def warm(self) -> None:
-        """Load (or compile once) every kernel and loop, so no request pays for it."""
+    def warm(self, report=None) -> None:
+        """Load (or compile once) every kernel and loop, so no request pays for it.
+
+        ``report(line)`` (optional) hears one line per step; a first start after install
+        compiles everything (about a minute on two cores), later starts load from the cache.
+        """
+        steps = []
         for name in system_names():
             system = get_system(name)
             for variant in system.variants:
                 base = {"system": name, system.option: variant, "t_final": 0.05}
-                simulate(base, progress=False)
-                simulate({**base, "integrator": "kutta-merson-adaptive"}, progress=False)
-        simulate({"system": "appell-hamel", "integrator": "rk45", "t_final": 0.05}, progress=False)  # scipy
+                steps.append((f"{name} {variant}, fixed step", base))
+                steps.append((f"{name} {variant}, adaptive", {**base, "integrator": "kutta-merson-adaptive"}))
+        steps.append(("scipy adapter", {"system": "appell-hamel", "integrator": "rk45", "t_final": 0.05}))
+        start = time.perf_counter()
+        for name in system_names():                # new kernels start compiling their loops in
+            system = get_system(name)              # child processes now (nmkane_core.precompile)
+            for variant in system.variants:
+                kernel_for(system, variant)
+        for i, (label, settings) in enumerate(steps, 1):
+            t0 = time.perf_counter()
+            simulate(settings, progress=False)
+            if report is not None:
+                report(f"nmkane: kernels [{i}/{len(steps)}] {label}: {time.perf_counter() - t0:.1f} s")
+        if report is not None:
+            report(f"nmkane: kernels ready in {time.perf_counter() - start:.1f} s (compiled code is cached "
+                   "on disk: later starts load it)")
 
     # -- admission ----------------------------------------------------------------------
     def admit(self) -> bool:

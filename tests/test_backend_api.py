@@ -408,3 +408,16 @@ def test_cors_is_closed_by_default_and_opens_to_configured_origins(client, tmp_p
         ok = c.options("/api/runs", headers={**pre, "Origin": "http://class.example"})
         assert ok.headers["access-control-allow-origin"] == "http://class.example"
         assert "access-control-allow-origin" not in c.options("/api/runs", headers=pre).headers
+
+
+def test_kernel_warm_up_reports_each_step(tmp_path):
+    from backend.service import RunService
+
+    svc = RunService(Settings(data_dir=tmp_path, warm_kernels=False))
+    lines = []
+    svc.warm(lines.append)
+    steps = [ln for ln in lines if re.match(r"nmkane: kernels \[\d+/\d+\] ", ln)]
+    assert len(steps) == len(lines) - 1 >= 9
+    assert {"appell-hamel nonlinear, fixed step", "sliding-particle minimal, adaptive", "scipy adapter"} <= \
+        {ln.split("] ", 1)[1].rsplit(":", 1)[0] for ln in steps}
+    assert lines[-1].startswith("nmkane: kernels ready in")
