@@ -777,11 +777,17 @@ class WebApp:
 
 
 def warm() -> None:
-    """Load the four compiled kernels and derive the matrices panels before anyone waits."""
+    """Load the four compiled kernels and their loops (numba loads machine code at a
+    function's first call: a short run does it) and derive the matrices panels before
+    anyone waits."""
     for name, variants in (("appell-hamel", ("nonlinear", "linear")), ("sliding-particle", ("nonminimal", "minimal"))):
+        system = get_system(name)
         for v in variants:
             with contextlib.suppress(Exception):
-                get_system(name).kernel(v)
+                system.kernel(v)
+        for v in variants:
+            with contextlib.suppress(Exception):
+                core_simulate({"system": name, system.option: v, "t_final": 0.05}, progress=False)
     for key in (("appell-hamel", "nonlinear"), ("sliding-particle", "nonminimal"), ("appell-hamel", "linear")):
         with contextlib.suppress(Exception):
             mx.panel(*key)
