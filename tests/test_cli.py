@@ -78,3 +78,27 @@ def test_wheel_not_rolling_start_switches_models_and_lists_the_switches(capsys):
 def test_matrices_command_prints_A1(capsys):
     assert main(["matrices", "sliding-particle", "--matrix", "A1", "--latex"]) == 0
     assert "A_1" in capsys.readouterr().out
+
+
+def test_bench_quick_measures_every_workload():
+    """`nmkane bench --quick --json`: every workload of the compiled-kernels issue measured
+    in this run (no timing asserted here: speed lives in the benchmark's own table)."""
+    from nmkane_core.bench import format_table
+
+    out = subprocess.run([sys.executable, "-m", "nmkane_core.cli", "bench", "--quick", "--json"],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode in (0, 1), out.stderr[-2000:]         # 1 = a target missed, still a table
+    doc = json.loads(out.stdout)
+    rows = doc["rows"]
+    names = " | ".join(r["workload"] for r in rows)
+    for part in ("Kutta–Merson, dt=0.001", "sympy KanesMethod", "numpy reference", "called from Python",
+                 "fresh process", "first run after install", "interactive re-run", "adaptive Kutta–Merson",
+                 "Γ sweep"):
+        assert part in names, part
+    for r in rows:
+        assert np.isfinite(r["wall_s"]) and r["wall_s"] > 0, r
+        assert r["evals_per_s"] is None or r["evals_per_s"] > 0, r
+    ratio = next(r for r in rows if "inside the compiled loop" in r["workload"])
+    assert ratio["x_sympy"] > 1 and ratio["x_reference"] > 1      # the compiled path is the fast one
+    table = format_table(rows)
+    assert table.splitlines()[0].startswith("workload") and "evals/s" in table
