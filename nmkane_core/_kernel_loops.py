@@ -24,16 +24,19 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True, fastmath=FM, inline="always")
+@njit(cache=True, nogil=True, fastmath=FM)
 def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
     """Solve A X = B in place in the flat work array ``w`` (LU with partial pivoting).
 
     A is n×n at offset ``oa`` with row stride ``lda``; B is n×k at ``ob`` with row
     stride ``ldb`` and receives X.  Returns min|pivot|/max|pivot| (0 when singular): the
-    reciprocal-condition estimate the kernels compare with ``rcond_min``.
+    reciprocal-condition estimate the kernels compare with ``rcond_min``.  One return, at
+    the end, so that the right-hand side can inline it (``# INLINE``, codegen.inline_marked);
+    cold paths call it.
     """
     pmax = 0.0
     pmin = 1e308
+    singular = False
     for c in range(n):
         piv = c
         big = abs(w[oa + c * lda + c])
@@ -43,7 +46,8 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
                 big = v
                 piv = i
         if not (big > 0.0):          # zero or NaN pivot
-            return 0.0
+            singular = True
+            break
         if piv != c:
             for j in range(n):
                 tmp = w[oa + c * lda + j]
@@ -65,22 +69,19 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
                     w[oa + i * lda + j] -= f * w[oa + c * lda + j]
                 for j in range(k):
                     w[ob + i * ldb + j] -= f * w[ob + c * ldb + j]
-    for c in range(n - 1, -1, -1):
-        inv = 1.0 / w[oa + c * lda + c]
-        for j in range(k):
-            acc = w[ob + c * ldb + j]
-            for l in range(c + 1, n):
-                acc -= w[oa + c * lda + l] * w[ob + l * ldb + j]
-            w[ob + c * ldb + j] = acc * inv
-    if n == 0:
-        return 1.0
-    return pmin / pmax
-
-
-@njit(cache=True, nogil=True, fastmath=FM)
-def lu_solve_call(w, oa, lda, ob, ldb, n, k):
-    """lu_solve_flat compiled once as a function (cold paths call this, not an inline copy)."""
-    return lu_solve_flat(w, oa, lda, ob, ldb, n, k)
+    rc = 1.0
+    if singular:
+        rc = 0.0
+    elif n > 0:
+        for c in range(n - 1, -1, -1):
+            inv = 1.0 / w[oa + c * lda + c]
+            for j in range(k):
+                acc = w[ob + c * ldb + j]
+                for l in range(c + 1, n):
+                    acc -= w[oa + c * lda + l] * w[ob + l * ldb + j]
+                w[ob + c * ldb + j] = acc * inv
+        rc = pmin / pmax
+    return rc
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
@@ -108,7 +109,7 @@ def make_workspace():
 @njit(cache=True, nogil=True, fastmath=FM)
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
-    terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here
+    terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (codegen.inline_marked)
     for i in range(N):
         K[row, i] = w[OQD + i]
     w[ORC] = 1.0
@@ -143,10 +144,16 @@ def rhs_ws(t, x, p, G, G1, G2, K, row, w):
                     for j in range(PI + 1):
                         w[OR + i * (PI + 1) + j] *= sc
         # J2 X = R  ->  X = [A | B̂]   (20), (108), (113)
-        w[ORC] = lu_solve_flat(w, OJ + PI, N, OR, PI + 1, M, PI + 1)
-        if w[ORC] == 0.0:
-            w[ORC + 1] = 0.0
-            return
+        w[ORC] = lu_solve_flat(w, OJ + PI, N, OR, PI + 1, M, PI + 1)  # INLINE
+    if w[ORC] == 0.0:              # J2 singular: no u̇ (the loops stop on the rcond)
+        w[ORC + 1] = 0.0
+    else:
+        _reduced_solve(w, K, row)   # INLINE
+
+
+@njit(cache=True, nogil=True, fastmath=FM)
+def _reduced_solve(w, K, row):
+    """The rest of ``rhs_ws`` once [A | B̂] is known (pasted into it by the generator)."""
     # T u̇ = V̂ with T = [A1; A2 Q], V̂ = [B̂; A2 P]  (22), (40), (44), (110), solved by block
     # elimination on the identity block of A1 = [−A  I]:  u̇_D = A u̇_I + B̂  (106), then
     # (A2 Q A2ᵀ) u̇_I = A2 (P − Q [0; B̂])  with A2ᵀ = [I; A]  — exact, allocation-free,
@@ -176,7 +183,7 @@ def rhs_ws(t, x, p, G, G1, G2, K, row, w):
             acc += w[OR + k * (PI + 1) + r] * w[OY + PI + k]
         w[OUI + r] = acc
     # (111): u̇_I from the reduced system; its pivot ratio is the T condition estimate
-    w[ORC + 1] = lu_solve_flat(w, OMR, PI, OUI, 1, PI, 1)
+    w[ORC + 1] = lu_solve_flat(w, OMR, PI, OUI, 1, PI, 1)  # INLINE
     for r in range(PI):
         K[row, N + PERM[r]] = w[OUI + r]
     for k in range(M):
@@ -213,7 +220,7 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
             total += abs(xs[j])
         if not math.isfinite(total):      # a stage left the finite numbers: divergence
             return 3
-        rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)
+        rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)  # INLINE
         rc0 = w[ORC]
         rc1 = w[ORC + 1]
         if rc0 < stats[3]:
@@ -474,7 +481,7 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
                     for k in range(N):
                         acc += w[OC + k * N + i] * ps[PS_OY + k * mrows + r]
                     ps[PS_OZ + i * mrows + r] = acc
-            lu_solve_call(ps, zero, N, PS_OZ, mrows, N, mrows)         # Z = Q⁻¹Cᵀ Gᵀ
+            lu_solve_flat(ps, zero, N, PS_OZ, mrows, N, mrows)         # Z = Q⁻¹Cᵀ Gᵀ
             for i in range(N):                                          # Y = C Z
                 for r in range(mrows):
                     acc = 0.0
@@ -482,7 +489,7 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
                         acc += w[OC + i * N + k] * ps[PS_OZ + k * mrows + r]
                     ps[PS_OY + i * mrows + r] = acc
         else:
-            lu_solve_call(ps, zero, N, PS_OY, mrows, N, mrows)         # Y = Q⁻¹Gᵀ
+            lu_solve_flat(ps, zero, N, PS_OY, mrows, N, mrows)         # Y = Q⁻¹Gᵀ
     for a in range(mrows):
         for b in range(mrows):
             acc = 0.0
@@ -490,7 +497,7 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
                 acc += ps[PS_OG + a * N + i] * ps[PS_OY + i * mrows + b]
             ps[PS_OS + a * mrows + b] = acc
         ps[PS_OZR + a] = ps[OR_ + a]
-    rc = lu_solve_call(ps, PS_OS, mrows, PS_OZR, one, mrows, one)
+    rc = lu_solve_flat(ps, PS_OS, mrows, PS_OZR, one, mrows, one)
     for i in range(N):
         acc = 0.0
         for a in range(mrows):

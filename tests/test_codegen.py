@@ -6,7 +6,7 @@ import pytest
 import sympy as sp
 
 from nmkane_core import get_system
-from nmkane_core.codegen import _paste, generate_source
+from nmkane_core.codegen import generate_source, inline_marked
 from nmkane_core.kernel_terms import kernel_terms, pythagorean
 from nmkane_core.simulate import kernel_for, simulate
 
@@ -56,18 +56,52 @@ def test_appell_hamel_mass_matrix_has_no_needless_trigonometry():
     assert sp.expand(kt.Q[0, 0] - (params["I"] + params["M"] * params["rho"] ** 2)) == 0
 
 
-def test_terms_are_pasted_into_the_right_hand_side():
+def test_hot_path_is_one_function_after_source_inlining():
     src = generate_source(get_system("appell-hamel").derivation("nonlinear"))
-    body = src[src.index("def rhs_ws("):src.index("def rhs(")]
-    assert "# INLINE" not in body and "terms(t, x, p, w)" not in body
-    assert "math.sin(x_0)" in body              # the generated straight-line code is there
+    stages = src[src.index("def _stages("):src.index("def _record(")]
+    for call in ("rhs_ws(", "terms(", "lu_solve_flat(", "_reduced_solve("):
+        assert call not in stages, call
+    assert "math.sin(x" not in stages and "math.sin(_" in stages       # terms, renamed apart
+    rhs_ws = src[src.index("def rhs_ws("):src.index("def _reduced_solve(")]
+    assert "terms(" not in rhs_ws and "lu_solve_flat(" not in rhs_ws
 
 
-def test_paste_refuses_a_generic_part_without_the_marker():
-    fn = "@njit\ndef terms(t, x, p, w):\n    w[0] = 1.0\n"
-    assert "    w[0] = 1.0" in _paste(fn, "def rhs_ws(t, x, p, w):\n    terms(t, x, p, w)  # INLINE: here\n")
-    with pytest.raises(RuntimeError, match="INLINE"):
-        _paste(fn, "def rhs_ws(t, x, p, w):\n    terms(t, x, p, w)\n")
+_MODULE = """
+def f(a, b):
+    c = a + b
+    for i in range(2):
+        c += i
+    return c * 2
+
+def g(x):
+    c = 100
+    i = 7
+    y = f(x + 1, i)  # INLINE
+    return y + c + i
+
+def h(v):
+    f(v, v)  # INLINE
+    return v
+"""
+
+
+def test_inline_marked_binds_arguments_and_renames_locals_apart():
+    out = inline_marked(_MODULE)
+    assert "f(x + 1, i)" not in out and "f(v, v)" not in out
+    ns_before, ns_after = {}, {}
+    exec(_MODULE, ns_before)
+    exec(out, ns_after)
+    for v in (0, 3, -2.5):
+        assert ns_after["g"](v) == ns_before["g"](v)
+        assert ns_after["h"](v) == ns_before["h"](v)
+
+
+def test_inline_marked_refuses_early_returns_and_leaves_unmarked_calls():
+    with pytest.raises(RuntimeError, match="return"):
+        inline_marked("def f(a):\n    if a:\n        return 1\n    return 2\n\n"
+                      "def g(x):\n    y = f(x)  # INLINE\n    return y\n")
+    plain = "def f(a):\n    return a\n\n# a comment\ndef g(x):\n    return f(x)\n"
+    assert inline_marked(plain) == plain
 
 
 def test_projection_helpers_compile_once_per_run(tmp_path):
@@ -82,7 +116,7 @@ def test_projection_helpers_compile_once_per_run(tmp_path):
             "from nmkane_core import get_system\n"
             "r = simulate({'system': 'sliding-particle', 't_final': 0.1, 'projection': 'yoon'})\n"
             "m = kernel_for(get_system('sliding-particle'), 'nonminimal')\n"
-            "print(r.summary['status'], len(m._weighted_correction.signatures), len(m.lu_solve_call.signatures))\n")
+            "print(r.summary['status'], len(m._weighted_correction.signatures), len(m.lu_solve_flat.signatures))\n")
     env = {**os.environ, "NMKANE_CACHE_DIR": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path),
            "NMKANE_PRECOMPILE": "0"}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
