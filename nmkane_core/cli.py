@@ -9,9 +9,12 @@ status is ``ok`` and 1 when it ended ``singular``, ``diverged``, ``timeout`` or
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
 import sys
+import threading
+import time
 
 from .errors import InputError, NmkaneError
 
@@ -200,13 +203,44 @@ def _validated(settings: dict):
     return validate_settings(settings)
 
 
+@contextlib.contextmanager
+def notice_if_slow(message: str, enabled: bool = True, after: float = 1.0, stream=None):
+    """Say ``message`` on stderr if the block is still running after ``after`` seconds, and
+    how long it took when it ends (a first use derives and compiles: seconds of silence
+    otherwise).  Quick blocks print nothing."""
+    stream = stream if stream is not None else sys.stderr
+    said = threading.Event()
+
+    def say():
+        said.set()
+        print(f"{PROG}: {message} …", file=stream, flush=True)
+
+    timer = threading.Timer(after, say) if enabled else None
+    t0 = time.perf_counter()
+    if timer is not None:
+        timer.daemon = True
+        timer.start()
+    try:
+        yield
+    finally:
+        if timer is not None:
+            timer.cancel()
+        if said.is_set():
+            print(f"{PROG}: ready in {time.perf_counter() - t0:.1f} s (cached for later runs)", file=stream,
+                  flush=True)
+
+
 def _cmd_run(args) -> int:
-    from .simulate import resolve, simulate
+    from .simulate import prepare, resolve, simulate
 
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")
-    plan = resolve(_validated(_settings_from_args(args)))
+    settings = _validated(_settings_from_args(args))
     progress = False if args.no_progress else None
+    with notice_if_slow(f"preparing {args.system} (a first use derives the equations and compiles them)",
+                        enabled=not args.no_progress and sys.stderr.isatty()):
+        plan = resolve(settings)
+        prepare(plan)
     run = simulate(plan, progress=progress, time_limit=args.time_limit)
     if args.out:
         run.save(args.out)

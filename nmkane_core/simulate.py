@@ -364,6 +364,14 @@ def _stats0(plan, mod):
     return stats, E0[0], V0[0]
 
 
+def prepare(plan: Plan) -> None:
+    """Load — or, on a model's first use, compile — everything ``simulate(plan)`` runs, so
+    that the run itself starts at once (the CLI does this under a "first use" notice)."""
+    mod = kernel_for(plan.system, plan.variant)
+    if not isinstance(plan.integrator, ScipyMethod):
+        _prime(plan, mod)
+
+
 def _prime(plan: Plan, mod) -> None:
     """Call the run's compiled loop once with no work, so that a first run compiles (or
     loads from the disk cache) before its clock starts: ``time_limit`` bounds integration,

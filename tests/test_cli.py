@@ -102,3 +102,27 @@ def test_bench_quick_measures_every_workload():
     assert ratio["x_sympy"] > 1 and ratio["x_reference"] > 1      # the compiled path is the fast one
     table = format_table(rows)
     assert table.splitlines()[0].startswith("workload") and "evals/s" in table
+
+
+def test_slow_preparation_is_announced_and_quick_one_is_silent():
+    import io
+    import time as _time
+
+    from nmkane_core.cli import notice_if_slow
+
+    out = io.StringIO()
+    with notice_if_slow("preparing x", after=0.05, stream=out):
+        _time.sleep(0.3)
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "nmkane: preparing x …" and lines[1].startswith("nmkane: ready in 0.")
+    out = io.StringIO()
+    with notice_if_slow("preparing y", after=0.5, stream=out):
+        pass
+    _time.sleep(0.6)                                # the cancelled timer never fires
+    assert out.getvalue() == ""
+    out = io.StringIO()
+    with pytest.raises(ValueError):
+        with notice_if_slow("preparing z", after=0.05, stream=out):
+            raise ValueError("bad input")
+    _time.sleep(0.1)
+    assert out.getvalue() == ""
