@@ -49,7 +49,7 @@ def start(folder: Path, key: str) -> None:
             pass                                   # no second process: compile in this one
 
 
-def wait(module, timeout: float = 600.0) -> None:
+def wait(module, timeout: float = 300.0) -> None:
     """Wait for the child compiling ``module``'s loop, if one is running."""
     key = module.__name__.removeprefix("nmkane_kernel_")
     with _LOCK:
