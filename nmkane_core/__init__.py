@@ -5,14 +5,20 @@ once (:func:`derive`), and simulate with compiled kernels (:func:`simulate`).
 """
 
 from .errors import ConvergenceError, InconsistentStateError, InputError, NmkaneError
+from .schema import RunResult, RunSettings
 from .system import Parameter, System, get_system, register, system_names
 
+# Bound eagerly (numpy and pydantic only): the function ``simulate`` shares its name with
+# its module, and once anything imports ``nmkane_core.simulate`` the import system sets
+# that attribute of the package to the module — a lazy name would then hand users the
+# module instead of the function.
+from .simulate import resolve, simulate, simulate_many  # noqa: E402
+
 _LAZY = {"Derivation": "derivation", "derive": "derivation", "MechanicalModel": "model",
-         "plain_symbols": "model", "simulate": "simulate", "simulate_many": "simulate",
-         "resolve": "simulate", "RunSettings": "schema", "RunResult": "schema"}
+         "plain_symbols": "model"}     # sympy is imported only when symbolic work is asked for
 
 
-def __getattr__(name):  # PEP 562: sympy is imported only when symbolic work is asked for
+def __getattr__(name):  # PEP 562
     if name in _LAZY:
         import importlib
 

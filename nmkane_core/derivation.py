@@ -30,6 +30,11 @@ from .model import MechanicalModel
 __all__ = ["Derivation", "derive"]
 
 
+
+def _column(exprs) -> sp.Matrix:
+    exprs = [sp.sympify(e) for e in exprs]
+    return sp.Matrix(len(exprs), 1, exprs)
+
 class Derivation:
     """Symbolic results of the procedure for one model (all ``sympy.Matrix``).
 
@@ -59,8 +64,9 @@ class Derivation:
         self.qdot = md.C * self.u + md.D
 
         # constraint functions: φ (nonholonomic), ψ and ψ̇ (holonomic)
-        self.phi_nh = sp.Matrix([sp.sympify(e) for e in md.nonholonomic.values()])
-        self.psi = sp.Matrix([sp.sympify(e) for e in md.holonomic.values()])
+        # column vectors even when empty (0×1): a model may have only one kind of constraint
+        self.phi_nh = _column(md.nonholonomic.values())
+        self.psi = _column(md.holonomic.values())
         if self.psi.shape[0]:
             self.psi_dot = self.psi.jacobian(self.q) * self.qdot + self.psi.diff(self.t)
         else:
