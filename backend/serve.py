@@ -53,12 +53,15 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
     Port 0 picks a free port (the URLs printed show the real ones).
     """
     settings = settings if settings is not None else Settings()
-    stop = threading.Event()
+    # The handler only appends to a list: no lock.  (It used to call Event.set(); a second
+    # signal arriving while the first handler held the Event's lock — Ctrl-C twice, or a
+    # supervisor forwarding SIGTERM on top of its own — deadlocked the main thread for good.)
+    stopping: list[int] = []
     in_main = threading.current_thread() is threading.main_thread()
     previous = {}
     if in_main:
         for sig in (signal.SIGINT, signal.SIGTERM):
-            previous[sig] = signal.signal(sig, lambda *_: stop.set())
+            previous[sig] = signal.signal(sig, lambda signum, _frame: stopping.append(signum))
     handle = None
     server = thread = None
     try:
@@ -76,7 +79,8 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
                 handle = launch(host, viser_port)
                 print(f"nmkane 3D web app  http://{url_host}:{handle.port}/", flush=True)
         print("press Ctrl-C to stop", flush=True)
-        while not stop.wait(0.5):
+        while not stopping:
+            time.sleep(0.2)                  # a signal interrupts the sleep; its handler runs here
             if not thread.is_alive():
                 log.error("the REST API stopped unexpectedly")
                 break

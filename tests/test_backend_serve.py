@@ -79,3 +79,21 @@ def test_serve_reports_a_port_in_use(tmp_path):
         proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={port}, web=False)")
         out, _ = proc.communicate(timeout=600)
     assert proc.returncode != 0 and "could not start" in out
+
+
+def test_serve_stops_on_a_burst_of_signals(tmp_path):
+    """Ctrl-C pressed twice, or a supervisor forwarding SIGTERM on top of its own: a handler
+    interrupted by the next signal must not deadlock (Event.set in a handler did: the second
+    handler waited for the lock the first one held, forever)."""
+    api, ui = _free_port(), _free_port()
+    proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={api}, viser_port={ui}, web=False)")
+    _read_until(proc, "Ctrl-C")
+    deadline = time.time() + 0.3                             # signals as fast as they go
+    while proc.poll() is None and time.time() < deadline:
+        proc.send_signal(signal.SIGTERM)
+    try:
+        out, _ = proc.communicate(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        pytest.fail("serve hung after a burst of SIGTERM")
+    assert proc.returncode == 0 and "stopped" in out, out

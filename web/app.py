@@ -806,13 +806,13 @@ def main() -> None:
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, default=8080)
     args = ap.parse_args()
-    stop = threading.Event()
+    stopping: list[int] = []               # no lock in a signal handler (see backend.serve)
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
+        signal.signal(sig, lambda signum, _frame: stopping.append(signum))
     app = launch(args.host, args.port)
     print(f"nmkane 3D web app {app.url}  (Ctrl-C to stop)", flush=True)
     try:
-        while not stop.wait(0.5):
-            pass
+        while not stopping:
+            time.sleep(0.2)
     finally:
         app.stop()
