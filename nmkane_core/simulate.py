@@ -272,9 +272,7 @@ def simulate(settings: RunSettings | Mapping | Plan, *, progress: bool | None = 
     """Run a simulation; see the module docstring for the guarantees."""
     plan = settings if isinstance(settings, Plan) else resolve(settings)
     t_setup = time.perf_counter()
-    mod = kernel_for(plan.system, plan.variant)
-    if not isinstance(plan.integrator, ScipyMethod):
-        _prime(plan, mod)
+    mod = prepare(plan)
     start = time.perf_counter()
     setup = start - t_setup
     if progress is None:
@@ -364,12 +362,14 @@ def _stats0(plan, mod):
     return stats, E0[0], V0[0]
 
 
-def prepare(plan: Plan) -> None:
+def prepare(plan: Plan):
     """Load — or, on a model's first use, compile — everything ``simulate(plan)`` runs, so
-    that the run itself starts at once (the CLI does this under a "first use" notice)."""
+    that the run itself starts at once (the CLI does this under a "first use" notice).
+    Returns the kernel module."""
     mod = kernel_for(plan.system, plan.variant)
     if not isinstance(plan.integrator, ScipyMethod):
         _prime(plan, mod)
+    return mod
 
 
 def _prime(plan: Plan, mod) -> None:
