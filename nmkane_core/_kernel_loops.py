@@ -14,8 +14,9 @@ Status codes returned by the loops:
     4 step size underflow (adaptive), 5 step budget of this call used (adaptive),
     6 a projection matrix was singular.
 
-``proj`` (int64 array) = [on, weight (0 identity, 1 mass), position iterations,
-Newton (1 updated Jacobian, 0 frozen), energy correction (0/1), N, M, MNH, MH].
+``proj`` (int64 array) = [weight (0 identity, 1 mass), position iterations, Newton (1
+updated Jacobian, 0 frozen), energy correction (0/1), N, M, MNH, MH], or None for no
+projection (numba then prunes the projection from the loop's compile).
 """
 
 import math
@@ -273,7 +274,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
-    ps = np.zeros(PS_SIZE)
+    ps = make_projection_scratch()
     perm = PERM.copy()
     for k in range(k0, k1):
         t = t0 + k * dt
@@ -294,7 +295,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
         if not math.isfinite(total):
             return 3, k, row
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
-        if proj is not None:     # None (no projection) prunes this branch at compile time
+        if proj is not None:
             if project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
                 return 6, k, row
         E = _record(tn, xn, p, viol, stats, NV)
@@ -329,7 +330,7 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
-    ps = np.zeros(PS_SIZE)
+    ps = make_projection_scratch()
     perm = PERM.copy()
     cap = out_t.shape[0]
     row = 0
@@ -518,8 +519,8 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
         initial energy (keeps constraints homogeneous in u satisfied).
     Returns 0, or 1 when a correction matrix was singular.
     """
-    weight, pos_iters, newton, energy_fix = proj[1], proj[2], proj[3], proj[4]
-    N, M, MNH, MH = proj[5], proj[6], proj[7], proj[8]     # runtime values (see above)
+    weight, pos_iters, newton, energy_fix = proj[0], proj[1], proj[2], proj[3]
+    N, M, MNH, MH = proj[4], proj[5], proj[6], proj[7]     # runtime values (see above)
     PS_OD = N * N + 2 * N * M + M * M + M
     PS_OG = PS_OD + N
     tol = 1e-15
@@ -587,5 +588,5 @@ def project_state(t, x, p, proj):
     perm = PERM.copy()
     viol = np.empty(NV)
     y = x.copy()
-    code = project(t, y, p, w, ps, proj, 0.0, viol, PERM.copy())
+    code = project(t, y, p, w, ps, proj, 0.0, viol, perm)
     return y, code

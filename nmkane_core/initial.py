@@ -66,8 +66,10 @@ def complete_state(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
 def project_onto_manifold(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
     """The nearest consistent state (Euclidean metric): positions onto ψ = 0, then speeds onto
     [φ; ψ̇] = 0 at the corrected positions (the kernel's post-step projection, iterated)."""
-    proj = np.array([1, 0, 20, 1, 0, info.n, info.m, len(info.nonholonomic), len(info.holonomic)],
-                    dtype=np.int64)
+    from .projection import ProjectionOptions
+
+    proj = ProjectionOptions("onto-manifold", weight="identity", iterations=20, jacobian="updated",
+                             energy=False).as_array(info)
     y, code = module.project_state(0.0, x, p, proj)
     if code != 0 or not np.all(np.isfinite(y)):
         raise ConvergenceError("the projection onto the constraint manifold met a singular matrix")

@@ -59,7 +59,7 @@ class ProjectionOptions:
         no projection, which lets numba prune the projection code from that loop's compile."""
         if self.name == "none":
             return None
-        return np.array([1, 1 if self.weight == "mass" else 0, self.iterations,
+        return np.array([1 if self.weight == "mass" else 0, self.iterations,
                          1 if self.jacobian == "updated" else 0, 1 if self.energy else 0,
                          info.n, info.m, len(info.nonholonomic), len(info.holonomic)], dtype=np.int64)
 
