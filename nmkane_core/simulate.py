@@ -367,8 +367,7 @@ def prepare(plan: Plan):
     that the run itself starts at once (the CLI does this under a "first use" notice).
     Returns the kernel module."""
     mod = kernel_for(plan.system, plan.variant)
-    if not isinstance(plan.integrator, ScipyMethod):
-        _prime(plan, mod)
+    _prime(plan, mod)
     return mod
 
 
@@ -382,6 +381,11 @@ def _prime(plan: Plan, mod) -> None:
     precompile.wait(mod)                   # a new kernel's loop may be compiling next door
     tab = plan.integrator
     n2 = plan.x0.size
+    if isinstance(tab, ScipyMethod):       # scipy calls the right-hand side and diagnostics
+        mod.rhs_ws(0.0, plan.x0.copy(), plan.p, plan.G, plan.G1, plan.G2, np.empty((1, n2)), 0,
+                   mod.make_workspace())
+        mod.diagnostics(0.0, plan.x0.copy(), plan.p, np.empty(mod.NV))
+        return
     x = plan.x0.copy()
     out_t, out_x = np.empty(1), np.empty((1, n2))
     out_E, out_V = np.empty(1), np.empty((1, mod.NV))
