@@ -29,8 +29,10 @@ FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=list(Healt
 
 # small limits keep fuzzed runs short (a few ms each). The app is built at import, for
 # parametrize; its database is opened only when its service starts, in the fixture below,
-# so the path is set there, in pytest's temporary directory.
-_SETTINGS = Settings(data_dir="unused", warm_kernels=False, max_wall_time_s=0.2, max_steps=100_000,
+# so the path is set there, in pytest's temporary directory. The kernels are warmed when
+# the service starts: on an empty kernel cache a first request compiles for ~12 s, past
+# schemathesis' 10 s read timeout (a warm cache on the CI machine had hidden this).
+_SETTINGS = Settings(data_dir="unused", warm_kernels=True, max_wall_time_s=0.2, max_steps=100_000,
                      max_rows=5_000)
 _APP = create_app(_SETTINGS)
 schema = schemathesis.openapi.from_asgi("/openapi.json", _APP)
