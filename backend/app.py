@@ -165,7 +165,11 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                 print(line, file=sys.stderr, flush=True)
 
             report("nmkane: preparing the kernels (the first start after install compiles them)")
-            await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm, report)
+            first, later = svc.warm_steps()
+            await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm, report, first)
+            report("nmkane: the service is ready; the loops with a post-step projection load in the "
+                   "background (a first start after install compiles them, about a minute)")
+            svc.warm_in_background(later, report)
         try:
             yield
         finally:

@@ -168,6 +168,9 @@ class RunService:
         self.settings = settings
         self._lock = threading.Lock()
         self._stopping = threading.Event()
+        #: set once the background warm-up (if any) has finished
+        self.warmed = threading.Event()
+        self.warmed.set()
         self.admitted = 0            # running + waiting
         self.running = 0
         self._mean_run_s = 0.05      # moving average of a run's time in a worker (for Retry-After)
@@ -202,14 +205,14 @@ class RunService:
         if store is not None:
             store.close()
 
-    def warm(self, report=None) -> None:
-        """Load (or compile once) every kernel and loop, so no request pays for it.
+    def warm_steps(self) -> tuple[list, list]:
+        """The warm-up runs: ``(first, later)``, each a list of ``(label, settings)``.
 
-        ``report(line)`` (optional) hears one line per step; a first start after install
-        compiles everything (about a minute on two cores), later starts load from the cache.
-        """
-        start = time.perf_counter()
-        steps = []
+        ``first``: every system variant's unprojected loops (fixed step and adaptive) and the
+        scipy adapter — what nearly every request uses.  ``later``: the same loops with a
+        post-step projection, which numba compiles as another copy (about 17 s per variant
+        on a first start after install, so they are warmed after the service is ready)."""
+        first, later = [], []
         for name in system_names():
             system = get_system(name)
             for variant in system.variants:
@@ -217,17 +220,51 @@ class RunService:
                 # (nmkane_core.precompile) while the steps below run
                 kernel_for(system, variant)
                 base = {"system": name, system.option: variant, "t_final": 0.05}
-                steps.append((f"{name} {variant}, fixed step", base))
-                steps.append((f"{name} {variant}, adaptive", {**base, "integrator": "kutta-merson-adaptive"}))
-        steps.append(("scipy adapter", {"system": "appell-hamel", "integrator": "rk45", "t_final": 0.05}))
+                adaptive = {**base, "integrator": "kutta-merson-adaptive"}
+                first.append((f"{name} {variant}, fixed step", base))
+                first.append((f"{name} {variant}, adaptive", adaptive))
+                later.append((f"{name} {variant}, fixed step, projected", {**base, "projection": "yoon"}))
+                later.append((f"{name} {variant}, adaptive, projected", {**adaptive, "projection": "yoon"}))
+        first.append(("scipy adapter", {"system": "appell-hamel", "integrator": "rk45", "t_final": 0.05}))
+        return first, later
+
+    def warm(self, report=None, steps=None, title: str = "kernels") -> None:
+        """Load (or compile once) the kernels and loops of ``steps`` (default: every one of
+        :meth:`warm_steps`), so no request pays for it.
+
+        ``report(line)`` (optional) hears one line per step; a first start after install
+        compiles everything (about a minute on two cores), later starts load from the cache.
+        Stops early (quietly) when the service stops.
+        """
+        start = time.perf_counter()
+        if steps is None:
+            first, later = self.warm_steps()
+            steps = first + later
         for i, (label, settings) in enumerate(steps, 1):
+            if self._stopping.is_set():
+                return
             t0 = time.perf_counter()
             simulate(settings, progress=False)
             if report is not None:
-                report(f"nmkane: kernels [{i}/{len(steps)}] {label}: {time.perf_counter() - t0:.1f} s")
+                report(f"nmkane: {title} [{i}/{len(steps)}] {label}: {time.perf_counter() - t0:.1f} s")
         if report is not None:
-            report(f"nmkane: kernels ready in {time.perf_counter() - start:.1f} s (compiled code is cached "
+            report(f"nmkane: {title} ready in {time.perf_counter() - start:.1f} s (compiled code is cached "
                    "on disk: later starts load it)")
+
+    def warm_in_background(self, steps, report=None) -> threading.Thread:
+        """Warm ``steps`` in a daemon thread (requests are served meanwhile; one that needs a
+        loop still compiling waits for it). :attr:`warmed` is set when it has finished."""
+        self.warmed.clear()
+
+        def work():
+            try:
+                self.warm(report, steps, title="projection loops")
+            finally:
+                self.warmed.set()
+
+        thread = threading.Thread(target=work, daemon=True, name="nmkane-warm")
+        thread.start()
+        return thread
 
     # -- admission ----------------------------------------------------------------------
     def admit(self) -> bool:

@@ -417,7 +417,24 @@ def test_kernel_warm_up_reports_each_step(tmp_path):
     lines = []
     svc.warm(lines.append)
     steps = [ln for ln in lines if re.match(r"nmkane: kernels \[\d+/\d+\] ", ln)]
-    assert len(steps) == len(lines) - 1 >= 9
-    assert {"appell-hamel nonlinear, fixed step", "sliding-particle minimal, adaptive", "scipy adapter"} <= \
+    assert len(steps) == len(lines) - 1 >= 17
+    assert {"appell-hamel nonlinear, fixed step", "sliding-particle minimal, adaptive", "scipy adapter",
+            "appell-hamel linear, adaptive, projected"} <= \
         {ln.split("] ", 1)[1].rsplit(":", 1)[0] for ln in steps}
     assert lines[-1].startswith("nmkane: kernels ready in")
+
+
+def test_background_warm_up_serves_meanwhile_and_stops_with_the_service(tmp_path):
+    from backend.service import RunService
+
+    svc = RunService(Settings(data_dir=tmp_path, warm_kernels=False))
+    svc.start()
+    first, later = svc.warm_steps()
+    assert all("projection" in s for _, s in later) and not any("projection" in s for _, s in first)
+    lines = []
+    svc.warm_in_background(later[:2], lines.append).join(600)
+    assert svc.warmed.is_set() and lines[-1].startswith("nmkane: projection loops ready in")
+    svc.stop()                                   # a stopped service warms nothing more
+    lines.clear()
+    svc.warm_in_background(later, lines.append).join(60)
+    assert svc.warmed.is_set() and lines == []

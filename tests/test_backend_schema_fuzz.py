@@ -29,9 +29,10 @@ FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=list(Healt
 
 # small limits keep fuzzed runs short (a few ms each). The app is built at import, for
 # parametrize; its database is opened only when its service starts, in the fixture below,
-# so the path is set there, in pytest's temporary directory. The kernels are warmed when
-# the service starts: on an empty kernel cache a first request compiles for ~12 s, past
-# schemathesis' 10 s read timeout (a warm cache on the CI machine had hidden this).
+# so the path is set there, in pytest's temporary directory. Every kernel and loop is
+# warmed before the first request: on an empty kernel cache a first request compiles for
+# ~12 s (a first projected one, whose loops the service warms in the background, ~17 s),
+# past schemathesis' 10 s read timeout (a warm cache on the CI machine had hidden both).
 _SETTINGS = Settings(data_dir="unused", warm_kernels=True, max_wall_time_s=0.2, max_steps=100_000,
                      max_rows=5_000)
 _APP = create_app(_SETTINGS)
@@ -42,6 +43,7 @@ schema = schemathesis.openapi.from_asgi("/openapi.json", _APP)
 def _service(tmp_path_factory):
     _SETTINGS.db_path = tmp_path_factory.mktemp("fuzz") / "runs.sqlite3"
     with TestClient(_APP):                      # runs the lifespan: the service starts and stops
+        assert _APP.state.service.warmed.wait(900), "the background warm-up did not finish"
         yield
 
 
