@@ -168,7 +168,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             first, later = svc.warm_steps()
             await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm, report, first)
             report("nmkane: the service is ready; the loops with a post-step projection load in the "
-                   "background (a first start after install compiles them, about a minute)")
+                   "background (a first start after install compiles them, one to two minutes)")
             svc.warm_in_background(later, report)
         try:
             yield

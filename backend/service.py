@@ -251,14 +251,14 @@ class RunService:
             report(f"nmkane: {title} ready in {time.perf_counter() - start:.1f} s (compiled code is cached "
                    "on disk: later starts load it)")
 
-    def warm_in_background(self, steps, report=None) -> threading.Thread:
+    def warm_in_background(self, steps, report=None, title: str = "projection loops") -> threading.Thread:
         """Warm ``steps`` in a daemon thread (requests are served meanwhile; one that needs a
         loop still compiling waits for it). :attr:`warmed` is set when it has finished."""
         self.warmed.clear()
 
         def work():
             try:
-                self.warm(report, steps, title="projection loops")
+                self.warm(report, steps, title)
             finally:
                 self.warmed.set()
 
