@@ -449,7 +449,12 @@ class _Switcher:
         return min(rc0, rc1)
 
     def leave(self, t, x, row) -> bool:
-        """The selected model is ill-conditioned at (t, x): switch if an equivalent one is not."""
+        """The selected model is ill-conditioned at (t, x): switch if an equivalent one is not.
+
+        True when the run should retry from (t, x): with another model, or — the first time
+        no equivalent model is better — with the selected one down to ``rcond_min``.  False
+        when nothing is left to try: the run stops as singular (each call either changes
+        the model or the threshold, or returns False, so a retry cannot loop)."""
         if self.switched or not self.alts or self.no_cure:
             return False
         rc_home = self._rcond(self.home, t, x)
@@ -460,7 +465,7 @@ class _Switcher:
                 self.cur, self.cur_name, self.seg_start = mod, v, row
                 return True
         self.no_cure = True
-        return False
+        return True
 
     def maybe_return(self, t, x, row) -> bool:
         if not self.switched:
@@ -511,7 +516,7 @@ def _run_fixed(plan: Plan, mod, bar, start, time_limit, cancel):
         if not sw.switched:
             chunk = int(min(max(chunk * min(4.0, 0.05 / max(elapsed, 1e-6)), 500), 5_000_000))
         bar.update(min(k * dt, t_final))
-        if status in (1, 2) and (sw.leave(k * dt, x, row) or sw.no_cure):
+        if status in (1, 2) and sw.leave(k * dt, x, row):
             status = 0
             continue
         if status != 0:
@@ -561,7 +566,7 @@ def _run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel):
         ts.append(out_t[:nrow]); xs.append(out_x[:nrow]); Es.append(out_E[:nrow]); Vs.append(out_V[:nrow])
         nrows += nrow
         bar.update(t)
-        if status in (1, 2) and (sw.leave(t, x, nrows) or sw.no_cure):
+        if status in (1, 2) and sw.leave(t, x, nrows):
             status = 0
             continue
         if status == 5:

@@ -1,6 +1,9 @@
 """Singular configurations of the nonlinear Appell–Hamel model (φ̇ = 0), equivalent-model
 switching, the spurious branch of (57), projection of inconsistent initial states."""
 
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 
@@ -104,3 +107,19 @@ def test_rcond_switch_is_validated():
     with pytest.raises(InputError) as e:
         resolve({"system": "appell-hamel", "rcond_switch": 2.0})
     assert e.value.field == "rcond_switch"
+
+
+@pytest.mark.parametrize("integrator", ["kutta-merson", "kutta-merson-adaptive"])
+def test_singular_start_with_no_cure_stops_as_singular_and_does_not_loop(integrator):
+    """φ̇0 = 0 and the linear model not better than rcond_switch there (its T estimate is
+    0.32 < 0.4): no switch is possible, so the run must stop as ``singular`` at once.  It
+    used to retry the same step forever (found by the library fuzz test), ignoring even
+    ``time_limit`` — hence a child process with a timeout: a regression fails, not hangs."""
+    code = ("from nmkane_core.simulate import simulate\n"
+            "r = simulate({'system': 'appell-hamel', 'initial': {'u2': 0.0}, 'rcond_switch': 0.4, "
+            f"'integrator': '{integrator}'}}, progress=False, time_limit=5.0)\n"
+            "print(r.status, len(r.t), r.summary['switches'], r.summary['message'])\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    status, rows, rest = out.stdout.split(" ", 2)
+    assert status == "singular" and rows == "1" and rest.startswith("[]") and "φ̇ = 0" in rest, out.stdout
