@@ -28,6 +28,7 @@ from pathlib import Path
 
 from typing import Callable
 
+from .cache import kernel_dir
 from .info import ModelInfo
 
 __all__ = ["cache_dir", "generate_source", "compiled_kernel", "kernel", "fingerprint"]
@@ -37,10 +38,8 @@ _LOADED: dict[str, object] = {}
 
 
 def cache_dir() -> Path:
-    """Where generated kernels live: $NMKANE_CACHE_DIR or ~/.cache/nmkane/kernels."""
-    env = os.environ.get("NMKANE_CACHE_DIR")
-    base = Path(env) if env else Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "nmkane"
-    return base / "kernels"
+    """Where generated kernels live (see :mod:`nmkane_core.cache`)."""
+    return kernel_dir()
 
 
 def _printer():

@@ -141,6 +141,14 @@ class System:
                 self._kernels[variant] = kernel(fp, lambda: self.derivation(variant))
             return self._kernels[variant]
 
+    def kernel_key(self, variant: str | None = None) -> str | None:
+        """A key that changes whenever the variant's compiled kernel would (None: not cached).
+
+        Other caches derived from a model (the web app's rendered matrices) key on it."""
+        from .codegen import fingerprint
+
+        return fingerprint(self.name, self.check_variant(variant), self.source_files)
+
     def info(self, variant: str | None = None) -> "ModelInfo":
         return self.kernel(variant)[1]
 
