@@ -2,24 +2,38 @@
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-STAMP := $(VENV)/.installed
 
-.PHONY: setup serve test bench figures clean
+.PHONY: setup setup-dev serve test lint format bench figures clean
 
-$(STAMP): pyproject.toml
+# the app (library, REST service, web app, figures); the dev stamp adds tests and linters
+$(VENV)/.installed-all: pyproject.toml
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "nmkane needs Python >= 3.11 (set PY=python3.11)")'
 	$(PY) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
-	$(BIN)/python -m pip install -q -e '.[test]'
-	@touch $(STAMP)
+	$(BIN)/python -m pip install -q -e '.[all]'
+	@touch $@
 
-setup: $(STAMP)
+$(VENV)/.installed-dev: $(VENV)/.installed-all
+	$(BIN)/python -m pip install -q -e '.[dev]'
+	@touch $@
+
+setup: $(VENV)/.installed-all
+setup-dev: $(VENV)/.installed-dev
 
 serve: setup
 	$(BIN)/nmkane serve
 
-test: setup
+test: setup-dev
 	$(BIN)/python -m pytest -q
+
+lint: setup-dev
+	$(BIN)/ruff check nmkane_core backend web tests scripts examples
+	$(BIN)/ruff format --check nmkane_core backend web tests scripts examples
+	$(BIN)/mypy
+
+format: setup-dev
+	$(BIN)/ruff check --fix nmkane_core backend web tests scripts examples
+	$(BIN)/ruff format nmkane_core backend web tests scripts examples
 
 bench: setup
 	$(BIN)/nmkane bench
@@ -28,4 +42,4 @@ figures: setup
 	$(BIN)/nmkane figures --out figures
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache

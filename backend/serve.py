@@ -1,9 +1,12 @@
 """``nmkane serve``: the REST API (uvicorn) and the 3D web app (viser) side by side.
 
-viser runs its own websocket server on its own port, so the two are separate servers in
-one process: uvicorn in a thread, the web app started by ``web.app.launch`` (it runs in
-its own threads), and the main thread waiting for Ctrl-C or SIGTERM, then stopping both
-(VISER-GUIDE §6, layout A).
+This is the one place that composes the faces.  The web app is not imported by name: it
+is found through the entry-point group ``nmkane.apps`` (``web = "web.app:launch_app"`` in
+pyproject.toml), so the service and the web app do not import each other.  An app entry
+is a callable ``launch_app(host, port, **options)`` returning a handle with ``.port`` and
+``.stop()``.  viser runs its own websocket server on its own port, so the two are separate
+servers in one process: uvicorn in a thread, the web app in its own threads, and the main
+thread waiting for Ctrl-C or SIGTERM, then stopping both.
 """
 
 from __future__ import annotations
@@ -12,13 +15,17 @@ import logging
 import signal
 import threading
 import time
+from importlib.metadata import entry_points
+from typing import Any, Callable
 
 import uvicorn
 
 from .app import create_app
 from .config import Settings
 
-__all__ = ["serve"]
+__all__ = ["serve", "APP_GROUP"]
+
+APP_GROUP = "nmkane.apps"
 
 log = logging.getLogger("nmkane.serve")
 
@@ -46,11 +53,25 @@ def _stop_api(server: uvicorn.Server, thread: threading.Thread) -> None:
     thread.join(server.config.timeout_graceful_shutdown + 10)
 
 
+def _web_app() -> Callable[..., Any]:
+    """The web app's launcher, from the ``nmkane.apps`` entry-point group."""
+    found = [ep for ep in entry_points(group=APP_GROUP) if ep.name == "web"]
+    if not found:
+        raise ImportError(f"no 'web' entry in the {APP_GROUP} entry-point group (is nmkane installed?)")
+    return found[0].load()
+
+
 def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080, web: bool = True,
           settings: Settings | None = None) -> None:
     """Serve until SIGINT or SIGTERM, then stop both servers. Binds to loopback by default.
 
     Port 0 picks a free port (the URLs printed show the real ones).
+
+    In the main thread, ``serve`` handles SIGINT and SIGTERM itself.  Once a signal has
+    asked it to stop, further SIGINT/SIGTERM are absorbed until the process exits: the stop
+    is under way and a repeat cannot hasten it, while restoring the default handler would
+    let a late signal of a burst kill the process half-way through its exit.  The previous
+    handlers come back only when ``serve`` returns for another reason (the API stopped).
     """
     settings = settings if settings is not None else Settings()
     # The handler only appends to a list: no lock.  (It used to call Event.set(); a second
@@ -71,12 +92,12 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
               f"runs stored in {settings.database})", flush=True)
         if web:
             try:
-                from web.app import launch
+                launch_app = _web_app()
             except ImportError as e:        # the 3D web app is optional for the API
                 log.warning("3D web app not available (%s); serving the REST API only", e)
                 print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
             else:
-                handle = launch(host, viser_port)
+                handle = launch_app(host, viser_port)
                 print(f"nmkane 3D web app  http://{url_host}:{handle.port}/", flush=True)
         print("press Ctrl-C to stop", flush=True)
         while not stopping:
@@ -92,7 +113,8 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
                 log.exception("stopping the 3D web app failed")
         if server is not None:
             _stop_api(server, thread)
-        for sig, h in previous.items():
-            signal.signal(sig, h)
+        if not stopping:                 # see the docstring: after a signal stop, repeats are absorbed
+            for sig, h in previous.items():
+                signal.signal(sig, h)
         if server is not None:
             print("nmkane: stopped", flush=True)

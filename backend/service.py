@@ -23,7 +23,7 @@ from nmkane_core.errors import InputError
 from nmkane_core.integrators import ScipyMethod
 from nmkane_core.schema import RunSettings, RunSummary
 from nmkane_core.simulate import Plan, Run, kernel_for, resolve, simulate
-from nmkane_core.system import get_system, system_names
+from nmkane_core.registry import get_system, system_names
 
 from .config import Settings
 from .store import RunStore

@@ -6,7 +6,8 @@ once (:func:`derive`), and simulate with compiled kernels (:func:`simulate`).
 
 from .errors import ConvergenceError, InconsistentStateError, InputError, NmkaneError
 from .schema import RunResult, RunSettings
-from .system import Parameter, System, get_system, register, system_names
+from .registry import get_system, register, system_names
+from .system import Parameter, System
 
 # Bound eagerly (numpy and pydantic only): the function ``simulate`` shares its name with
 # its module, and once anything imports ``nmkane_core.simulate`` the import system sets

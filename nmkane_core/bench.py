@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from .simulate import kernel_for, resolve, simulate, simulate_many
-from .system import get_system
+from .registry import get_system
 
 
 def _best(fn, repeat=3):

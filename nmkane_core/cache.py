@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-__all__ = ["cache_root", "kernel_dir"]
+__all__ = ["cache_root", "kernel_dir", "write_kernel", "import_kernel"]
 
 
 def cache_root() -> Path:
@@ -24,3 +24,117 @@ def cache_root() -> Path:
 def kernel_dir() -> Path:
     """Where generated and compiled kernels live."""
     return cache_root() / "kernels"
+
+
+def _kernel_file(folder: Path, key: str) -> Path:
+    return folder / f"nmkane_kernel_{key}.py"
+
+
+def write_kernel(folder: Path, key: str, source: str) -> bool:
+    """Write a generated kernel module unless the same text is there; True if written."""
+    path = _kernel_file(folder, key)
+    if path.exists() and path.read_text() == source:
+        return False
+    folder.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(f".tmp{os.getpid()}")
+    tmp.write_text(source)
+    os.replace(tmp, path)               # atomic: a parallel process never sees half a file
+    return True
+
+
+def import_kernel(folder: Path, key: str):
+    """Import a kernel module written by :func:`write_kernel` (numba loads its compiled code)."""
+    import importlib.util
+    import sys
+
+    name = f"nmkane_kernel_{key}"
+    spec = importlib.util.spec_from_file_location(name, _kernel_file(folder, key))
+    if spec is None or spec.loader is None:
+        raise ImportError(f"cannot import the kernel {key} from {folder}")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+# --------------------------------------------------------------------------- housekeeping
+def _size(path: Path) -> int:
+    if path.is_file():
+        return path.stat().st_size
+    return sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+
+
+def _entries() -> list[dict]:
+    """The kernel index: one entry per cached (system, variant, fingerprint)."""
+    import json
+
+    out = []
+    for f in sorted((kernel_dir() / "index").glob("*.json")):
+        try:
+            entry = json.loads(f.read_text())
+        except (OSError, ValueError):
+            entry = {}
+        out.append({"path": f, "fingerprint": f.stem, "key": entry.get("key"),
+                    "system": entry.get("system"), "variant": entry.get("variant"),
+                    "last_used": f.stat().st_mtime})
+    return out
+
+
+def _kernel_folders() -> list[Path]:
+    return sorted(p for p in kernel_dir().glob("*") if p.is_dir() and p.name != "index")
+
+
+def info() -> dict:
+    """What the cache holds: its root, size, kernels and index entries."""
+    root = cache_root()
+    entries = _entries()
+    folders = _kernel_folders()
+    return {"root": str(root), "bytes": _size(root) if root.exists() else 0,
+            "kernels": [{"key": p.name, "bytes": _size(p)} for p in folders],
+            "entries": [{k: (str(v) if k == "path" else v) for k, v in e.items()} for e in entries],
+            "other": {p.name: _size(p) for p in sorted(root.glob("*")) if p.is_dir() and p.name != "kernels"}
+            if root.exists() else {}}
+
+
+def clear() -> int:
+    """Remove the whole cache; returns the bytes freed.  Kernels compile again on next use."""
+    import shutil
+
+    root = cache_root()
+    if not root.exists():
+        return 0
+    freed = _size(root)
+    shutil.rmtree(root, ignore_errors=True)
+    return freed
+
+
+def prune(current: "dict[tuple[str, str], str | None]", unused_days: float | None = None) -> dict:
+    """Remove what can no longer be used, and return what was removed.
+
+    ``current`` maps (system, variant) of every system known here to its fingerprint now:
+    an index entry of a known system with another fingerprint was built from sources that
+    have changed since (stale).  Entries of systems not known here are kept, unless unused
+    for ``unused_days``.  Kernel folders that no remaining entry points to are removed."""
+    import shutil
+    import time
+
+    removed_entries, removed_kernels, freed = [], [], 0
+    now = time.time()
+    keep_keys = set()
+    for e in _entries():
+        label = (e["system"], e["variant"])
+        stale = label in current and current[label] != e["fingerprint"]
+        old = unused_days is not None and now - e["last_used"] > unused_days * 86400
+        if stale or old or e["key"] is None:
+            freed += _size(e["path"])
+            e["path"].unlink(missing_ok=True)
+            removed_entries.append({"system": e["system"], "variant": e["variant"],
+                                    "reason": "stale" if stale else ("unused" if old else "damaged")})
+        else:
+            keep_keys.add(e["key"])
+    for folder in _kernel_folders():
+        if folder.name not in keep_keys:
+            freed += _size(folder)
+            shutil.rmtree(folder, ignore_errors=True)
+            removed_kernels.append(folder.name)
+    return {"entries": removed_entries, "kernels": removed_kernels, "bytes": freed}

@@ -18,9 +18,9 @@ arguments: nothing recompiles when a slider moves.
 from __future__ import annotations
 
 import ast
+import contextlib
 import copy
 import hashlib
-import importlib.util
 import os
 import sys
 import threading
@@ -28,7 +28,8 @@ from pathlib import Path
 
 from typing import Callable
 
-from .cache import kernel_dir
+from . import precompile
+from .cache import import_kernel, kernel_dir, write_kernel
 from .info import ModelInfo
 
 __all__ = ["cache_dir", "generate_source", "compiled_kernel", "kernel", "fingerprint"]
@@ -277,21 +278,11 @@ def _source_key(source: str) -> str:
 
 
 def _import(folder: Path, key: str, source: str | None):
-    path = folder / f"nmkane_kernel_{key}.py"
-    if source is not None and (not path.exists() or path.read_text() != source):
-        folder.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_suffix(f".tmp{os.getpid()}")
-        tmp.write_text(source)
-        os.replace(tmp, path)               # atomic: a parallel process never sees half a file
-        from . import precompile
-
-        precompile.start(folder, key)       # a new kernel: compile its loop on another core
-    name = f"nmkane_kernel_{key}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    """Import kernel ``key`` from ``folder``, writing ``source`` there first when given; a
+    newly written kernel starts compiling its loop in a second process at once."""
+    if source is not None and write_kernel(folder, key, source):
+        precompile.start(folder, key)
+    return import_kernel(folder, key)
 
 
 def compiled_kernel(derivation, source: str | None = None):
@@ -324,9 +315,11 @@ def fingerprint(system_name: str, variant: str, source_files) -> str | None:
     return h.hexdigest()[:24]
 
 
-def kernel(fp: str | None, derive: Callable[[], object]) -> tuple[object, ModelInfo]:
+def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] = ("", "")
+           ) -> tuple[object, ModelInfo]:
     """The kernel module and model info for fingerprint ``fp``, from the disk cache when it
-    is there (no sympy needed), otherwise derived, generated and cached."""
+    is there (no sympy needed), otherwise derived, generated and cached.  ``label`` (system,
+    variant) is recorded in the index for ``nmkane cache``."""
     index = cache_dir() / "index" / f"{fp}.json" if fp else None
     if index is not None and index.exists():
         try:
@@ -340,6 +333,8 @@ def kernel(fp: str | None, derive: Callable[[], object]) -> tuple[object, ModelI
                     if not (folder / f"nmkane_kernel_{key}.py").exists():
                         raise FileNotFoundError(key)
                     _LOADED[key] = _import(folder, key, None)
+                    with contextlib.suppress(OSError):
+                        os.utime(index)            # last use, for `nmkane cache prune --unused-days`
                 return _LOADED[key], ModelInfo.from_json(json.dumps(entry["info"]))
         except (OSError, KeyError, ValueError, TypeError):
             pass                                   # a damaged entry: regenerate below
@@ -352,6 +347,7 @@ def kernel(fp: str | None, derive: Callable[[], object]) -> tuple[object, ModelI
 
         index.parent.mkdir(parents=True, exist_ok=True)
         tmp = index.with_suffix(f".tmp{os.getpid()}")
-        tmp.write_text(json.dumps({"key": _source_key(source), "info": json.loads(info.to_json())}))
+        tmp.write_text(json.dumps({"key": _source_key(source), "system": label[0], "variant": label[1],
+                                   "info": json.loads(info.to_json())}))
         os.replace(tmp, index)
     return module, info

@@ -67,7 +67,7 @@ RK4 = Tableau(
     description="classical Runge–Kutta, 4th order, fixed step",
 )
 
-# Kutta–Merson: Hairer–Nørsett–Wanner I, Table 4.1; ../shared/STABILIZATION-NOTES.md §3
+# Kutta–Merson: Hairer, Nørsett & Wanner, Solving ODEs I, Table 4.1 (Merson 1957)
 KUTTA_MERSON = Tableau(
     "kutta-merson",
     A=_arr([[0, 0, 0, 0, 0],

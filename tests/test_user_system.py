@@ -50,12 +50,11 @@ def knife_edge() -> System:
 @pytest.fixture(autouse=True, scope="module")
 def registered():
     """Registered for this module's tests only (the registry is process-wide)."""
-    from nmkane_core import system as registry
+    from nmkane_core.registry import unregister
 
     register(NAME)(knife_edge)
     yield
-    registry._REGISTRY.pop(NAME, None)
-    registry._get.cache_clear()
+    unregister(NAME)
 
 
 def test_user_system_compiled_rhs_agrees_with_reference():

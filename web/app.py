@@ -30,7 +30,7 @@ import viser.uplot as uplot
 
 from nmkane_core.errors import InputError
 from nmkane_core.simulate import simulate as core_simulate
-from nmkane_core.system import get_system
+from nmkane_core.registry import get_system
 
 from . import geometry as geo
 from . import matrices as mx

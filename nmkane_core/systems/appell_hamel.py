@@ -13,7 +13,7 @@ mechanism: ``nonlinear`` (57)+(58)+(59) and ``linear`` (101)+(102)+(59).
 
 from __future__ import annotations
 
-from ..system import Parameter, System, register
+from ..system import Parameter, System
 
 PARAMETERS = (
     Parameter("a", 1.0, 0.0, 1e3, "m", "wheel radius"),
@@ -97,7 +97,6 @@ def _model(name: str):
                      else "linear nonholonomic constraints (101), (102), (59)"))
 
 
-@register("appell-hamel")
 def appell_hamel() -> System:
     return System(
         name="appell-hamel",

@@ -10,7 +10,7 @@ outputs.
 
 from __future__ import annotations
 
-from ..system import Parameter, System, register
+from ..system import Parameter, System
 
 PARAMETERS = (
     Parameter("l0", 1.0, 0.0, 1e3, "m", "parabola parameter in ψ = y + x²/l0 − l0"),
@@ -65,7 +65,6 @@ def _minimal():
         description="Kane's minimal equation (137)")
 
 
-@register("sliding-particle")
 def sliding_particle() -> System:
     return System(
         name="sliding-particle",

@@ -1,0 +1,21 @@
+"""``nmkane bench``: the speed table (see :mod:`nmkane_core.bench`)."""
+
+from __future__ import annotations
+
+import argparse
+
+from .command import Command
+
+
+def _add_arguments(bench: argparse.ArgumentParser) -> None:
+    bench.add_argument("--json", action="store_true", help="machine-readable output")
+    bench.add_argument("--quick", action="store_true", help="shorter workloads (smoke test)")
+
+
+def _run(args: argparse.Namespace) -> int:
+    from ..bench import main as bench_main
+
+    return bench_main(json_out=args.json, quick=args.quick)
+
+
+COMMAND = Command("bench", "measure the kernels' speed and print a table", _add_arguments, _run)

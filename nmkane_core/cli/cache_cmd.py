@@ -1,0 +1,66 @@
+"""``nmkane cache info|clear|prune``: the on-disk kernel cache (see :mod:`nmkane_core.cache`)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from .command import Command
+from .common import finite
+
+
+def _add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("action", choices=("info", "clear", "prune"),
+                   help="info: size and entries; clear: remove everything; "
+                        "prune: remove kernels whose sources changed and kernels nothing uses")
+    p.add_argument("--unused-days", type=finite, dest="unused_days",
+                   help="prune: also remove kernels not loaded for this many days")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+def _mb(n: int) -> str:
+    return f"{n / 1e6:.1f} MB"
+
+
+def _current_fingerprints() -> dict:
+    from ..registry import get_system, system_names
+
+    out = {}
+    for name in system_names():
+        s = get_system(name)
+        for v in s.variants:
+            out[(s.name, v)] = s.kernel_key(v)
+    return out
+
+
+def _run(args: argparse.Namespace) -> int:
+    from .. import cache
+
+    if args.action == "info":
+        data = cache.info()
+        if args.json:
+            print(json.dumps(data, indent=2))
+            return 0
+        print(f"cache    {data['root']}  ({_mb(data['bytes'])})")
+        print(f"kernels  {len(data['kernels'])} compiled, {len(data['entries'])} index entries")
+        for e in data["entries"]:
+            print(f"  {e['system'] or '?'} / {e['variant'] or '?'}  -> kernel {e['key']}")
+        for name, size in data["other"].items():
+            print(f"{name:8s} {_mb(size)}")
+        return 0
+    if args.action == "clear":
+        freed = cache.clear()
+        print(json.dumps({"bytes": freed}) if args.json else f"cleared {_mb(freed)}")
+        return 0
+    done = cache.prune(_current_fingerprints(), args.unused_days)
+    if args.json:
+        print(json.dumps(done, indent=2))
+    else:
+        for e in done["entries"]:
+            print(f"removed {e['system']} / {e['variant']} ({e['reason']})")
+        print(f"pruned {len(done['entries'])} index entries and {len(done['kernels'])} kernels, "
+              f"{_mb(done['bytes'])} freed")
+    return 0
+
+
+COMMAND = Command("cache", "show, prune or clear the compiled-kernel cache", _add_arguments, _run)

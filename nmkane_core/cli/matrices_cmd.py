@@ -1,0 +1,45 @@
+"""``nmkane matrices SYSTEM``: the derived matrices of the paper's procedure, as text or LaTeX."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..errors import InputError
+from .command import Command
+
+
+def _add_arguments(mats: argparse.ArgumentParser) -> None:
+    mats.add_argument("system", metavar="SYSTEM")
+    mats.add_argument("--model")
+    mats.add_argument("--formulation")
+    mats.add_argument("--matrix", action="append", default=[], help="J1 J2 A B A1 A2 Q P T V B_hat V_hat")
+    mats.add_argument("--latex", action="store_true", help="LaTeX instead of text")
+
+
+def _run(args: argparse.Namespace) -> int:
+    import sympy as sp
+
+    from ..registry import get_system
+
+    system = get_system(args.system)
+    other = "formulation" if system.option == "model" else "model"
+    if getattr(args, other):
+        raise InputError(other, getattr(args, other), f"{system.option}: {' | '.join(system.variants)}",
+                         f"{system.name} has no {other}")
+    variant = system.check_variant(getattr(args, system.option), system.option)
+    d = system.derivation(variant)
+    names = args.matrix or ["J1", "J2", "A1", "A2", "T"]
+    for name in names:
+        if name not in d.NAMES:
+            raise InputError("--matrix", name, " | ".join(d.NAMES), "unknown matrix")
+        if args.latex:
+            print(d.latex(name))
+        else:
+            mat = d.matrix(name).applyfunc(lambda e: sp.simplify(e) if sp.count_ops(e) < 300 else e)
+            print(f"{name} =")
+            print(sp.pretty(mat, use_unicode=True, wrap_line=False))
+        print()
+    return 0
+
+
+COMMAND = Command("matrices", "print the derived matrices (LaTeX or text)", _add_arguments, _run)
