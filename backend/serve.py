@@ -68,10 +68,13 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
     Port 0 picks a free port (the URLs printed show the real ones).
 
     In the main thread, ``serve`` handles SIGINT and SIGTERM itself.  Once a signal has
-    asked it to stop, further SIGINT/SIGTERM are absorbed until the process exits: the stop
-    is under way and a repeat cannot hasten it, while restoring the default handler would
-    let a late signal of a burst kill the process half-way through its exit.  The previous
-    handlers come back only when ``serve`` returns for another reason (the API stopped).
+    asked it to stop, further SIGINT/SIGTERM are ignored (``SIG_IGN``) from then on: the
+    stop is under way and a repeat cannot hasten it.  Restoring the previous handlers would
+    let a late signal of a burst kill the process half-way through its exit (status −15
+    after a clean stop), and so would a Python-level handler, because the interpreter
+    resets those to the default action while it finalizes; an ignored signal stays
+    ignored.  The previous handlers come back only when ``serve`` returns for another
+    reason (the API stopped).
     """
     settings = settings if settings is not None else Settings()
     # The handler only appends to a list: no lock.  (It used to call Event.set(); a second
@@ -113,8 +116,7 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
                 log.exception("stopping the 3D web app failed")
         if server is not None:
             _stop_api(server, thread)
-        if not stopping:                 # see the docstring: after a signal stop, repeats are absorbed
-            for sig, h in previous.items():
-                signal.signal(sig, h)
+        for sig, h in previous.items():   # see the docstring: after a signal stop, repeats are ignored
+            signal.signal(sig, signal.SIG_IGN if stopping else h)
         if server is not None:
             print("nmkane: stopped", flush=True)
