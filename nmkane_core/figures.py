@@ -58,9 +58,8 @@ PRECORRECTION_SAMPLES = 500  # states of a projection run re-stepped without cor
 
 PASS, FAIL, INFO, NOT_RUN = "PASS", "FAIL", "INFO", "NOT RUN"
 
-#: the REST service's default limits (backend/config.py; NMKANE_MAX_STEPS, NMKANE_MAX_ROWS),
-#: quoted so the report can say which runs need them raised (the core does not import backend)
-REST_DEFAULT_LIMITS = {"max_steps": 2_000_000, "max_rows": 100_000}
+#: the REST service's default limits, quoted so the report can say which runs need them raised
+from .schema import REST_DEFAULT_LIMITS  # noqa: E402
 
 
 # --------------------------------------------------------------------------- runs

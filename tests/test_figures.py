@@ -124,7 +124,7 @@ def test_quoted_rest_limits_match_the_service_defaults(monkeypatch):
     """The report tells which runs need the REST limits raised; its numbers are the service's."""
     from backend.config import Settings
 
-    from nmkane_core.figures import REST_DEFAULT_LIMITS
+    from nmkane_core.schema import REST_DEFAULT_LIMITS
 
     monkeypatch.delenv("NMKANE_MAX_STEPS", raising=False)
     monkeypatch.delenv("NMKANE_MAX_ROWS", raising=False)
