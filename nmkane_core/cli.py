@@ -160,7 +160,7 @@ def main(argv: list[str] | None = None) -> int:
 
             return bench_main(json_out=args.json, quick=args.quick)
         if args.command == "figures":
-            from .figures import make_figures
+            from .paper import make_figures
 
             report = make_figures(args.out, progress=None, quick=args.quick)
             print(report.summary_text() if hasattr(report, "summary_text") else report)
