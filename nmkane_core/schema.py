@@ -1,8 +1,8 @@
 """The one schema: run settings in, run result document out (CLI JSON, REST, web).
 
 :class:`RunSettings` is what a user asks for (CLI options, REST body); omitted fields take
-the system's defaults.  :class:`RunResult` is the run result document of
-ARCHITECTURE.md.  Both are pydantic models; the REST service uses them directly as its
+the system's defaults.  :class:`RunResult` is the run result document (README.md, "One
+schema").  Both are pydantic models; the REST service uses them directly as its
 request and response models and the CLI writes ``RunResult`` as its JSON.
 """
 
@@ -111,7 +111,7 @@ class RunSummary(BaseModel):
 
 
 class RunResult(BaseModel):
-    """The run result document (ARCHITECTURE.md)."""
+    """The run result document: times, states, energy, violations and the summary."""
 
     id: Optional[str] = None
     system: str

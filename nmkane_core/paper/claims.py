@@ -288,7 +288,7 @@ CLAIMS: tuple[ClaimSpec, ...] = (
               "equations are manipulated\" (§2.5)", _AH, models_same_motion),
     ClaimSpec("matches_kanes_method_oracle", (2, 3, 4, 5, 6, 7, 8),
               "The nonminimal solution agrees with Kane's minimal equations derived independently "
-              "(sympy KanesMethod, DOP853, rtol 1e-11)", "— (cross-check, REFERENCE.md)",
+              "(sympy KanesMethod, DOP853, rtol 1e-11)", "— (cross-check, not in the paper)",
               ("ah-nonlinear",), matches_kanes_method_oracle),
     ClaimSpec("theta_reaches_steady_state", (2, 4, 6),
               "θ tends to a constant steady-state value (θ̇ → 0) as the wheel keeps rolling",
@@ -296,7 +296,7 @@ CLAIMS: tuple[ClaimSpec, ...] = (
               ("ah-nonlinear",), theta_reaches_steady_state),
     ClaimSpec("load_falls_wheel_speeds_up", (3, 5, 8),
               "The load falls (z decreases) and spins the wheel up (φ̇ increases)",
-              "qualitative (Figs. 5, 8; REFERENCE.md)", ("ah-nonlinear",), load_falls_wheel_speeds_up),
+              "qualitative (Figs. 5, 8)", ("ah-nonlinear",), load_falls_wheel_speeds_up),
     ClaimSpec("fig9_nonlinear_energy_drift_below_linear", (9,),
               "Nonlinear constraint model: smaller max|ΔE| than the linear model (same integrator, same Δt)",
               "\"the nonlinearity in the constraint equations subdues the growing deviation in the total "

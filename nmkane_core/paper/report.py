@@ -200,7 +200,7 @@ def _choices_md(quick: bool) -> list[str]:
         f"- Fig. 16's reference: the minimal equation (137) at "
         f"Δt = {DT_FIG16_REF_QUICK if quick else DT_FIG16_REF:g} s"
         f"{' (quick mode)' if quick else ''}.",
-        f"- Parameters and initial states: the paper's (REFERENCE.md), with g = {g.default:g} {g.unit} and "
+        f"- Parameters and initial states: the paper's (Examples 1 and 2), with g = {g.default:g} {g.unit} and "
         f"I = {inertia.default:g} {inertia.unit}.",
         "- Maxima (max|φ|, max|ΔE|) are over every integration step; plots show thinned output.",
     ]
