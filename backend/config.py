@@ -17,6 +17,9 @@ setting                        environment variable         default
 ``max_wall_time_s``            ``NMKANE_MAX_WALL_TIME_S``   10 s
 ``cors_origins``               ``NMKANE_CORS_ORIGINS``      none (comma-separated list)
 =============================  ===========================  =================================
+
+The defaults of ``max_steps`` and ``max_rows`` have their home in the core,
+``nmkane_core.schema.REST_DEFAULT_LIMITS``, which quotes them without importing backend.
 """
 
 from __future__ import annotations
@@ -24,6 +27,8 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from nmkane_core.schema import REST_DEFAULT_LIMITS
 
 __all__ = ["Settings", "LIMIT_DESCRIPTIONS"]
 
@@ -72,9 +77,9 @@ class Settings:
     #: runs admitted at once (running + waiting); past it: 503 + Retry-After
     queue_limit: int = field(default_factory=lambda: _env("NMKANE_QUEUE_LIMIT", 64, int))
     #: fixed steps per run; more is refused with 422 before the run starts
-    max_steps: int = field(default_factory=lambda: _env("NMKANE_MAX_STEPS", 2_000_000, int))
+    max_steps: int = field(default_factory=lambda: _env("NMKANE_MAX_STEPS", REST_DEFAULT_LIMITS["max_steps"], int))
     #: output rows per run; more is refused with 422 (fixed step) or stops the run (adaptive)
-    max_rows: int = field(default_factory=lambda: _env("NMKANE_MAX_ROWS", 100_000, int))
+    max_rows: int = field(default_factory=lambda: _env("NMKANE_MAX_ROWS", REST_DEFAULT_LIMITS["max_rows"], int))
     #: request body size in bytes; more is refused with 413
     max_request_bytes: int = field(default_factory=lambda: _env("NMKANE_MAX_REQUEST_BYTES", 65_536, int))
     #: integration wall time per run, s; a run past it ends with status "timeout"

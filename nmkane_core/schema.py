@@ -1,8 +1,8 @@
 """The one schema: run settings in, run result document out (CLI JSON, REST, web).
 
 :class:`RunSettings` is what a user asks for (CLI options, REST body); omitted fields take
-the system's defaults.  :class:`RunResult` is the run result document of
-ARCHITECTURE.md.  Both are pydantic models; the REST service uses them directly as its
+the system's defaults.  :class:`RunResult` is the run result document (README.md, "One
+schema").  Both are pydantic models; the REST service uses them directly as its
 request and response models and the CLI writes ``RunResult`` as its JSON.
 """
 
@@ -12,7 +12,7 @@ from typing import Literal, Optional, Union
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "LIMITS", "Gain"]
+__all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "LIMITS", "REST_DEFAULT_LIMITS", "Gain"]
 
 #: Library-wide limits (the REST service may impose lower ones; see /api/systems).
 LIMITS = {
@@ -22,6 +22,13 @@ LIMITS = {
     "min_dt": 1e-7,               # s
     "max_dt": 10.0,               # s
     "max_gain": 1e6,              # |Γ| entries
+}
+
+#: The REST service's default limits per run (backend/config.py; raised with NMKANE_MAX_STEPS and
+#: NMKANE_MAX_ROWS).  Kept here, in the core, so that the core can quote them without importing backend.
+REST_DEFAULT_LIMITS = {
+    "max_steps": 2_000_000,       # fixed steps per run
+    "max_rows": 100_000,          # output rows per run
 }
 
 Gain = Union[float, list[list[float]]]
@@ -104,7 +111,7 @@ class RunSummary(BaseModel):
 
 
 class RunResult(BaseModel):
-    """The run result document (ARCHITECTURE.md)."""
+    """The run result document: times, states, energy, violations and the summary."""
 
     id: Optional[str] = None
     system: str

@@ -2,7 +2,6 @@
 
 import os
 import signal
-import socket
 import sqlite3
 import subprocess
 import sys
@@ -11,16 +10,11 @@ import time
 
 import httpx
 
+from _helpers import free_port
 from backend.store import RunStore
 from nmkane_core.schema import RunResult
 
 RUN = {"system": "appell-hamel", "dt": 0.005, "t_final": 20}     # 4001 rows
-
-
-def _free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _start(db, port):
@@ -41,7 +35,7 @@ def _start(db, port):
 
 def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one(tmp_path):
     db = tmp_path / "runs.sqlite3"
-    port = _free_port()
+    port = free_port()
     proc = _start(db, port)
     acked, lock, stop = {}, threading.Lock(), threading.Event()
 

@@ -10,12 +10,7 @@ import time
 
 import httpx
 import pytest
-
-
-def _free_port():
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+from _helpers import free_port
 
 
 def _serve(tmp_path, code):
@@ -45,7 +40,7 @@ def _stop(proc, sig=signal.SIGTERM):
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_serve_starts_api_and_web_app_and_stops_both(tmp_path, sig):
-    api, ui = _free_port(), _free_port()
+    api, ui = free_port(), free_port()
     proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={api}, viser_port={ui})")
     out = _read_until(proc, "Ctrl-C")
     assert f"http://127.0.0.1:{api}/api" in out and f"http://127.0.0.1:{api}/docs" in out
@@ -60,7 +55,7 @@ def test_serve_starts_api_and_web_app_and_stops_both(tmp_path, sig):
 
 
 def test_serve_runs_the_api_alone_when_the_web_app_cannot_be_imported(tmp_path):
-    api = _free_port()
+    api = free_port()
     code = ("import sys; sys.modules['web.app'] = None\n"     # makes `from web.app import launch` fail
             f"from backend.serve import serve; serve(api_port={api}, viser_port=0)")
     proc = _serve(tmp_path, code)
@@ -85,7 +80,7 @@ def test_serve_stops_on_a_burst_of_signals(tmp_path):
     """Ctrl-C pressed twice, or a supervisor forwarding SIGTERM on top of its own: a handler
     interrupted by the next signal must not deadlock (Event.set in a handler did: the second
     handler waited for the lock the first one held, forever)."""
-    api, ui = _free_port(), _free_port()
+    api, ui = free_port(), free_port()
     proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={api}, viser_port={ui}, web=False)")
     _read_until(proc, "Ctrl-C")
     deadline = time.time() + 0.3                             # signals as fast as they go

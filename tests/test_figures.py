@@ -14,17 +14,17 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from nmkane_core.figures import FAIL, PASS, make_figures, run_plan
+from nmkane_core.paper import FAIL, PASS, run_plan
 from nmkane_core.simulate import resolve
 
 PAPER_FIGURES = [2, 3, 4, 5, 6, 7, 8, 9, 11, 12, 13, 14, 15, 16, 17, 18]
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
 
-@pytest.fixture(scope="module")
-def report(tmp_path_factory):
-    out = tmp_path_factory.mktemp("figures")
-    return make_figures(str(out), progress=False, quick=True)
+@pytest.fixture
+def report(quick_report):
+    """The report of `nmkane figures --quick`, made once per session (tests/conftest.py)."""
+    return quick_report
 
 
 def _png_size(data: bytes) -> tuple[int, int]:
@@ -120,11 +120,11 @@ def test_report_records_settings_that_rerun_through_the_rest_schema(report):
         assert doc["summary"]["status"] == "ok"
 
 
-def test_quoted_rest_limits_match_the_service_defaults(monkeypatch):
+def test_rest_limits_quoted_by_the_report_are_the_service_defaults(monkeypatch):
     """The report tells which runs need the REST limits raised; its numbers are the service's."""
     from backend.config import Settings
 
-    from nmkane_core.figures import REST_DEFAULT_LIMITS
+    from nmkane_core.schema import REST_DEFAULT_LIMITS
 
     monkeypatch.delenv("NMKANE_MAX_STEPS", raising=False)
     monkeypatch.delenv("NMKANE_MAX_ROWS", raising=False)
