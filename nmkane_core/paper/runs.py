@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import NmkaneError
-from ..system import get_system
+from ..registry import get_system
 
 __all__ = ["Runs", "collect_runs", "run_plan", "RUN_LABELS"]
 
