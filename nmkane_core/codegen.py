@@ -301,18 +301,38 @@ _CORE_FILES = ("model.py", "derivation.py", "kernel_terms.py", "codegen.py", "_k
 
 def fingerprint(system_name: str, variant: str, source_files) -> str | None:
     """A key for a model's kernel that needs no sympy: the text of every file that defines
-    the model or its generation, and the versions of the tools that generate it."""
+    the model, of the generator's files, and the versions of the tools that generate it."""
     if not source_files:
         return None
+    h = hashlib.sha256(_tools_key(system_name, variant).encode())
+    for f in sorted(set(map(str, source_files))):
+        h.update(Path(f).read_bytes())
+    return h.hexdigest()[:24]
+
+
+def model_fingerprint(system_name: str, variant: str, model) -> str:
+    """A key for a model known only as an object (typed interactively): its expressions,
+    printed canonically (``srepr``), and the generator's files and tool versions."""
+    import sympy as sp
+
+    fields = ("q", "u", "params", "C", "D", "Q", "P", "nonholonomic", "holonomic", "u_independent",
+              "energy", "outputs", "q_dependent", "monitors", "t")
+    text = "\0".join(sp.srepr(getattr(model, f)) for f in fields)
+    h = hashlib.sha256(_tools_key(system_name, variant).encode())
+    h.update(text.encode())
+    return h.hexdigest()[:24]
+
+
+def _tools_key(system_name: str, variant: str) -> str:
     from importlib.metadata import version
 
     h = hashlib.sha256(f"{system_name}\0{variant}\0{sys.version}".encode())
     for dist in ("sympy", "numba", "numpy"):
         h.update(version(dist).encode())
     here = Path(__file__).parent
-    for f in [*(here / c for c in _CORE_FILES), *map(Path, source_files)]:
-        h.update(Path(f).read_bytes())
-    return h.hexdigest()[:24]
+    for f in _CORE_FILES:
+        h.update((here / f).read_bytes())
+    return h.hexdigest()
 
 
 def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] = ("", "")

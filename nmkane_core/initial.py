@@ -78,13 +78,16 @@ def project_onto_manifold(module, info, x: np.ndarray, p: np.ndarray) -> np.ndar
 
 def initial_state(system: System, variant: str, params: dict[str, float],
                   given: dict[str, float], project: bool = False,
-                  correction: dict | None = None) -> tuple[np.ndarray, dict[str, float]]:
+                  correction: dict | None = None, complete_always: bool = False
+                  ) -> tuple[np.ndarray, dict[str, float]]:
     """The variant model's initial state vector and the full state (by name).
 
     Raises :class:`InputError` for unknown names, :class:`InconsistentStateError` when a
     full state violates the constraints by more than :data:`CHECK_TOL` — unless
     ``project`` is set: then the state is projected onto the constraint manifold of the
-    completion variant and the change is written into ``correction``.
+    completion variant and the change is written into ``correction``.  The system's
+    default state is taken as consistent (it was checked when the system was registered)
+    unless ``complete_always``: then dependent values missing from it are completed too.
     """
     names = system.state_names
     for k, v in given.items():
@@ -93,7 +96,6 @@ def initial_state(system: System, variant: str, params: dict[str, float],
                              "unknown state name")
         if not np.isfinite(v):
             raise InputError(f"initial.{k}", v, "a finite number", "not finite")
-    p = np.array([params[k] for k in system.param_names])
     full = dict(system.default_initial)
     full.update(given)
     dependent = [k for k in names if k not in system.independent]
@@ -107,11 +109,13 @@ def initial_state(system: System, variant: str, params: dict[str, float],
     # the default state is consistent for the default parameters; anything else given
     # without dependent values is completed
     defaults = all(params[q.name] == q.default for q in system.parameters)
-    complete = not given_dep and (bool(given) or not defaults)
+    complete = not given_dep and (bool(given) or not defaults or complete_always
+                                  or any(k not in full for k in names))
     comp_variant = system.completion_variant or variant
+    p = system.param_vector(comp_variant, params)
     if complete:
         module, info = system.kernel(comp_variant)
-        xc = np.array([full[s] for s in info.state_names], float)
+        xc = np.array([full.get(s, 0.0) for s in info.state_names], float)
         try:
             xc = complete_state(module, info, xc, p)
         except ConvergenceError as e:
@@ -135,6 +139,7 @@ def initial_state(system: System, variant: str, params: dict[str, float],
     failed = {}
     for var in dict.fromkeys(checks):
         module, info = system.kernel(var)
+        p = system.param_vector(var, params)
         if any(s not in full for s in info.state_names):
             continue
         xv = np.array([full[s] for s in info.state_names], float)

@@ -149,7 +149,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     rcond_min = _check_float("rcond_min", s.rcond_min, 0.0, 0.1, lo_open=False)
     rcond_switch = _check_float("rcond_switch", s.rcond_switch, 0.0, 0.5, lo_open=False)
     params = system.resolve_params(s.params)
-    p = np.array([params[k] for k in system.param_names])
+    p = system.param_vector(variant, params)
     md = system.info(variant)
     warnings: list[str] = []
     m_nh, m_h = len(md.nonholonomic), len(md.holonomic)
@@ -687,8 +687,8 @@ def _finish(plan: Plan, mod, raw: dict, wall: float) -> Run:
         message = (f"{which} became singular or ill-conditioned after t = {t_end:.6g} s "
                    f"(reciprocal condition estimate {rc:.3g} ≤ rcond_min = {plan.rcond_min:g}); "
                    f"the run stopped there and keeps the last good state")
-        if which == "J2" and system.name == "appell-hamel" and plan.variant == "nonlinear":
-            message += " — the nonlinear model's J2 is singular where the wheel stops rolling (φ̇ = 0)"
+        if plan.variant in system.singular_hints:
+            message += f" — {system.singular_hints[plan.variant]}"
     elif status_code == 3:
         status = "diverged"
         message = (f"the state stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "

@@ -15,16 +15,16 @@ from __future__ import annotations
 
 from ..system import Parameter, System
 
-PARAMETERS = (
-    Parameter("a", 1.0, 0.0, 1e3, "m", "wheel radius"),
-    Parameter("b", 0.5, 0.0, 1e3, "m", "drum radius"),
-    Parameter("rho", 5.0, 0.0, 1e3, "m", "distance between the pulleys (wheel centre to bar)"),
-    Parameter("m", 1.0, 0.0, 1e6, "kg", "mass of the load P"),
-    Parameter("M", 5.0, 0.0, 1e6, "kg", "mass of the wheel"),
-    Parameter("I", 2.5, 0.0, 1e6, "kg·m²", "central moment of inertia of the wheel (all axes)"),
-    Parameter("g", 9.81, 0.0, 1e3, "m/s²", "gravitational acceleration", min_inclusive=True),
-    Parameter("z0", 30.0, -1e6, 1e6, "m", "height of P when φ = 0 (thread constraint (59))"),
-)
+PARAMETERS = {
+    "a": Parameter(1.0, 0.0, 1e3, "m", "wheel radius"),
+    "b": Parameter(0.5, 0.0, 1e3, "m", "drum radius"),
+    "rho": Parameter(5.0, 0.0, 1e3, "m", "distance between the pulleys (wheel centre to bar)"),
+    "m": Parameter(1.0, 0.0, 1e6, "kg", "mass of the load P"),
+    "M": Parameter(5.0, 0.0, 1e6, "kg", "mass of the wheel"),
+    "I": Parameter(2.5, 0.0, 1e6, "kg·m²", "central moment of inertia of the wheel (all axes)"),
+    "g": Parameter(9.81, 0.0, 1e3, "m/s²", "gravitational acceleration", min_inclusive=True),
+    "z0": Parameter(30.0, -1e6, 1e6, "m", "height of P when φ = 0 (thread constraint (59))"),
+}
 
 COORDINATES = ("theta", "phi", "x", "y", "z")
 SPEEDS = ("u1", "u2", "u3", "u4", "u5")
@@ -105,18 +105,15 @@ def appell_hamel() -> System:
         variants={"nonlinear": lambda: _model("nonlinear"), "linear": lambda: _model("linear")},
         default_variant="nonlinear",
         parameters=PARAMETERS,
-        coordinates=COORDINATES,
-        speeds=SPEEDS,
         default_initial={"theta": 0.0, "phi": 0.0, "x": 0.0, "y": 0.0, "z": 30.0,
                          "u1": 1.0, "u2": 1.0, "u3": 1.0, "u4": 5.0, "u5": -0.5},
         completion_variant="linear",
         # near φ̇ = 0 the nonlinear model's J2 is singular; the linear model is equivalent there
         equivalents={"nonlinear": ("linear",)},
-        independent=("theta", "phi", "x", "y", "u1", "u2"),
+        singular_hints={"nonlinear": "the nonlinear model's J2 is singular where the wheel stops rolling (φ̇ = 0)"},
         default_dt=0.01,
         default_t_final=20.0,
         default_integrator="kutta-merson",
         description="Frame, wheel and hanging load; constraints modeled nonlinear (NC) or linear (LC) "
                     "in the speeds.",
-        source_files=(__file__,),
     )

@@ -12,11 +12,11 @@ from __future__ import annotations
 
 from ..system import Parameter, System
 
-PARAMETERS = (
-    Parameter("l0", 1.0, 0.0, 1e3, "m", "parabola parameter in ψ = y + x²/l0 − l0"),
-    Parameter("m", 1.0, 0.0, 1e6, "kg", "mass of the particle"),
-    Parameter("g", 9.81, 0.0, 1e3, "m/s²", "gravitational acceleration (along +y)", min_inclusive=True),
-)
+PARAMETERS = {
+    "l0": Parameter(1.0, 0.0, 1e3, "m", "parabola parameter in ψ = y + x²/l0 − l0"),
+    "m": Parameter(1.0, 0.0, 1e6, "kg", "mass of the particle"),
+    "g": Parameter(9.81, 0.0, 1e3, "m/s²", "gravitational acceleration (along +y)", min_inclusive=True),
+}
 
 
 def _nonminimal():
@@ -73,14 +73,10 @@ def sliding_particle() -> System:
         variants={"nonminimal": _nonminimal, "minimal": _minimal},
         default_variant="nonminimal",
         parameters=PARAMETERS,
-        coordinates=("x", "y"),
-        speeds=("u1", "u2"),
         default_initial={"x": 1.0, "y": 0.0, "u1": 0.0, "u2": 0.0},
         completion_variant="nonminimal",
-        independent=("x", "u1"),
         default_dt=0.01,
         default_t_final=20.0,
         default_integrator="kutta-merson",
         description="Holonomic constraint in acceleration form with Baumgarte stabilization (Γ1, Γ2).",
-        source_files=(__file__,),
     )
