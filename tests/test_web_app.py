@@ -1,5 +1,5 @@
 """The web app in-process (no browser): controls re-simulate with their settings, the scene
-nodes sit where the state puts them, plots and panel show the run (VISER-GUIDE §4)."""
+nodes sit where the state puts them, plots and panel show the run."""
 
 import math
 import time

@@ -8,8 +8,9 @@ matrices, and the grid gets brackets.  The LaTeX source is kept for copying.
 
 Symbolic work is slow (about 8 s for the nonlinear model) and holds the GIL, which
 would stall the web server's threads, so :func:`panel` runs it in a child process
-(``python -m web.matrices SYSTEM VARIANT OUT``, once per model) and caches the result in memory and on disk next to the core's
-kernel cache, keyed by the core's model fingerprint and this file: a restart shows the
+(``python -m web.matrices SYSTEM VARIANT OUT``, once per model) and caches the result in
+memory and on disk under nmkane's cache root (:func:`nmkane_core.cache.cache_root`), keyed
+by the model's :meth:`~nmkane_core.System.kernel_key` and this file: a restart shows the
 panels at once.  The web app warms the cache in a background thread at startup.
 """
 
@@ -119,19 +120,20 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
 
 
 def _disk_path(system: str, variant: str) -> Path | None:
+    """The panel's file in nmkane's cache, keyed by the model's kernel key (it changes
+    whenever the model does), matplotlib's version and this file; None: not cached."""
     try:
         from nmkane_core import get_system
-        from nmkane_core.codegen import cache_dir, fingerprint
+        from nmkane_core.cache import cache_root
 
-        sysm = get_system(system)
-        fp = fingerprint(sysm.name, variant, sysm.source_files)
-        if fp is None:
+        key = get_system(system).kernel_key(variant)
+        if key is None:
             return None
         import matplotlib
 
-        h = hashlib.sha256(f"{fp}\0{matplotlib.__version__}".encode())
+        h = hashlib.sha256(f"{key}\0{matplotlib.__version__}".encode())
         h.update(Path(__file__).read_bytes())
-        return cache_dir().parent / "web-matrices" / f"{system}-{variant}-{h.hexdigest()[:16]}.pickle"
+        return cache_root() / "web-matrices" / f"{system}-{variant}-{h.hexdigest()[:16]}.pickle"
     except Exception:                 # no cache: compute every time
         return None
 

@@ -1,6 +1,6 @@
 """Re-simulation off the GUI thread: the newest request wins.
 
-A slider drag fires one event per step (VISER-GUIDE §9.2) and browser callbacks run
+A slider drag fires one event per step (viser sends every step) and browser callbacks run
 concurrently on viser's thread pool, so callbacks only *submit* a snapshot of the
 controls.  One thread per session runs the newest pending request; requests that arrive
 while it computes replace each other, and a short debounce lets a burst of programmatic

@@ -1,0 +1,287 @@
+"""One browser's page: its controls, scene, camera and trajectory, wired together.
+
+Every connected browser gets its own :class:`MechanismApp`, so students exploring at once
+do not change each other's view.  The page is generic over the system views of
+:mod:`web.systems` (one scene, one simulation folder and one set of plots per view, the
+chosen one visible); the parts live in :mod:`web.controls` (handles and their guard),
+:mod:`web.runs` (re-simulation on a control change), :mod:`web.panel` (plots, summary,
+status, matrices) and :mod:`web.camera`.  The animation thread of :mod:`web.server`
+calls :meth:`MechanismApp.tick`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+from collections.abc import Callable
+
+import viser
+
+from nmkane_core.simulate import simulate as core_simulate
+
+from .camera import CameraRig
+from .controls import ControlPanel, settings_from
+from .panel import MatricesPanel, PlotPanel, status_text
+from .runs import Runner, Trajectory
+from .systems import VIEWS, AppellHamelView
+
+CAMERA_VIEWS = tuple(AppellHamelView.camera_views)      # the camera-target dropdown
+
+
+class MechanismApp:
+    """The controls, scene, camera and trajectory of one browser (or of a test).
+
+    ``target`` is a :class:`viser.ClientHandle` (the per-browser case) or a
+    :class:`viser.ViserServer` (tests, a single shared view).  With ``sync=True`` every
+    control change simulates in the calling thread (deterministic tests); otherwise a
+    :class:`~web.worker.LatestWorker` does it in the background.  ``connected()`` says
+    whether the browser is still there (nothing is sent to one that left).
+
+    Each view's controls are attributes by their ``attr`` (``app.gamma``, ``app.pt_gamma1``)
+    and its parameter sliders a dict (``app.params``, ``app.pt_params``)."""
+
+    def __init__(self, target, *, simulate=core_simulate, sync: bool = False,
+                 connected: Callable[[], bool] | None = None):
+        self.target = target
+        self.client = target if isinstance(target, viser.ClientHandle) else None
+        self.gui, self.scene = target.gui, target.scene
+        self._connected = connected
+        self.lock = threading.RLock()
+        self.traj: Trajectory | None = None
+        self.t_now = 0.0
+        self.playing = True
+        self.closed = False
+        self._installs = 0
+        self._writing_time = False
+        self._shown_t = None
+        self.views = {cls.kind: cls(self.scene) for cls in VIEWS}
+        self.system_view = next(iter(self.views.values()))    # the chosen system's view
+        self.mechanism = self.views["ah"].mechanism
+        self.particle = self.views["pt"].particle
+        self.camera = CameraRig(self.client, self.alive)
+        self.runner = Runner(self, simulate, sync=sync)
+        self._build_gui()
+        if self.client is not None:
+            self.client.camera.on_update(lambda cam: self.camera.on_report(self.system_view, cam))
+        self._aim_camera(reset=True)
+        self.request()
+
+    # ---------------------------------------------------------------- GUI
+    def _build_gui(self) -> None:
+        gui = self.gui
+        self.controls = ControlPanel(gui, self.show_status)
+        gui.add_markdown("Nonminimal Kane's equations — Bajodah, Hodges & Chen (2005)")
+        titles = tuple(v.title for v in self.views.values())
+        self.scene_choice = gui.add_dropdown("Scene", options=titles, initial_value=titles[0])
+        self.status = gui.add_markdown("computing … (the first run loads the compiled kernels)")
+
+        with gui.add_folder("Playback"):
+            self.play = gui.add_button("❚❚ Pause")
+            self.speed = self.controls.slider("Speed ×", min=0.1, max=20.0, step=0.1, initial_value=1.0)
+            self.time = self.controls.slider("Time t [s]", min=0.0, max=20.0, step=0.01, initial_value=0.0)
+            self.follow = gui.add_checkbox("Camera follows", initial_value=True)
+            self.view = gui.add_dropdown("Camera target", options=CAMERA_VIEWS, initial_value=CAMERA_VIEWS[0])
+            self.view_reset = gui.add_button("Reset view")
+
+        self.sim_controls: dict[str, dict] = {}        # kind -> {Control: handle}
+        self.folders, self.resets = {}, {}
+        for i, view in enumerate(self.views.values()):
+            self.folders[view.kind] = folder = gui.add_folder(view.folder, **({} if i == 0 else {"visible": False}))
+            with folder:
+                handles = {c: self.controls.add(c) for c in view.controls}
+                with gui.add_folder(view.params_folder, expand_by_default=False):
+                    params = {c.attr: self.controls.add(c) for c in view.param_controls}
+                self.resets[view.kind] = gui.add_button(view.reset_label)
+            for c, h in handles.items():
+                setattr(self, c.attr, h)
+            setattr(self, view.params_attr, params)
+            handles.update({c: params[c.attr] for c in view.param_controls})
+            self.sim_controls[view.kind] = handles
+        self.reset, self.pt_reset = self.resets["ah"], self.resets["pt"]
+
+        with gui.add_folder("Plots and summary"):
+            self.plots = PlotPanel(gui, self.views)
+            self.summary = self.plots.summary
+            self.plot_handles = self.plots.handles
+
+        with gui.add_folder("Derived matrices", expand_by_default=False):
+            self.matrices = MatricesPanel(gui, self.lock, self.alive)
+
+        # wiring: every simulation input re-simulates; playback controls do not
+        for handles in self.sim_controls.values():
+            for h in handles.values():
+                self.controls.on_change(h, self.request)
+        for button in self.resets.values():
+            button.on_click(lambda _: self.reset_to_paper())
+        self.scene_choice.on_update(lambda _: self._on_scene())
+        self.play.on_click(lambda _: self.set_playing(not self.playing))
+        self.controls.on_change(self.speed, lambda: None)
+        self.controls.on_change(self.time, self._on_time)
+        self.view.on_update(lambda _: self.reset_view())
+        self.view_reset.on_click(lambda _: self.reset_view())
+        self.follow.on_update(lambda _: self._aim_camera(reset=True) if self.follow.value else None)
+
+    @property
+    def kind(self) -> str:
+        return self.system_view.kind
+
+    def current_kind(self) -> str:
+        return self.system_view.kind
+
+    def view_of(self, kind: str):
+        return self.views[kind]
+
+    def alive(self) -> bool:
+        """The browser is still there (always, for a test's shared server)."""
+        return not self.closed and (self._connected is None or self._connected())
+
+    # the runner's records (tests read them)
+    sim_log = property(lambda self: self.runner.sim_log)
+    latencies = property(lambda self: self.runner.latencies)
+    worker = property(lambda self: self.runner.worker)
+
+    # ---------------------------------------------------------------- control actions
+    def set_playing(self, playing: bool) -> None:
+        self.playing = bool(playing)
+        self.play.label = "❚❚ Pause" if self.playing else "▶ Play"
+
+    def reset_view(self) -> None:
+        """The camera preset of the current scene and target, seen at the current heading."""
+        with self.lock:
+            self._aim_camera(reset=True)
+
+    def seek(self, t: float) -> None:
+        """Show time t (the scrubber, or a test)."""
+        with self.lock:
+            self.t_now = float(t)
+            if self.traj is not None:
+                self.t_now = min(max(self.t_now, 0.0), self.traj.t_end)
+                self.show_time(self.t_now)
+                self._refresh(force=True)
+
+    def _on_time(self) -> None:
+        if not self._writing_time:                 # a person (or a test) moved the scrubber
+            self.seek(float(self.controls.value(self.time)))
+
+    def reset_to_paper(self) -> None:
+        """Every control of the current scene back to the paper's values: one re-simulation."""
+        self.runner.quiet = True
+        try:
+            for c, h in self.sim_controls[self.kind].items():
+                h.value = c.default
+        finally:
+            self.runner.quiet = False
+        self.request()
+
+    def _on_scene(self) -> None:
+        self.system_view = next(v for v in self.views.values() if v.title == self.scene_choice.value)
+        for kind, folder in self.folders.items():
+            folder.visible = kind == self.kind
+        self.view.visible = self.follow.visible = self.system_view.follows
+        for v in self.views.values():
+            v.root.visible = v is self.system_view
+        self.plots.show_kind(self.kind)
+        self.speed.value = self.system_view.speed
+        self._aim_camera(reset=True)
+        self.request()
+
+    # ---------------------------------------------------------------- simulation
+    def snapshot(self) -> dict:
+        """The controls now (read on the caller's thread: browser callbacks read live values)."""
+        view = self.system_view
+        settings, options = settings_from(view.core, self.sim_controls[view.kind], self.controls.value)
+        return self.runner.next_request(view.kind, settings, options)
+
+    def request(self) -> None:
+        if self.runner.quiet or self.closed:
+            return
+        self.runner.submit(self.snapshot())
+
+    def show_status(self, text: str) -> None:
+        if self.alive():
+            self.status.content = text
+
+    def install(self, traj: Trajectory) -> None:
+        """Show a new trajectory: geometry that depends on it, trace, plots, summary."""
+        view = self.views[traj.kind]
+        with self.lock:
+            if not self.alive():                   # the browser left while this was computed
+                return
+            with self._atomic():
+                view.install(traj)
+                self.matrices.show(view.system, view.matrices_variant(traj.request["settings"]))
+                self.traj = traj
+                self.t_now = min(self.t_now, traj.t_end)
+                self._writing_time = True
+                try:
+                    self.time.max = max(traj.t_end, 0.01)
+                finally:
+                    self._writing_time = False
+                self._installs += 1
+                self.plots.write(traj, self.t_now)
+                self.show_time(self.t_now)
+                self._refresh(force=True)
+                self.runner.record_install(traj)
+                self.status.content = status_text(traj, self._installs)
+        self.target.flush()                        # out now, not at the next 1/60 s window
+
+    @contextlib.contextmanager
+    def _atomic(self):
+        with self.target.atomic():
+            yield
+
+    # ---------------------------------------------------------------- animation
+    def show_time(self, t_now: float) -> None:
+        """Put every node where the state at time t_now puts it (and the camera, if following)."""
+        traj = self.traj
+        if traj is None:
+            return
+        row = self.views[traj.kind].pose(traj, t_now)
+        if row is not None and self.follow.value and traj.kind == self.kind:
+            self._aim_camera(row=row)
+
+    def _refresh(self, force: bool = False) -> None:
+        """The slow-rate part of a frame: plot markers, scrubber, readouts."""
+        traj = self.traj
+        if traj is None or (not force and self._shown_t == self.t_now):
+            return
+        self._shown_t = self.t_now
+        self.plots.mark(traj, self.t_now)
+        self._writing_time = True
+        try:
+            self.controls.set_quietly(self.time, round(min(self.t_now, self.time.max), 2))
+        finally:
+            self._writing_time = False
+        self.views[traj.kind].readouts(traj, self.t_now)
+
+    def tick(self, dt_wall: float, refresh: bool) -> None:
+        """One animation frame (called by the animation thread)."""
+        if self.closed:
+            return
+        with self.lock:
+            traj = self.traj
+            if traj is None or not self.alive():
+                return
+            if self.playing:
+                self.t_now += dt_wall * float(self.controls.value(self.speed))
+                if self.t_now > traj.t_end:
+                    self.t_now = 0.0 if traj.t_end > 0 else traj.t_end
+            with self._atomic():
+                self.show_time(self.t_now)
+            if refresh:
+                self._refresh()
+
+    def _aim_camera(self, reset: bool = False, row: dict | None = None) -> None:
+        traj = self.traj
+        if row is None and traj is not None and traj.kind == self.kind:
+            row = traj.row(next(iter(traj.runs)), self.t_now)
+        self.camera.aim(self.system_view, self.view.value, row, reset=reset)
+
+    # ---------------------------------------------------------------- lifecycle
+    def wait_idle(self, timeout: float = 30.0) -> bool:
+        return self.runner.wait_idle(timeout)
+
+    def close(self) -> None:
+        with self.lock:
+            self.closed = True
+        self.runner.close()
