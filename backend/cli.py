@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 
 from nmkane_core.cli.command import Command
+from nmkane_core.cli.common import add_systems_option, load_plugged_systems
 from nmkane_core.errors import NmkaneError
 
 
@@ -15,9 +16,11 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--api-port", type=int, default=8000, help="REST API port (0: a free one)")
     p.add_argument("--viser-port", type=int, default=8080, help="3D web app port (0: a free one)")
     p.add_argument("--no-web", action="store_true", help="REST service only")
+    add_systems_option(p)
 
 
 def _run(args: argparse.Namespace) -> int:
+    load_plugged_systems(args, strict=False)     # a bad systems file: one line, the others still load
     try:
         from .serve import serve
     except ImportError as e:

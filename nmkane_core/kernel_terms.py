@@ -74,20 +74,34 @@ def kernel_terms(d: Derivation) -> KernelTerms:
 
 
 def row_degrees(d: Derivation) -> list:
-    """Polynomial degree in u of each row of φ = [φ_nh; ψ̇] (1 when not polynomial).
+    """Growth degree in u of each row of φ = [φ_nh; ψ̇], for the condition estimate's scaling.
 
-    A row of J = ∂φ/∂u of degree k grows like |u|^(k−1): the kernels divide it by
-    max(1, |u|∞)^(k−1) before estimating J2's condition, so that a constraint quadratic in
-    the speeds (the Appell–Hamel (57)) is flagged where its gradient degenerates (φ̇ → 0,
-    cancellation) and not merely because the speeds are large.
+    A row of J = ∂φ/∂u of polynomial degree k grows like |u|^(k−1): the kernels divide it
+    by max(1, |u|∞)^(k−1) before estimating J2's condition, so that a constraint quadratic
+    in the speeds (the Appell–Hamel (57)) is flagged where its gradient degenerates (φ̇ → 0,
+    cancellation) and not merely because the speeds are large.  A row that is not a
+    polynomial in u (a square root of a sum of squares — the speed along a path —,
+    trigonometric, rational or exponential functions of the speeds) is scaled by its
+    degree of homogeneity k when it is homogeneous (φ(λu) = λ^k φ(u), as √(u1² + u2²) is
+    with k = 1) and left unscaled (k = 1) otherwise.
     """
-    out = []
-    for e in d.phi:
+    return [_row_degree(e, d.u) for e in d.phi]
+
+
+def _row_degree(e, u) -> int:
+    try:
+        return max(1, sp.Poly(sp.expand(e), *u).total_degree())
+    except sp.PolynomialError:              # not a polynomial in u (sqrt, sin, exp, 1/u, ...)
+        pass
+    lam = sp.Dummy("lam", positive=True)
+    scaled = e.subs({ui: lam * ui for ui in u}, simultaneous=True)
+    for k in (1, 2, 3):
         try:
-            out.append(max(1, sp.Poly(sp.expand(e), *d.u).total_degree()))
-        except (sp.PolificationFailed, sp.GeneratorsNeeded):
-            out.append(1)
-    return out
+            if sp.simplify(scaled - lam ** k * e) == 0:
+                return k
+        except Exception:                   # simplification gave up: treat as not homogeneous
+            break
+    return 1
 
 
 def pythagorean(e):

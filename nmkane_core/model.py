@@ -39,7 +39,7 @@ def _as_matrix(value, rows: int | None = None) -> sp.Matrix:
     return m
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MechanicalModel:
     """A constrained system: kinematics, holonomic equations, constraints, partition.
 
@@ -77,7 +77,7 @@ class MechanicalModel:
         The time symbol.
     """
 
-    name: str
+    name: str = ""
     q: tuple[sp.Symbol, ...]
     u: tuple[sp.Symbol, ...]
     params: tuple[sp.Symbol, ...]
@@ -173,7 +173,7 @@ class MechanicalModel:
 
     # ------------------------------------------------------------ from mechanics
     @classmethod
-    def from_mechanics(cls, name: str, *, q, u, kd_eqs, bodies, loads, frame, params,
+    def from_mechanics(cls, name: str = "", *, q, u, kd_eqs, bodies, loads, frame, params,
                        nonholonomic: Mapping[str, sp.Expr] = (), holonomic: Mapping[str, sp.Expr] = (),
                        u_independent: Iterable = (), energy=None, outputs: Mapping[str, sp.Expr] = (),
                        q_dependent: Iterable = (), monitors: Mapping[str, sp.Expr] = (),

@@ -112,8 +112,10 @@ class System:
         parameter symbol of the models (checked by name when registered).
     default_initial:
         ``{symbol or name: value}``: the independent values (the dependent ones are
-        completed from the constraints when the system is checked) or a full consistent
-        state.
+        completed from the constraints when the system is checked; values given for
+        dependent ones are the starting guesses of that completion, which pick the branch
+        of a constraint nonlinear in the speeds; missing values are 0) or a full
+        consistent state.
     title, description:
         Shown in the web app and ``GET /api/systems``.
     option:
@@ -379,9 +381,12 @@ class System:
         from .initial import initial_state
 
         params = self.resolve_params({})
+        independent = set(self.independent)
+        given = {k: v for k, v in self.default_initial.items() if k in independent}
+        if len(self.default_initial) == len(names):
+            given = dict(self.default_initial)       # a full state: checked as it is
         try:
-            _, full = initial_state(self, self.default_variant, params, dict(self.default_initial),
-                                    complete_always=True)
+            _, full = initial_state(self, self.default_variant, params, given, complete_always=True)
         except InputError as e:
             raise InputError(f"{self.name}: default_initial", dict(self.default_initial),
                              "independent values (the rest is completed) or a full consistent state",

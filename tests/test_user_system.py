@@ -38,12 +38,9 @@ def _knife_edge():
 
 def knife_edge() -> System:
     return System(
-        name=NAME, title="Knife edge on the plane (test)", option="model",
-        variants={"nonminimal": _knife_edge}, default_variant="nonminimal",
-        parameters=(Parameter("m", 1.0, 0.0, 1e3, "kg"), Parameter("I", 0.5, 0.0, 1e3, "kg m²")),
-        coordinates=("x", "y", "theta"), speeds=("u1", "u2", "u3"),
-        default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u2": 0.0, "u3": 1.0},
-        completion_variant="nonminimal", independent=("x", "y", "theta", "u1", "u3"),
+        name=NAME, title="Knife edge on the plane (test)", variants=_knife_edge,
+        parameters={"m": Parameter(1.0, 0.0, 1e3, "kg"), "I": Parameter(0.5, 0.0, 1e3, "kg m²")},
+        default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u3": 1.0},
         default_dt=0.001, default_t_final=1.2)
 
 
@@ -52,7 +49,7 @@ def registered():
     """Registered for this module's tests only (the registry is process-wide)."""
     from nmkane_core.registry import unregister
 
-    register(NAME)(knife_edge)
+    register(knife_edge())
     yield
     unregister(NAME)
 
@@ -61,8 +58,8 @@ def test_user_system_compiled_rhs_agrees_with_reference():
     from nmkane_core import get_system
 
     system = get_system(NAME)
-    mod = kernel_for(system, "nonminimal")
-    ref = ReferenceKernel(system.derivation("nonminimal"))
+    mod = kernel_for(system, None)
+    ref = ReferenceKernel(system.derivation())
     rng = np.random.default_rng(11)
     G = np.array([[-3.0]])
     empty = np.zeros((0, 0))

@@ -100,3 +100,18 @@ def notice_if_slow(message: str, enabled: bool = True, after: float = 1.0, strea
         if said.is_set():
             print(f"{PROG}: ready in {time.perf_counter() - t0:.1f} s (cached for later runs)", file=stream,
                   flush=True)
+
+
+def add_systems_option(p: argparse.ArgumentParser) -> None:
+    """``--systems PATH_OR_MODULE`` (repeatable): plug-in systems to load first."""
+    p.add_argument("--systems", action="append", default=[], metavar="PATH_OR_MODULE",
+                   help="a systems file (.py) or module to load first (repeatable; runs as Python code); "
+                        "also $NMKANE_SYSTEMS and the nmkane.systems entry points")
+
+
+def load_plugged_systems(args: argparse.Namespace, strict: bool = True) -> None:
+    """Load the ``--systems`` of a command (strict: the first failure is the command's error)."""
+    from ..plugins import load_systems
+
+    for err in load_systems(getattr(args, "systems", []) or [], strict=strict):
+        print(err, file=sys.stderr)

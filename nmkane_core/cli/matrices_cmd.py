@@ -6,10 +6,12 @@ import argparse
 
 from ..errors import InputError
 from .command import Command
+from .common import add_systems_option, load_plugged_systems
 
 
 def _add_arguments(mats: argparse.ArgumentParser) -> None:
     mats.add_argument("system", metavar="SYSTEM")
+    add_systems_option(mats)
     mats.add_argument("--model")
     mats.add_argument("--formulation")
     mats.add_argument("--matrix", action="append", default=[], help="J1 J2 A B A1 A2 Q P T V B_hat V_hat")
@@ -21,6 +23,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from ..registry import get_system
 
+    load_plugged_systems(args)
     system = get_system(args.system)
     other = "formulation" if system.option == "model" else "model"
     if getattr(args, other):

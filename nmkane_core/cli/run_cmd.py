@@ -11,7 +11,7 @@ import sys
 
 from ..errors import InputError
 from .command import Command
-from .common import assignment, finite, notice_if_slow, positive_int
+from .common import add_systems_option, assignment, finite, load_plugged_systems, notice_if_slow, positive_int
 
 
 def add_run_options(run: argparse.ArgumentParser) -> None:
@@ -19,6 +19,7 @@ def add_run_options(run: argparse.ArgumentParser) -> None:
     from ..integrators import integrator_names
 
     run.add_argument("system", metavar="SYSTEM", help="a registered system, e.g. appell-hamel")
+    add_systems_option(run)
     run.add_argument("--model", help="the system's constraint model (systems whose variants are models)")
     run.add_argument("--formulation", help="the system's formulation (systems whose variants are formulations)")
     run.add_argument("--gamma", type=finite, help="Γ (nonholonomic), applied as Γ·I; stabilizing < 0")
@@ -82,6 +83,7 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")
+    load_plugged_systems(args)
     settings = validate_settings(settings_from_args(args))
     progress = False if args.no_progress else None
     with notice_if_slow(f"preparing {args.system} (a first use derives the equations and compiles them)",
