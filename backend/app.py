@@ -30,8 +30,9 @@ from fastapi.responses import JSONResponse, RedirectResponse, Response, Streamin
 from fastapi_offline import FastAPIOffline
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from nmkane_core.catalog import catalog
+from nmkane_core.run import Run
 from nmkane_core.schema import RunResult
-from nmkane_core.simulate import Run, catalog
 
 from .config import LIMIT_DESCRIPTIONS, Settings
 from .errors import ErrorResponse, error_response, install_error_handlers, item

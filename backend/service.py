@@ -19,10 +19,13 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import orjson
 
+from nmkane_core.drivers import kernel_for
 from nmkane_core.errors import InputError
 from nmkane_core.integrators import ScipyMethod
+from nmkane_core.plan import Plan, resolve
+from nmkane_core.run import Run
 from nmkane_core.schema import RunSettings, RunSummary
-from nmkane_core.simulate import Plan, Run, kernel_for, resolve, simulate
+from nmkane_core.simulate import simulate
 from nmkane_core.system import get_system, system_names
 
 from .config import Settings

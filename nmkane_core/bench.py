@@ -26,7 +26,9 @@ import time
 
 import numpy as np
 
-from .simulate import kernel_for, resolve, simulate, simulate_many
+from .drivers import kernel_for
+from .plan import resolve
+from .simulate import simulate, simulate_many
 from .system import get_system
 
 

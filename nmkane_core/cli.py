@@ -198,7 +198,7 @@ def _settings_from_args(args) -> dict:
 
 
 def _validated(settings: dict):
-    from .simulate import validate_settings
+    from .plan import validate_settings
 
     return validate_settings(settings)
 
@@ -231,7 +231,9 @@ def notice_if_slow(message: str, enabled: bool = True, after: float = 1.0, strea
 
 
 def _cmd_run(args) -> int:
-    from .simulate import prepare, resolve, simulate
+    from .drivers import prepare
+    from .plan import resolve
+    from .simulate import simulate
 
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")
