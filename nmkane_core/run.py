@@ -112,8 +112,9 @@ def finish(plan: Plan, mod, out: LoopOutput, wall: float) -> Run:
         message = (f"{which} became singular or ill-conditioned after t = {t_end:.6g} s "
                    f"(reciprocal condition estimate {rc:.3g} ≤ rcond_min = {plan.rcond_min:g}); "
                    f"the run stopped there and keeps the last good state")
-        if which == "J2" and system.name == "appell-hamel" and plan.variant == "nonlinear":
-            message += " — the nonlinear model's J2 is singular where the wheel stops rolling (φ̇ = 0)"
+        hint = system.singular_hints.get(plan.variant)
+        if hint:
+            message += f" — {hint}"
     elif code == STATUS_DIVERGED:
         status = "diverged"
         message = (f"the state stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "

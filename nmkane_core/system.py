@@ -72,6 +72,8 @@ class System:
     default_initial: Mapping[str, float]
     completion_variant: str | None = None         # variant used to complete/check initial states
     equivalents: Mapping[str, tuple[str, ...]] = field(default_factory=dict)  # switching targets
+    # variant -> where its J2 or T is singular, appended to the message of a run stopped there
+    singular_hints: Mapping[str, str] = field(default_factory=dict)
     independent: tuple[str, ...] = ()             # names a user sets; the rest are completed
     default_dt: float = 0.01
     default_t_final: float = 20.0

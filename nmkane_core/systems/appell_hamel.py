@@ -113,6 +113,7 @@ def appell_hamel() -> System:
         completion_variant="linear",
         # near φ̇ = 0 the nonlinear model's J2 is singular; the linear model is equivalent there
         equivalents={"nonlinear": ("linear",)},
+        singular_hints={"nonlinear": "the nonlinear model's J2 is singular where the wheel stops rolling (φ̇ = 0)"},
         independent=("theta", "phi", "x", "y", "u1", "u2"),
         default_dt=0.01,
         default_t_final=20.0,
