@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .integrators import INTEGRATORS
+from .projection import PRESETS
 from .schema import LIMITS
 from .system import get_system, system_names
 
@@ -29,5 +30,5 @@ def catalog() -> dict:
         })
     return {"systems": out,
             "integrators": {k: v.description for k, v in INTEGRATORS.items()},
-            "projections": ["none"],
+            "projections": list(PRESETS),
             "limits": dict(LIMITS)}

@@ -201,6 +201,15 @@ def test_nan_and_infinity_are_refused_by_the_schema():
         assert e.value.field == "dt"
 
 
+def test_catalog_lists_the_projections_the_schema_accepts():
+    from typing import get_args
+
+    from nmkane_core.catalog import catalog
+    from nmkane_core.schema import RunSettings
+
+    assert catalog()["projections"] == list(get_args(RunSettings.model_fields["projection"].annotation))
+
+
 def test_simulate_module_still_exports_its_public_names():
     import importlib
 
