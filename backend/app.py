@@ -21,7 +21,7 @@ import datetime as dt
 from functools import lru_cache
 from importlib import metadata
 import sys
-from typing import Optional, get_args
+from typing import Optional
 
 import numpy as np
 import orjson
@@ -30,8 +30,9 @@ from fastapi.responses import JSONResponse, RedirectResponse, Response, Streamin
 from fastapi_offline import FastAPIOffline
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
+from nmkane_core.catalog import catalog
+from nmkane_core.run import Run
 from nmkane_core.schema import RunResult
-from nmkane_core.simulate import Run, catalog
 
 from .config import LIMIT_DESCRIPTIONS, Settings
 from .errors import ErrorResponse, error_response, install_error_handlers, item
@@ -121,10 +122,7 @@ def _too_large(size, limit: int) -> dict:
 
 @lru_cache(maxsize=1)
 def _catalog() -> dict:
-    data = catalog()
-    # the core's catalog lists only "none"; the schema's choices are the full list
-    data["projections"] = list(get_args(RunSettings.model_fields["projection"].annotation))
-    return data
+    return catalog()
 
 
 def _iso(ts: float) -> str:

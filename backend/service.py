@@ -19,11 +19,14 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import orjson
 
+from nmkane_core.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK, kernel_for
 from nmkane_core.errors import InputError
 from nmkane_core.integrators import ScipyMethod
+from nmkane_core.plan import Plan, resolve
+from nmkane_core.run import Run
 from nmkane_core.schema import RunSettings, RunSummary
-from nmkane_core.simulate import Plan, Run, kernel_for, resolve, simulate
 from nmkane_core.registry import get_system, system_names
+from nmkane_core.simulate import simulate
 
 from .config import Settings
 from .store import RunStore
@@ -125,8 +128,8 @@ class OutputGuard:
     exact (see the notes to the core).  Fixed-step runs are checked before they start.
     """
 
-    ADAPTIVE_ROWS_PER_CALL = 4096      # nmkane_core.simulate._run_adaptive: output buffer per chunk
-    SCIPY_STEPS_PER_CALL = 200         # nmkane_core.simulate._run_scipy: checks every 200 steps
+    ADAPTIVE_ROWS_PER_CALL = ADAPTIVE_ROWS_PER_CALL    # the core's adaptive driver: output buffer per call
+    SCIPY_STEPS_PER_CALL = SCIPY_STEPS_PER_CHECK       # the core's scipy driver: steps between checks
     MIN_CALLS = 100
 
     def __init__(self, plan: Plan, max_rows: int, stopping: threading.Event):

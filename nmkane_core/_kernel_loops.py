@@ -9,10 +9,9 @@ from [u_I, u_D] back to the model's speeds, and the straight-line functions ``te
 ``diagnostics``.  The integrators are tableau-driven (methods are data): one fixed-step
 loop and one adaptive loop serve every explicit Runge–Kutta tableau.
 
-Status codes returned by the loops:
-    0 ok, 1 J2 ill-conditioned, 2 T ill-conditioned, 3 state not finite,
-    4 step size underflow (adaptive), 5 step budget of this call used (adaptive),
-    6 a projection matrix was singular.
+The loops' status codes (``STATUS_*``), the layout of their ``stats`` array (``STATS_*``)
+and the adaptive step control (``STEP_*``) are the plain literals just below, defined once:
+:mod:`nmkane_core.loops` reads them from this file for the Python side.
 
 ``proj`` (int64 array) = [weight (0 identity, 1 mass), position iterations, Newton (1
 updated Jacobian, 0 frozen), energy correction (0/1), N, M, MNH, MH], or None for no
@@ -23,6 +22,28 @@ import math
 
 import numpy as np
 from numba import njit
+
+# ---- loop constants: plain literals only (nmkane_core.loops reads them from this source) ----
+# status codes returned by the loops
+STATUS_OK = 0
+STATUS_J2_SINGULAR = 1         # J2 ill-conditioned: rcond ≤ rcond_min
+STATUS_T_SINGULAR = 2          # T ill-conditioned: rcond ≤ rcond_min
+STATUS_DIVERGED = 3            # the state (or a diagnostic) stopped being finite
+STATUS_FAILED = 4              # step size underflow (adaptive); Python drivers: any other failure
+STATUS_BUDGET = 5              # the step budget of this call is used up (adaptive): call again
+STATUS_PROJECTION_FAILED = 6   # a projection's correction matrix was singular
+# stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, max|viol_i| for each violation]
+STATS_E0 = 0
+STATS_MAX_DRIFT = 1
+STATS_FINAL_DRIFT = 2
+STATS_RCOND_J2 = 3
+STATS_RCOND_T = 4
+STATS_VIOL = 5                 # first of the NV running maxima of |violation|
+# adaptive step control: h ← h · clamp(STEP_SAFETY · err^(−1/(q+1)), STEP_FAC_MIN, STEP_FAC_MAX)
+STEP_SAFETY = 0.9
+STEP_FAC_MIN = 0.2             # the most a step shrinks at once (also after a non-finite error)
+STEP_FAC_MAX = 5.0             # the most a step grows at once (also after a zero error)
+STEP_LAST_REL = 1e-12          # a remainder below this fraction of t_final joins the current step
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
@@ -220,19 +241,19 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
         for j in range(n2):
             total += abs(xs[j])
         if not math.isfinite(total):      # a stage left the finite numbers: divergence
-            return 3
+            return STATUS_DIVERGED
         rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)  # INLINE
         rc0 = w[ORC]
         rc1 = w[ORC + 1]
-        if rc0 < stats[3]:
-            stats[3] = rc0
-        if rc1 < stats[4]:
-            stats[4] = rc1
+        if rc0 < stats[STATS_RCOND_J2]:
+            stats[STATS_RCOND_J2] = rc0
+        if rc1 < stats[STATS_RCOND_T]:
+            stats[STATS_RCOND_T] = rc1
         if rc0 <= rcond_min:
-            return 1
+            return STATUS_J2_SINGULAR
         if rc1 <= rcond_min:
-            return 2
-    return 0
+            return STATUS_T_SINGULAR
+    return STATUS_OK
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
@@ -240,23 +261,20 @@ def _record(t, x, p, viol, stats, nv):
     """Diagnostics of an accepted state; running maxima in ``stats``. Returns E, or NaN
     (and leaves the maxima untouched) when any diagnostic is not finite."""
     E = diagnostics(t, x, p, viol)
-    dE = E - stats[0]
+    dE = E - stats[STATS_E0]
     if not math.isfinite(dE):
         return np.nan
     for i in range(nv):
         if not math.isfinite(viol[i]):
             return np.nan
-    if abs(dE) > stats[1]:
-        stats[1] = abs(dE)
-    stats[2] = dE
+    if abs(dE) > stats[STATS_MAX_DRIFT]:
+        stats[STATS_MAX_DRIFT] = abs(dE)
+    stats[STATS_FINAL_DRIFT] = dE
     for i in range(nv):
         v = abs(viol[i])
-        if v > stats[STATS_FIXED + i]:
-            stats[STATS_FIXED + i] = v
+        if v > stats[STATS_VIOL + i]:
+            stats[STATS_VIOL + i] = v
     return E
-
-
-STATS_FIXED = 5   # stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, max|viol_i|...]
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
@@ -280,7 +298,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
         t = t0 + k * dt
         h = dt if k < nsteps - 1 else t_final - t
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
-        if code != 0:
+        if code != STATUS_OK:
             return code, k, row
         for j in range(n2):
             xn[j] = x[j]
@@ -293,14 +311,14 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
         for j in range(n2):
             total += abs(xn[j])
         if not math.isfinite(total):
-            return 3, k, row
+            return STATUS_DIVERGED, k, row
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
         if proj is not None:
-            if project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
-                return 6, k, row
+            if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
+                return STATUS_PROJECTION_FAILED, k, row
         E = _record(tn, xn, p, viol, stats, NV)
         if not math.isfinite(E):
-            return 3, k, row
+            return STATUS_DIVERGED, k, row
         for j in range(n2):
             x[j] = xn[j]
         if (k + 1) % every == 0 or k + 1 == nsteps:
@@ -311,7 +329,7 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
             for j in range(NV):
                 out_V[row, j] = viol[j]
             row += 1
-    return 0, k1, row
+    return STATUS_OK, k1, row
 
 
 @njit(cache=True, nogil=True, fastmath=FM)
@@ -337,14 +355,14 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
     attempts = 0
     while t < t_final and row < cap:
         if attempts >= max_steps:
-            return 5, t, h, row, accepted, attempts
+            return STATUS_BUDGET, t, h, row, accepted, attempts
         attempts += 1
         last = False
-        if t + h >= t_final or (t_final - t - h) < 1e-12 * abs(t_final):
+        if t + h >= t_final or (t_final - t - h) < STEP_LAST_REL * abs(t_final):
             h = t_final - t
             last = True
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
-        if code != 0:
+        if code != STATUS_OK:
             return code, t, h, row, accepted, attempts
         errsum = 0.0
         finite = True
@@ -364,11 +382,11 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
         if err <= 1.0:
             tn = t_final if last else t + h
             if proj is not None:
-                if project(tn, xn, p, w, ps, proj, stats[0], viol, perm) != 0:
-                    return 6, t, h, row, accepted, attempts
+                if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
+                    return STATUS_PROJECTION_FAILED, t, h, row, accepted, attempts
             E = _record(tn, xn, p, viol, stats, NV)
             if not math.isfinite(E):
-                return 3, t, h, row, accepted, attempts
+                return STATUS_DIVERGED, t, h, row, accepted, attempts
             t = tn
             for j in range(n2):
                 x[j] = xn[j]
@@ -381,13 +399,16 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
                 for j in range(NV):
                     out_V[row, j] = viol[j]
                 row += 1
-            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** (-err_exp)))
+            if err == 0.0:
+                fac = STEP_FAC_MAX
+            else:
+                fac = min(STEP_FAC_MAX, max(STEP_FAC_MIN, STEP_SAFETY * err ** (-err_exp)))
         else:
-            fac = 0.2 if not math.isfinite(err) else max(0.2, 0.9 * err ** (-err_exp))
+            fac = STEP_FAC_MIN if not math.isfinite(err) else max(STEP_FAC_MIN, STEP_SAFETY * err ** (-err_exp))
         h = min(h * fac, hmax)
         if h < hmin and t < t_final:
-            return 4, t, h, row, accepted, attempts
-    return 0, t, h, row, accepted, attempts
+            return STATUS_FAILED, t, h, row, accepted, attempts
+    return STATUS_OK, t, h, row, accepted, attempts
 
 
 @njit(cache=True, nogil=True, fastmath=FM)

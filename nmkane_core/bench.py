@@ -26,8 +26,10 @@ import time
 
 import numpy as np
 
-from .simulate import kernel_for, resolve, simulate, simulate_many
+from .drivers import kernel_for
+from .plan import resolve
 from .registry import get_system
+from .simulate import simulate, simulate_many
 
 
 def _best(fn, repeat=3):

@@ -21,17 +21,10 @@ import sys
 import threading
 from pathlib import Path
 
+from .loops import fixed_loop_signature   # the one definition of the loop's arguments (FixedArgs)
+
 _CHILDREN: dict[str, subprocess.Popen] = {}
 _LOCK = threading.Lock()
-
-
-def fixed_loop_signature():
-    """numba types of ``integrate_fixed``'s arguments in an unprojected run (``proj`` None).
-    ``simulate._prime`` and ``simulate._run_fixed`` call it with exactly these (a test checks)."""
-    from numba import types
-
-    f1, f2, f, i = types.float64[::1], types.float64[:, ::1], types.float64, types.int64
-    return (f1, f, f, f, i, i, i, i, f1, f2, f2, f2, f2, f1, f1, f, types.none, f1, f2, f1, f2, i, f1)
 
 
 def start(folder: Path, key: str) -> None:

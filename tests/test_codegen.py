@@ -7,8 +7,10 @@ import sympy as sp
 
 from nmkane_core import get_system
 from nmkane_core.codegen import generate_source, inline_marked
+from nmkane_core.drivers import kernel_for
 from nmkane_core.kernel_terms import kernel_terms, pythagorean
-from nmkane_core.simulate import kernel_for, simulate
+from nmkane_core.loops import AdaptiveArgs, FixedArgs, loop_signature
+from nmkane_core.simulate import simulate
 
 a, b, c, x, y = sp.symbols("a b c x y", real=True)
 
@@ -127,7 +129,8 @@ def test_projection_helpers_compile_once_per_run(tmp_path):
 def test_unprojected_loop_is_compiled_without_the_projection():
     mod = kernel_for(get_system("sliding-particle"), "nonminimal")
     simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 0.2})
-    sigs = [s for s in mod.integrate_fixed.signatures if str(s[16]) == "none"]
+    proj = FixedArgs._fields.index("proj")
+    sigs = [s for s in mod.integrate_fixed.signatures if str(s[proj]) == "none"]
     assert sigs, mod.integrate_fixed.signatures
 
 
@@ -141,6 +144,27 @@ def test_background_precompile_signature_is_the_one_runs_use():
         simulate({"system": name, system.option: variant, "dt": 0.01, "t_final": 0.1})
         mod = kernel_for(system, variant)
         assert fixed_loop_signature() in mod.integrate_fixed.signatures
+
+
+def test_loop_argument_structures_are_the_loops_parameters_and_the_signatures_runs_use():
+    """FixedArgs/AdaptiveArgs list the compiled loops' parameters in order (the drivers and
+    the precompile signature come from them), and their numba types are those of real runs."""
+    import ast
+    from pathlib import Path
+
+    import nmkane_core
+
+    tree = ast.parse((Path(nmkane_core.__file__).parent / "_kernel_loops.py").read_text())
+    params = {n.name: [a.arg for a in n.args.args] for n in tree.body if isinstance(n, ast.FunctionDef)}
+    assert params["integrate_fixed"] == list(FixedArgs._fields)
+    assert params["integrate_adaptive"] == list(AdaptiveArgs._fields)
+    mod = kernel_for(get_system("sliding-particle"), "nonminimal")
+    for settings, loop, args in [({}, mod.integrate_fixed, FixedArgs),
+                                 ({"integrator": "kutta-merson-adaptive"}, mod.integrate_adaptive, AdaptiveArgs)]:
+        for projection in ("none", "yoon"):
+            simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 0.2, "projection": projection,
+                      **settings})
+            assert loop_signature(args, projected=projection != "none") in loop.signatures, loop.signatures
 
 
 def test_background_precompile_fills_the_cache_for_a_new_kernel(tmp_path):

@@ -10,8 +10,8 @@ import pytest
 import sympy as sp
 
 from nmkane_core import get_system
+from nmkane_core.drivers import kernel_for
 from nmkane_core.reference import ReferenceKernel
-from nmkane_core.simulate import kernel_for
 
 RNG = np.random.default_rng(2005)
 AH_PARAMS = dict(a=1.0, b=0.5, rho=5.0, m=1.0, M=5.0, I=2.5, g=9.81, z0=30.0)

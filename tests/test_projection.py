@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from nmkane_core import InputError
-from nmkane_core.simulate import resolve, simulate
+from nmkane_core.plan import resolve
+from nmkane_core.simulate import simulate
 
 
 @pytest.mark.parametrize("projection", ["blajer", "yoon"])

@@ -6,11 +6,13 @@ import numpy as np
 import pytest
 
 from nmkane_core import InputError, get_system
+from nmkane_core.drivers import kernel_for
 from nmkane_core.errors import InconsistentStateError
 from nmkane_core.integrators import INTEGRATORS, KUTTA_MERSON, RK4
+from nmkane_core.plan import resolve
 from nmkane_core.reference import ReferenceKernel, integrate_reference
 from nmkane_core.schema import RunResult
-from nmkane_core.simulate import kernel_for, resolve, simulate
+from nmkane_core.simulate import simulate
 
 CASES = [("appell-hamel", "nonlinear"), ("appell-hamel", "linear"),
          ("sliding-particle", "nonminimal"), ("sliding-particle", "minimal")]
@@ -197,3 +199,28 @@ def test_nan_and_infinity_are_refused_by_the_schema():
         with pytest.raises(InputError) as e:
             resolve({"system": "appell-hamel", "dt": bad})
         assert e.value.field == "dt"
+
+
+def test_catalog_lists_the_projections_the_schema_accepts():
+    from typing import get_args
+
+    from nmkane_core.catalog import catalog
+    from nmkane_core.schema import RunSettings
+
+    assert catalog()["projections"] == list(get_args(RunSettings.model_fields["projection"].annotation))
+
+
+def test_simulate_module_still_exports_its_public_names():
+    import importlib
+
+    sim = importlib.import_module("nmkane_core.simulate")   # the package's ``simulate`` is the function
+    for name in ("Plan", "Run", "resolve", "simulate", "simulate_many", "kernel_for", "catalog", "prepare",
+                 "validate_settings"):
+        assert name in sim.__all__ and callable(getattr(sim, name)), name
+
+
+def test_loop_constants_come_from_the_compiled_loops_source():
+    from nmkane_core import loops
+
+    assert (loops.STATUS_OK, loops.STATUS_J2_SINGULAR, loops.STATUS_T_SINGULAR) == (0, 1, 2)
+    assert loops.STATS_VIOL == 5 and kernel_for(get_system("sliding-particle"), "nonminimal").STATS_VIOL == 5

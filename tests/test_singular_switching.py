@@ -9,7 +9,8 @@ import pytest
 
 from nmkane_core import InputError
 from nmkane_core.errors import InconsistentStateError
-from nmkane_core.simulate import resolve, simulate
+from nmkane_core.plan import resolve
+from nmkane_core.simulate import simulate
 
 KEYS = ("theta", "phi", "x", "y", "z", "u1", "u2", "u3", "u4", "u5")
 

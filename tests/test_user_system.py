@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from nmkane_core import Parameter, System, register, simulate
+from nmkane_core.drivers import kernel_for
 from nmkane_core.reference import ReferenceKernel
-from nmkane_core.simulate import kernel_for
 
 NAME = "test-knife-edge"
 

@@ -79,7 +79,9 @@ def settings_from_args(args: argparse.Namespace) -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..simulate import prepare, resolve, simulate, validate_settings
+    from ..drivers import prepare
+    from ..plan import resolve, validate_settings
+    from ..simulate import simulate
 
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")
