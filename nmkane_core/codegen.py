@@ -34,6 +34,9 @@ from .info import ModelInfo
 
 __all__ = ["cache_dir", "generate_source", "compiled_kernel", "kernel", "fingerprint"]
 
+#: the generic compiled code appended to every generated kernel (not imported as modules)
+GENERIC_FILES = ("_kernel_loops.py", "_kernel_projection.py")
+
 _LOCK = threading.Lock()
 _LOADED: dict[str, object] = {}
 
@@ -167,9 +170,9 @@ def generate_source(derivation) -> str:
                [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)], returns="_E"),
         _block("outputs", "t, x, p, out", kt, [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)]),
     ]
-    loops = (Path(__file__).parent / "_kernel_loops.py").read_text()
-    return inline_marked("\n\n".join(parts) + "\n\n# ---- generic part: nmkane_core/_kernel_loops.py ----\n"
-                         + loops)
+    generic = "".join(f"\n\n# ---- generic part: nmkane_core/{name} ----\n"
+                      + (Path(__file__).parent / name).read_text() for name in GENERIC_FILES)
+    return inline_marked("\n\n".join(parts) + generic)
 
 
 class _Rename(ast.NodeTransformer):
@@ -296,7 +299,7 @@ def compiled_kernel(derivation, source: str | None = None):
         return _LOADED[key]
 
 
-_CORE_FILES = ("model.py", "derivation.py", "kernel_terms.py", "codegen.py", "_kernel_loops.py", "info.py")
+_CORE_FILES = ("model.py", "derivation.py", "kernel_terms.py", "codegen.py", *GENERIC_FILES, "info.py")
 
 
 def fingerprint(system_name: str, variant: str, source_files) -> str | None:

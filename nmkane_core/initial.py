@@ -14,7 +14,10 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ConvergenceError, InconsistentStateError, InputError
-from .system import System
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from .system import System
 
 __all__ = ["initial_state", "CHECK_TOL"]
 

@@ -84,9 +84,7 @@ def load_systems(specs, *, strict: bool = False) -> list[PluginError]:
     each); with ``strict`` the first failure is raised as an
     :class:`~nmkane_core.errors.InputError` instead."""
     from .errors import InputError
-    from .registry import _load_builtin
 
-    _load_builtin()
     errors = []
     for spec in specs:
         if not spec or not str(spec).strip():
