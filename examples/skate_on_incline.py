@@ -5,20 +5,23 @@ Load it with ``nmkane run skate-on-incline --systems examples/skate_on_incline.p
 A blade (mass m, moment of inertia I about its contact point, which is its centre of
 mass) slides on a plane inclined at angle α; x points down the slope.  The blade cannot
 slip sideways: −sin θ ẋ + cos θ ẏ = 0 (linear in the speeds).  A classic of nonholonomic
-mechanics (Neimark & Fufaev): started across the slope with a spin ω, the skate does
-not run away downhill — θ = ωt, and x oscillates within g sin α/ω² of its start while y
-drifts sideways at the mean speed g sin α/(2ω).  Energy is conserved.
+mechanics (Neimark & Fufaev): started with a spin ω, the skate does not run away downhill
+— θ = ωt, and x oscillates within g sin α/ω² of its start while y drifts sideways at the
+mean speed g sin α/(2ω).  Energy (kinetic plus potential) is conserved.
 
-Coordinates q = (x, y, θ), speeds u = (ẋ, ẏ, θ̇), u_I = (ẋ, θ̇): J2 = cos θ is singular
-at θ = ±π/2, where the blade points across the slope and ẏ cannot be solved from the
-constraint.  Start with θ0 = 0 and the run reports it as ``singular`` within a quarter
-turn (time π/(2ω)); choose ẏ as independent (``u_independent=(u2, u3)``) to run across it.
+Coordinates q = (x, y, θ), speeds u = (ẋ, ẏ, θ̇).  One constraint: one dependent speed.
+Solving it for ẏ (J2 = cos θ) fails where the blade points across the slope (θ = ±π/2);
+solving it for ẋ (J2 = −sin θ) fails where it points along it (θ = 0, π).  A spinning
+skate meets both, so the file declares the two partitions as equivalent variants: a run
+switches to the other where its own J2 becomes ill-conditioned, and back (the summary
+lists every switch).
 """
 
 from nmkane_core import Parameter, System, register
 
 
-def skate_model():
+def skate_model(solve_for: str):
+    """The skate with the constraint solved for ``solve_for`` ("u1" = ẋ or "u2" = ẏ)."""
     import sympy as sp   # inside the function: a cached run of this system never imports sympy
 
     from nmkane_core import MechanicalModel, plain_symbols
@@ -31,21 +34,22 @@ def skate_model():
         C=sp.eye(3), D=sp.zeros(3, 1),
         Q=sp.diag(m, m, I), P=sp.Matrix([m * g * sp.sin(alpha), 0, 0]),
         nonholonomic={"no_side_slip": -sp.sin(th) * u1 + sp.cos(th) * u2},
-        u_independent=(u2, u3),                   # ẏ and θ̇ given: J2 = −sin θ, fine at θ = 0
+        u_independent=(u1, u3) if solve_for == "u2" else (u2, u3),
         energy=m / 2 * (u1**2 + u2**2) + I / 2 * u3**2 - m * g * sp.sin(alpha) * x)
 
 
 register(System(
     name="skate-on-incline",
     title="Skate on an inclined plane",
-    variants=skate_model,
+    variants={"solve-u2": lambda: skate_model("u2"), "solve-u1": lambda: skate_model("u1")},
+    equivalents={"solve-u2": ("solve-u1",), "solve-u1": ("solve-u2",)},
     parameters={
         "m": Parameter(1.0, 0.0, 1e3, "kg", "mass of the skate"),
         "I": Parameter(0.1, 0.0, 1e3, "kg·m²", "moment of inertia about the contact point"),
         "g": Parameter(9.81, 0.0, 100.0, "m/s²", "gravitational acceleration", min_inclusive=True),
         "alpha": Parameter(0.2, 0.0, 1.5, "rad", "inclination of the plane"),
     },
-    default_initial={"x": 0.0, "y": 0.0, "theta": 0.5, "u2": 0.0, "u3": 2.0},
+    default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 0.0, "u3": 2.0},
     default_dt=0.001, default_t_final=10.0,
     description="A knife edge on a slope: a linear nonholonomic constraint; it does not run away downhill.",
 ))

@@ -302,12 +302,14 @@ def compiled_kernel(derivation, source: str | None = None):
 _CORE_FILES = ("model.py", "derivation.py", "kernel_terms.py", "codegen.py", *GENERIC_FILES, "info.py")
 
 
-def fingerprint(system_name: str, variant: str, source_files) -> str | None:
+def fingerprint(system_name: str, variant: str, source_files, extra: str = "") -> str | None:
     """A key for a model's kernel that needs no sympy: the text of every file that defines
-    the model, of the generator's files, and the versions of the tools that generate it."""
+    the model, of the generator's files, the versions of the tools that generate it, and
+    ``extra`` (which function of those files builds the model)."""
     if not source_files:
         return None
     h = hashlib.sha256(_tools_key(system_name, variant).encode())
+    h.update(extra.encode())
     for f in sorted(set(map(str, source_files))):
         h.update(Path(f).read_bytes())
     return h.hexdigest()[:24]

@@ -23,6 +23,7 @@ import os
 import sys
 import threading
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from pathlib import Path
 
 __all__ = ["ENTRY_POINT_GROUP", "ENV_VAR", "PluginError", "load_systems", "load_default_plugins"]
@@ -105,8 +106,6 @@ def load_systems(specs, *, strict: bool = False) -> list[PluginError]:
 
 
 def _from_entry_points() -> list[PluginError]:
-    from importlib.metadata import entry_points
-
     errors = []
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         try:

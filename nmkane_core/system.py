@@ -307,6 +307,26 @@ class System:
             return None
         return (f, *self.source_files)
 
+    def _factory_identity(self, variant: str) -> str:
+        """Which function of those files builds the variant: its name, code and simple closure
+        values (two models defined in one file, or one function called with other arguments
+        in a lambda, must not share a cached kernel)."""
+        import marshal
+
+        fn = self.variants[variant]
+        code = getattr(fn, "__code__", None)
+        parts = [getattr(fn, "__qualname__", repr(type(fn)))]
+        if code is not None:
+            parts.append(marshal.dumps(code).hex())
+        for cell in getattr(fn, "__closure__", None) or ():
+            try:
+                value = cell.cell_contents
+            except ValueError:
+                continue
+            if isinstance(value, (str, int, float, bool, tuple)):
+                parts.append(repr(value))
+        return "\0".join(parts)
+
     def kernel_key(self, variant: str | None = None) -> str | None:
         """A key that changes whenever the variant's compiled kernel would.
 
@@ -318,7 +338,7 @@ class System:
         variant = self.check_variant(variant)
         files = self._files(variant)
         if files is not None:
-            return fingerprint(self.name, variant, files)
+            return fingerprint(self.name, variant, files, extra=self._factory_identity(variant))
         return model_fingerprint(self.name, variant, self.model(variant))
 
     def kernel(self, variant: str | None = None):
