@@ -235,6 +235,7 @@ def inline_marked(source: str) -> str:
     tree = ast.parse(source)
     funcs = {n.name: n for n in tree.body if isinstance(n, ast.FunctionDef)}
     expanded: dict = {}
+    changed: dict[str, bool] = {}
     count = [0]
 
     def expand(fn: ast.FunctionDef) -> ast.FunctionDef:
@@ -255,19 +256,19 @@ def inline_marked(source: str) -> str:
                     return self._inline(st, st.value, st.targets[0]) if len(st.targets) == 1 else st
 
             new = Expander().visit(copy.deepcopy(fn))             # line numbers kept: markers
-            new.changed = ast.dump(new) != ast.dump(fn)
+            changed[fn.name] = ast.dump(new) != ast.dump(fn)
             expanded[fn.name] = new
         return expanded[fn.name]
 
     out, pos = [], 0
     for fn in funcs.values():
         new = expand(fn)
-        if not new.changed:
+        if not changed[fn.name]:
             continue
         first = min([fn.lineno] + [d.lineno for d in fn.decorator_list])
         out += lines[pos:first - 1]
         out.append(ast.unparse(ast.fix_missing_locations(new)))
-        pos = fn.end_lineno
+        pos = fn.end_lineno or fn.lineno
     return "\n".join(out + lines[pos:]) + "\n"
 
 

@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from .integrators import ScipyMethod
+from .integrators import ScipyMethod, Tableau
 from .loops import (STATS_E0, STATS_FINAL_DRIFT, STATS_MAX_DRIFT, STATS_RCOND_J2, STATS_RCOND_T, STATS_VIOL,
                     STATUS_BUDGET, STATUS_DIVERGED, STATUS_FAILED, STATUS_J2_SINGULAR, STATUS_OK,
                     STATUS_T_SINGULAR, AdaptiveArgs, FixedArgs)
@@ -73,6 +73,7 @@ def _prime(plan: Plan, mod) -> None:
     stats = np.zeros(STATS_VIOL + mod.NV)
     proj = plan.projection.as_array(plan.info)
     if tab.adaptive:
+        assert tab.E is not None
         mod.integrate_adaptive(*AdaptiveArgs(
             x, 0.0, plan.t_final, h=0.1, rtol=plan.rtol, atol=plan.atol, hmin=1e-13, hmax=1.0, max_steps=0,
             every=1, accepted=0,
@@ -112,6 +113,7 @@ def _singular(status) -> bool:
 
 def run_fixed(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     tab = plan.integrator
+    assert isinstance(tab, Tableau)
     dt, t_final, every = plan.dt, plan.t_final, plan.every
     nsteps = max(1, math.ceil(t_final / dt - 1e-9))
     rows = nsteps // every + (1 if nsteps % every else 0) + 2
@@ -161,6 +163,7 @@ def run_fixed(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
 
 def run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     tab = plan.integrator
+    assert isinstance(tab, Tableau) and tab.E is not None and tab.error_order is not None
     t_final = plan.t_final
     n2 = plan.x0.size
     stats, E0, V0 = _stats0(plan, mod)
@@ -178,8 +181,8 @@ def run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
         size = sw.SWITCHED_CHUNK if sw.switched else ADAPTIVE_ROWS_PER_CALL
         out_t, out_x = np.empty(size), np.empty((size, n2))
         out_E, out_V = np.empty(size), np.empty((size, mod.NV))
-        budget = min(sw.SWITCHED_CHUNK if sw.switched else ADAPTIVE_ATTEMPTS_PER_CALL,
-                     LIMITS["max_steps"] - attempts)
+        budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ADAPTIVE_ATTEMPTS_PER_CALL,
+                         LIMITS["max_steps"] - attempts))
         status, t, h, nrow, accepted, att = sw.cur.integrate_adaptive(*AdaptiveArgs(
             x, t, t_final, h, plan.rtol, plan.atol, hmin, hmax=t_final, max_steps=budget, every=plan.every,
             accepted=accepted, p=sw.p, G=plan.G, G1=plan.G1, G2=plan.G2, TA=tab.A, TB=tab.b, TE=tab.E,
@@ -222,6 +225,8 @@ def run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
 
 def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     import scipy.integrate as si
+
+    assert isinstance(plan.integrator, ScipyMethod)
 
     from .errors import SingularMatrix
 

@@ -54,7 +54,8 @@ class ModelInfo:
     @classmethod
     def from_json(cls, text: str) -> "ModelInfo":
         data = json.loads(text)
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
+        fields: dict = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
+        return cls(**fields)
 
     @classmethod
     def from_derivation(cls, d) -> "ModelInfo":

@@ -19,7 +19,7 @@ from __future__ import annotations
 import ast
 import typing
 from pathlib import Path
-from typing import Annotated, NamedTuple
+from typing import Any, Annotated, NamedTuple
 
 import numpy as np
 
@@ -45,19 +45,19 @@ def _literals(tree: ast.Module) -> dict[str, int | float]:
 
 _C = _literals(_TREE)
 
-STATUS_OK: int = _C["STATUS_OK"]
-STATUS_J2_SINGULAR: int = _C["STATUS_J2_SINGULAR"]
-STATUS_T_SINGULAR: int = _C["STATUS_T_SINGULAR"]
-STATUS_DIVERGED: int = _C["STATUS_DIVERGED"]
-STATUS_FAILED: int = _C["STATUS_FAILED"]
-STATUS_BUDGET: int = _C["STATUS_BUDGET"]
-STATUS_PROJECTION_FAILED: int = _C["STATUS_PROJECTION_FAILED"]
-STATS_E0: int = _C["STATS_E0"]
-STATS_MAX_DRIFT: int = _C["STATS_MAX_DRIFT"]
-STATS_FINAL_DRIFT: int = _C["STATS_FINAL_DRIFT"]
-STATS_RCOND_J2: int = _C["STATS_RCOND_J2"]
-STATS_RCOND_T: int = _C["STATS_RCOND_T"]
-STATS_VIOL: int = _C["STATS_VIOL"]
+STATUS_OK: int = int(_C["STATUS_OK"])
+STATUS_J2_SINGULAR: int = int(_C["STATUS_J2_SINGULAR"])
+STATUS_T_SINGULAR: int = int(_C["STATUS_T_SINGULAR"])
+STATUS_DIVERGED: int = int(_C["STATUS_DIVERGED"])
+STATUS_FAILED: int = int(_C["STATUS_FAILED"])
+STATUS_BUDGET: int = int(_C["STATUS_BUDGET"])
+STATUS_PROJECTION_FAILED: int = int(_C["STATUS_PROJECTION_FAILED"])
+STATS_E0: int = int(_C["STATS_E0"])
+STATS_MAX_DRIFT: int = int(_C["STATS_MAX_DRIFT"])
+STATS_FINAL_DRIFT: int = int(_C["STATS_FINAL_DRIFT"])
+STATS_RCOND_J2: int = int(_C["STATS_RCOND_J2"])
+STATS_RCOND_T: int = int(_C["STATS_RCOND_T"])
+STATS_VIOL: int = int(_C["STATS_VIOL"])
 
 # numba types of the fields, by name (numba is imported only when a signature is asked for)
 VEC = "float64[::1]"
@@ -128,7 +128,7 @@ class AdaptiveArgs(NamedTuple):
     stats: Annotated[np.ndarray, VEC]
 
 
-LOOPS = {"integrate_fixed": FixedArgs, "integrate_adaptive": AdaptiveArgs}
+LOOPS: dict[str, Any] = {"integrate_fixed": FixedArgs, "integrate_adaptive": AdaptiveArgs}
 
 
 def loop_signature(args: type[NamedTuple], projected: bool = False) -> tuple:

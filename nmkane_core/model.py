@@ -174,9 +174,10 @@ class MechanicalModel:
     # ------------------------------------------------------------ from mechanics
     @classmethod
     def from_mechanics(cls, name: str = "", *, q, u, kd_eqs, bodies, loads, frame, params,
-                       nonholonomic: Mapping[str, sp.Expr] = (), holonomic: Mapping[str, sp.Expr] = (),
-                       u_independent: Iterable = (), energy=None, outputs: Mapping[str, sp.Expr] = (),
-                       q_dependent: Iterable = (), monitors: Mapping[str, sp.Expr] = (),
+                       nonholonomic: Mapping[str, sp.Expr] | None = None,
+                       holonomic: Mapping[str, sp.Expr] | None = None,
+                       u_independent: Iterable = (), energy=None, outputs: Mapping[str, sp.Expr] | None = None,
+                       q_dependent: Iterable = (), monitors: Mapping[str, sp.Expr] | None = None,
                        description: str = "") -> "MechanicalModel":
         """Build a model from sympy.physics.mechanics bodies, particles and loads.
 
@@ -214,9 +215,9 @@ class MechanicalModel:
         return cls(
             name=name, q=qs, u=us, params=tuple(params), C=C.applyfunc(plain), D=D.applyfunc(plain),
             Q=Q, P=P,
-            nonholonomic={k: plain(v) for k, v in dict(nonholonomic).items()},
-            holonomic={k: plain(v) for k, v in dict(holonomic).items()},
+            nonholonomic={k: plain(v) for k, v in dict(nonholonomic or {}).items()},
+            holonomic={k: plain(v) for k, v in dict(holonomic or {}).items()},
             u_independent=tuple(uind), energy=None if energy is None else plain(energy),
-            outputs={k: plain(v) for k, v in dict(outputs).items()}, q_dependent=tuple(qdep),
-            monitors={k: plain(v) for k, v in dict(monitors).items()},
+            outputs={k: plain(v) for k, v in dict(outputs or {}).items()}, q_dependent=tuple(qdep),
+            monitors={k: plain(v) for k, v in dict(monitors or {}).items()},
             t=ts, description=description)

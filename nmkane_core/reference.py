@@ -132,7 +132,7 @@ def integrate_reference(kernel: ReferenceKernel, x0, p, dt: float, nsteps: int, 
     ts, xs = [0.0], [x.copy()]
     for k in range(nsteps):
         t = k * dt
-        K = []
+        K: list = []
         for i in range(len(c)):
             xi = x + dt * sum((A[i, j] * K[j] for j in range(i)), np.zeros_like(x))
             K.append(kernel.rhs(t + c[i] * dt, xi, p, G, G1, G2))

@@ -69,8 +69,9 @@ class Run:
                 f.write(self.to_csv())
         elif path.endswith(".npz"):
             import json
-            np.savez_compressed(path, **self.columns(),
-                                summary=json.dumps(self.summary), settings=json.dumps(self.settings))
+            arrays: dict = {**self.columns(), "summary": json.dumps(self.summary),
+                            "settings": json.dumps(self.settings)}
+            np.savez_compressed(path, **arrays)
         else:
             raise InputError("out", path, "a file name ending in .json, .csv or .npz", "unknown format")
 
@@ -152,7 +153,7 @@ def finish(plan: Plan, mod, out: LoopOutput, wall: float) -> Run:
         "wall_time_s": wall, "t_end": float(t_end),
         "max_abs_violation": {k: float(stats[STATS_VIOL + i]) for i, k in enumerate(viol_names)},
         "max_abs_energy_drift": float(stats[STATS_MAX_DRIFT]) if has_energy else None,
-        "final_energy_drift": float(energy[-1] - energy[0]) if has_energy else None,
+        "final_energy_drift": float(energy[-1] - energy[0]) if energy is not None else None,
         "min_rcond": {"J2": float(stats[STATS_RCOND_J2]), "T": float(stats[STATS_RCOND_T])},
         "warnings": list(plan.warnings), "switches": out.switches,
         "initial_correction": dict(plan.initial_correction),

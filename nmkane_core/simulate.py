@@ -93,7 +93,7 @@ def simulate_many(settings_list, *, workers: int | None = None, progress: bool |
     finally:
         if bar is not None:
             bar.close()
-    return results
+    return [r for r in results if r is not None]
 
 
 class _Progress:

@@ -144,8 +144,8 @@ class System:
     title: str = ""
     description: str = ""
     option: str = "model"
-    default_variant: str | None = None
-    completion_variant: str | None = None
+    default_variant: str = ""                     # "": the first variant
+    completion_variant: str = ""                  # "": the default variant
     equivalents: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     singular_hints: Mapping[str, str] = field(default_factory=dict)
     default_dt: float = 0.01

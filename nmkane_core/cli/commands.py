@@ -23,7 +23,10 @@ def _unavailable(name: str, error: Exception) -> Command:
         raise NmkaneError(f"'{name}' is not available here ({error}); install it with "
                           f"pip install 'nmkane[all]'")
 
-    return Command(name, f"(not available: {error})", lambda p: p.add_argument("rest", nargs="*"), run)
+    def add_arguments(p) -> None:
+        p.add_argument("rest", nargs="*")
+
+    return Command(name, f"(not available: {error})", add_arguments, run)
 
 
 def contributed() -> list[Command]:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import partial
-from typing import Callable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -98,7 +98,7 @@ def drift(run):
 def models_same_motion(runs: Runs):
     nc, lc = runs["ah-nonlinear"], runs["ah-linear"]
     d = {n: _absmax(nc.state[n] - lc.state[n]) for n in nc.state}
-    worst = max(d, key=d.get)
+    worst = max(d, key=lambda k: d[k])
     return (f"max difference over {T_AH:g} s: {num(d[worst])} ({worst}); θ {num(d['theta'])} rad, "
             f"z {num(d['z'])} m", _ok(d[worst] < 1e-6), {"max_abs_diff": d})
 
@@ -205,7 +205,8 @@ def fig16_undamped_drifts_off(runs: Runs):
 
 def fig16_compared_with_fine_reference(runs: Runs):
     ref = runs["sp-1h-reference"]
-    vals, parts = {}, []
+    vals: dict[str, Any] = {}
+    parts: list[str] = []
     for name, key in (("M", "sp-1h-minimal"), ("N", "sp-1h-nonminimal"), ("DN", "sp-1h-damped")):
         r = runs[key]
         y_ref = np.interp(r.t, ref.t, ref.state["y"])
@@ -254,12 +255,12 @@ def fig18_all_bounded(runs: Runs):
 
 def fig18_baumgarte_smallest_bound(runs: Runs):
     m = {name: runs[key].summary["max_abs_violation"]["surface"] for name, key in FIG18_RUNS.items()}
-    pre = {}
+    pre: dict[str, Any] = {}
     for name, key in FIG18_RUNS.items():
         p = runs.extra.get(f"precorrection:{key}")
         if name != "Baumgarte":
             pre[name] = p and {k: p[k] for k in ("max", "median", "samples", "stride")}
-    smallest = min(m, key=m.get)
+    smallest = min(m, key=lambda k: m[k])
     ok = smallest == "Baumgarte"
     text = "max|φ| (m): " + ", ".join(f"{k} {v:.2e}" for k, v in m.items())
     if all(pre.values()):

@@ -276,7 +276,9 @@ def _fig7_inset(ax, runs, t_zoom=3.0):
 
 def _wrap_caption(caption: str, width: int) -> str:
     """Greedy line wrap that never splits a $…$ mathtext span; widths count rendered characters."""
-    lines, cur, n = [], [], 0
+    lines: list[str] = []
+    cur: list[str] = []
+    n = 0
     for tok in re.findall(r"[^\s$]*\$[^$]*\$[^\s$]*|\S+", caption):
         w = len(plain_caption(tok))
         if cur and n + 1 + w > width:

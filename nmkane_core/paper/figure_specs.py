@@ -7,7 +7,7 @@ its "what this shows" paragraphs quote.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Callable
+from typing import Any, Callable
 
 from .drawing import draw_ah, draw_ex2, draw_fig4, draw_fig6, draw_fig7, draw_fig9, draw_fig16, draw_fig18
 from .claims import PASS, Claim
@@ -156,9 +156,11 @@ FIGURES: tuple[FigureSpec, ...] = (
 def facts(runs: Runs, claims: dict[str, Claim]) -> dict:
     """Numbers quoted in the "what this shows" paragraphs (NaN when a run is missing)."""
     nan = float("nan")
-    f = dict(theta_end=nan, theta_dot_end=nan, nc_lc=nan, phi_ratio=nan, phi15=nan, n_max=nan, dn_loss=nan,
+    f: dict[str, Any] = dict(theta_end=nan, theta_dot_end=nan, nc_lc=nan, phi_ratio=nan, phi15=nan, n_max=nan, dn_loss=nan,
              e17_ratio=nan, b18=nan, f18_verdict="")
-    v = lambda k: claims[k].values if k in claims and claims[k].values else None  # noqa: E731
+    def v(k: str) -> Any:
+        return claims[k].values if k in claims and claims[k].values else None
+
     if v("theta_reaches_steady_state"):
         f["theta_end"] = v("theta_reaches_steady_state")["theta_end"]
         f["theta_dot_end"] = abs(v("theta_reaches_steady_state")["theta_dot_end"])
