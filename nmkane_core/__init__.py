@@ -16,7 +16,8 @@ from .system import Parameter, System
 from .simulate import resolve, simulate, simulate_many  # noqa: E402
 
 _LAZY = {"Derivation": "derivation", "derive": "derivation", "MechanicalModel": "model",
-         "plain_symbols": "model"}     # sympy is imported only when symbolic work is asked for
+         "plain_symbols": "model", "accelerations": "analysis", "linearize": "analysis",
+         "load_systems": "plugins", "unregister": "registry"}     # sympy is imported only when symbolic work is asked for
 
 
 def __getattr__(name):  # PEP 562
@@ -27,7 +28,7 @@ def __getattr__(name):  # PEP 562
     raise AttributeError(name)
 
 __all__ = [
-    "ConvergenceError", "Derivation", "InconsistentStateError", "InputError", "MechanicalModel",
+    "ConvergenceError", "Derivation", "accelerations", "linearize", "load_systems", "unregister", "InconsistentStateError", "InputError", "MechanicalModel",
     "NmkaneError", "Parameter", "RunResult", "RunSettings", "System", "derive", "get_system",
     "plain_symbols", "register", "resolve", "simulate", "simulate_many", "system_names",
 ]
