@@ -30,6 +30,7 @@ _builtin_loaded = False
 def _add(system: System, check: bool) -> System:
     if not isinstance(system, System):
         raise InputError("register", type(system).__name__, "a System (or a function returning one)", "not a System")
+    _load_builtin()                     # built-in systems first (listing order; a user's may replace one)
     if check:
         system.check()
     with _LOCK:
