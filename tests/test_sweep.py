@@ -182,3 +182,44 @@ def test_sweep_command_writes_rows_and_plot(tmp_path, capsys):
 def test_a_refused_point_is_a_row_not_a_crash():
     row = run_point(BASE, {"params.m": -1.0})
     assert row["status"] == "invalid" and "params.m" in row["message"] and row["params.m"] == -1.0
+
+
+# ---------------------------------------------------------------- tune
+
+def test_stability_interval_from_the_tableau():
+    from nmkane_core.integrators import KUTTA_MERSON, RK4
+    from nmkane_core.sweep.tune import real_stability_interval, stability_polynomial, stable_gains
+
+    assert np.allclose(stability_polynomial(RK4), [1, 1, 1 / 2, 1 / 6, 1 / 24])          # e^z to order 4
+    assert np.allclose(stability_polynomial(KUTTA_MERSON), [1, 1, 1 / 2, 1 / 6, 1 / 24, 1 / 144])
+    x = real_stability_interval(RK4)
+    assert x == pytest.approx(-2.785293563405282, abs=1e-9)      # Hairer & Wanner II, Table IV.2.1
+    R = np.polynomial.Polynomial([1, 1, 1 / 2, 1 / 6, 1 / 24])
+    assert abs(R(x)) == pytest.approx(1) and abs(R(x - 1e-3)) > 1 and all(abs(R(np.linspace(x, 0, 500))) <= 1 + 1e-12)
+    km = real_stability_interval(KUTTA_MERSON)
+    assert -3.6 < km < -3.5
+    dt = 0.01
+    assert stable_gains(RK4, dt, G=x / dt * 0.999) and not stable_gains(RK4, dt, G=x / dt * 1.01)
+    assert stable_gains(KUTTA_MERSON, dt, G1=-20, G2=-100)           # the paper's Γ1, Γ2 at dt = 0.01
+    assert not stable_gains(KUTTA_MERSON, dt, G1=-20, G2=100)        # a positive real root
+
+
+def test_tune_picks_the_smallest_violation_among_qualifying_gains():
+    from nmkane_core.sweep.tune import tune
+
+    base = {"system": "sliding-particle", "t_final": 1.0, "dt": 0.02, "gamma1": -20.0, "gamma2": -100.0}
+    res = tune(base, points=3, energy_factor=1e6)
+    cands = res.stages["holonomic"]
+    assert res.outside["holonomic"] + len(cands) == 9
+    best = res.chosen["holonomic"]
+    assert best.feasible and best.violation == min(c.violation for c in cands if c.feasible)
+    assert res.gains == best.gains
+    direct = simulate({**base, **best.gains}, progress=False).summary
+    assert direct["max_abs_violation"]["surface"] == best.violation
+    assert res.given["holonomic"].gains == {"gamma1": -20.0, "gamma2": -100.0}
+
+
+def test_tune_refuses_adaptive_integrators(capsys):
+    code = main(["tune", "sliding-particle", "--integrator", "rk45", "--t-final", "0.1", "--workers", "1"])
+    err = capsys.readouterr().err
+    assert code == 2 and "fixed-step" in err and len(err.strip().splitlines()) == 1
