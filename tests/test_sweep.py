@@ -223,3 +223,65 @@ def test_tune_refuses_adaptive_integrators(capsys):
     code = main(["tune", "sliding-particle", "--integrator", "rk45", "--t-final", "0.1", "--workers", "1"])
     err = capsys.readouterr().err
     assert code == 2 and "fixed-step" in err and len(err.strip().splitlines()) == 1
+
+
+# ---------------------------------------------------------------- REST
+
+@pytest.fixture()
+def api(tmp_path):
+    pytest.importorskip("fastapi")
+    from fastapi.testclient import TestClient
+
+    from backend.app import create_app
+    from backend.config import Settings
+
+    with TestClient(create_app(Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=2))) as c:
+        yield c
+
+
+def _wait(api, sweep_id, timeout=60.0):
+    import time
+
+    t0 = time.time()
+    while time.time() - t0 < timeout:
+        r = api.get(f"/api/sweeps/{sweep_id}")
+        assert r.status_code == 200
+        if r.json()["status"] in ("done", "failed"):
+            return r.json()
+        time.sleep(0.05)
+    raise AssertionError("sweep did not finish")
+
+
+def test_rest_sweep_runs_and_serves_rows_and_csv(api):
+    body = {"settings": {"system": "sliding-particle", "t_final": 0.5, "dt": 0.01},
+            "grid": ["gamma1=-40,-20"], "log_grid": ["gamma2=-10:-1000:3"]}
+    r = api.post("/api/sweeps", json=body)
+    assert r.status_code == 202, r.text
+    sid = r.json()["id"]
+    assert r.json()["total"] == 6 and r.headers["location"] == f"/api/sweeps/{sid}"
+    state = _wait(api, sid)
+    assert state["status"] == "done" and state["done"] == 6 and len(state["rows"]) == 6, state
+    for row in state["rows"]:
+        want = _direct({"gamma1": row["gamma1"], "gamma2": row["gamma2"]})
+        assert {k: row[k] for k in COMPARED} == want
+    csv_text = api.get(f"/api/sweeps/{sid}.csv").text
+    lines = csv_text.strip().splitlines()
+    assert lines[0].startswith("gamma1,gamma2,status,max_abs_violation.surface") and len(lines) == 7
+    assert api.get("/api/sweeps/nope").status_code == 404
+
+
+@pytest.mark.parametrize("body, field, needle", [
+    ({"grid": ["gamma1=1:2"]}, "grid", "2 fields"),
+    ({"grid": ["gamma1=-1e9,-1"]}, "grid", "gamma1"),
+    ({"grid": ["gamma1=-1:-2:20000"]}, "grid", "at most 10,000 runs"),
+    ({"grid": ["dt=1e-4,0.01"], "settings": {"system": "sliding-particle", "t_final": 500, "every": 100}}, "grid",
+     "max_steps"),
+    ({}, "grid", "nothing varies"),
+    ({"grid": ["gamma1=-1,-2"], "settings": {"system": "nope"}}, "settings", "nope"),
+])
+def test_rest_bad_sweeps_are_422(api, body, field, needle):
+    body = {"settings": {"system": "sliding-particle", "t_final": 0.2}, **body}
+    r = api.post("/api/sweeps", json=body)
+    assert r.status_code == 422, r.text
+    detail = r.json()["detail"][0]
+    assert detail["loc"][1] == field and needle in detail["msg"], detail

@@ -3,7 +3,9 @@ runs through an executor into the output, skipping points already there (resume)
 
 from __future__ import annotations
 
+import contextlib
 import itertools
+import os
 import sys
 import time
 from dataclasses import dataclass, field
@@ -83,11 +85,13 @@ def constraint_columns(base: dict, spec: SweepSpec) -> list[str]:
     return out
 
 
-def run_sweep(base: dict, spec: SweepSpec, out: str, *, systems=(), dask: str | None = None,
+def run_sweep(base: dict, spec: SweepSpec, out, *, systems=(), dask: str | None = None,
               workers: int | None = None, progress: bool | None = None, time_limit: float | None = None,
               resume: bool = True, on_rows: Callable[[list[dict]], None] | None = None,
               executor=None) -> SweepResult:
-    """Run every point of ``spec`` over ``base`` run settings, rows streamed to ``out``.
+    """Run every point of ``spec`` over ``base`` run settings, rows streamed to ``out``: a file
+    name (:class:`SweepWriter`) or any object with ``done`` (keys already there) and
+    ``write(rows)``, e.g. the service's store.
 
     ``systems``: plug-in system files or modules (loaded by every worker); ``dask``: None
     (local processes, ``workers`` of them; 1 = this process), ``local``, ``local:N`` or a
@@ -104,7 +108,8 @@ def run_sweep(base: dict, spec: SweepSpec, out: str, *, systems=(), dask: str | 
     constraints = constraint_columns(base, spec)
     names = spec.names
     total = len(spec)
-    with SweepWriter(out, names, constraints, resume=resume) as writer:
+    sink = SweepWriter(out, names, constraints, resume=resume) if isinstance(out, (str, os.PathLike)) else None
+    with sink if sink is not None else contextlib.nullcontext(out) as writer:
         done = writer.done
         todo = (p for p in spec.points() if point_key(p, names) not in done) if done else spec.points()
         skipped = min(len(done), total)
