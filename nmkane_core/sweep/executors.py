@@ -187,8 +187,12 @@ class DaskExecutor(_Executor):
                     n = 0
                 if n < 1:
                     raise InputError("--dask", where, "local, local:N (N ≥ 1 worker processes) or tcp://HOST:PORT")
-            self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                        dashboard_address=None, silence_logs=logging.ERROR)
+            import dask
+
+            # the statistical profiler samples the task thread every 10 ms: CPU a busy machine lacks
+            with dask.config.set({"distributed.worker.profile.enabled": False}):
+                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                            dashboard_address=None, silence_logs=logging.ERROR)
             self.client = Client(self.cluster)
         elif "://" in where:
             try:
