@@ -25,7 +25,6 @@ import secrets
 import sqlite3
 import threading
 import time
-from typing import Optional
 
 import orjson
 from fastapi import APIRouter, Path, Query, Request
@@ -41,7 +40,7 @@ from nmkane_core.sweep.spec import SweepSpec, sweep_spec
 from .errors import ErrorResponse, error_response, item
 from .models import RunSettings
 
-__all__ = ["router", "SweepRequest", "SweepStore", "max_sweep_runs"]
+__all__ = ["SweepRequest", "SweepStore", "max_sweep_runs", "router"]
 
 router = APIRouter()
 SWEEP_ID = Path(description="the sweep's id, as returned by POST /api/sweeps", min_length=1, max_length=64)
@@ -68,7 +67,7 @@ class SweepRequest(BaseModel):
                             description="NAME=START:STOP:NUM (both ends included) or NAME=V1,V2,...")
     log_grid: list[str] = Field(default_factory=list, max_length=8, description="NAME=START:STOP:NUM, log-spaced")
     sample: list[str] = Field(default_factory=list, max_length=8, description="NAME=LOW:HIGH (Latin hypercube)")
-    samples: Optional[int] = Field(None, ge=1, description="Latin-hypercube points")
+    samples: int | None = Field(None, ge=1, description="Latin-hypercube points")
     seed: int = Field(0, description="Latin-hypercube seed")
 
 

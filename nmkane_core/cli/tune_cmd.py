@@ -90,7 +90,7 @@ def plot_tradeoff(res, path: str, title: str) -> None:
         raise NmkaneError("--plot needs matplotlib: pip install 'nmkane[figures]'") from None
     stages = list(res.stages)
     fig, axes = plt.subplots(1, len(stages), figsize=(6.4 * len(stages), 4.8), dpi=110, squeeze=False)
-    for ax, stage in zip(axes[0], stages):
+    for ax, stage in zip(axes[0], stages, strict=True):
         cands = [c for c in res.stages[stage] if c.violation and c.energy]
         for ok, style, label in ((True, "o", "qualifies"), (False, "x", "does not qualify")):
             sel = [c for c in cands if c.feasible == ok]

@@ -21,16 +21,25 @@ and the plug-in system files at the same paths.
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import math
 import multiprocessing
 import os
-from typing import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 
 from ..errors import InputError, NmkaneError
 from .spec import apply_point
 
-__all__ = ["init_worker", "run_batch", "run_point", "SerialExecutor", "ProcessExecutor", "DaskExecutor",
-           "make_executor", "batch_size"]
+__all__ = [
+    "DaskExecutor",
+    "ProcessExecutor",
+    "SerialExecutor",
+    "batch_size",
+    "init_worker",
+    "make_executor",
+    "run_batch",
+    "run_point",
+]
 
 _READY: set = set()
 
@@ -46,10 +55,8 @@ def init_worker(systems: tuple[str, ...] = (), warm: tuple[dict, ...] = ()) -> N
 
     load_systems(list(systems), strict=True)
     for settings in warm:
-        try:
+        with contextlib.suppress(InputError):    # a combination the sweep reports as invalid
             prepare(resolve(settings))
-        except InputError:           # a combination the sweep itself will report as invalid
-            pass
     _READY.add(key)
 
 
@@ -216,7 +223,7 @@ class DaskExecutor(_Executor):
         base_f = self.client.scatter(base, broadcast=True)
         submit: Callable = lambda b: self.client.submit(run_batch, self.systems, base_f, b, self.warm,  # noqa: E731
                                                         self.time_limit, pure=False)
-        first = [submit(b) for _, b in zip(range(2 * self.workers), it)]
+        first = [submit(b) for _, b in zip(range(2 * self.workers), it, strict=False)]
         ac = as_completed(first)
         for f in ac:
             yield f.result()

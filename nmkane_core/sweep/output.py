@@ -17,12 +17,11 @@ from __future__ import annotations
 import csv
 import math
 import os
-from pathlib import Path
 
 from ..errors import InputError
 from .spec import point_key
 
-__all__ = ["columns", "SweepWriter", "read_rows", "METRICS"]
+__all__ = ["METRICS", "SweepWriter", "columns", "read_rows"]
 
 METRICS = ("max_abs_energy_drift", "final_energy_drift", "steps", "wall_time_s")
 
@@ -62,7 +61,7 @@ def read_rows(path: str) -> tuple[list[str], list[dict]]:
     with open(path, newline="") as f:
         r = csv.reader(f)
         header = next(r, None) or []
-        rows = [dict(zip(header, map(_value, row))) for row in r if len(row) == len(header)]
+        rows = [dict(zip(header, map(_value, row), strict=True)) for row in r if len(row) == len(header)]
     return header, rows
 
 
@@ -106,7 +105,7 @@ class SweepWriter:
             self._open_parquet(old_rows)
         else:
             fresh = not self.done
-            self.file = open(self.path, "w" if fresh else "a", newline="")
+            self.file = open(self.path, "w" if fresh else "a", newline="")  # noqa: SIM115 (closed by close())
             self.csv = csv.writer(self.file, lineterminator="\n")
             if fresh:
                 self.csv.writerow(self.columns)

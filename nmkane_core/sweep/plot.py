@@ -71,7 +71,7 @@ def plot_sweep(rows: list[dict], columns: list[str], names: list[str], path: str
         if len(xs) * len(ys) <= 4 * len(rows):           # a grid: a heatmap
             z = np.full((len(ys), len(xs)), np.nan)
             ix, iy = {x: i for i, x in enumerate(xs)}, {y: i for i, y in enumerate(ys)}
-            for r, v in zip(rows, values):
+            for r, v in zip(rows, values, strict=True):
                 z[iy[r[names[1]]], ix[r[names[0]]]] = v
             im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
             ax.set_xticks(range(len(xs)), [f"{x:.3g}" if isinstance(x, float) else str(x) for x in xs],

@@ -8,15 +8,15 @@ import itertools
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 from ..errors import InputError
 from .executors import batch_size, make_executor
 from .output import SweepWriter
 from .spec import SweepSpec, apply_point, point_key
 
-__all__ = ["SweepResult", "run_sweep", "check_spec", "constraint_columns"]
+__all__ = ["SweepResult", "check_spec", "constraint_columns", "run_sweep"]
 
 VALIDATE_VALUES = 64        # an axis with more values is checked at its ends and a few inside
 _VARIANT_FIELDS = ("model", "formulation")
@@ -46,8 +46,7 @@ def _axis_values(spec: SweepSpec):
             step = len(vals) / (VALIDATE_VALUES - 1)
             vals = tuple(vals[min(len(vals) - 1, round(i * step))] for i in range(VALIDATE_VALUES))
         yield a.name, vals
-    for name, (lo, hi) in spec.sample.items():
-        yield name, (lo, hi)
+    yield from spec.sample.items()
 
 
 def check_spec(base: dict, spec: SweepSpec) -> None:
@@ -69,7 +68,8 @@ def _variants(base: dict, spec: SweepSpec) -> list[dict]:
     """One settings dict per variant × integrator the sweep uses (to load their kernels)."""
     choices = [(a.name, a.values) for a in spec.axes if a.name in (*_VARIANT_FIELDS, "integrator")]
     names = [n for n, _ in choices]
-    return [apply_point(base, dict(zip(names, combo))) for combo in itertools.product(*[v for _, v in choices])]
+    combos = itertools.product(*[v for _, v in choices])
+    return [apply_point(base, dict(zip(names, combo, strict=True))) for combo in combos]
 
 
 def constraint_columns(base: dict, spec: SweepSpec) -> list[str]:

@@ -18,15 +18,24 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Axis", "SweepSpec", "parse_axis", "parse_sample", "sweep_spec", "apply_point", "point_key",
-           "SETTINGS_FIELDS", "MAX_POINTS"]
+__all__ = [
+    "MAX_POINTS",
+    "SETTINGS_FIELDS",
+    "Axis",
+    "SweepSpec",
+    "apply_point",
+    "parse_axis",
+    "parse_sample",
+    "point_key",
+    "sweep_spec",
+]
 
 #: Run-settings fields a sweep may vary (besides ``params.NAME`` and ``initial.NAME``).
 SETTINGS_FIELDS = ("gamma", "gamma1", "gamma2", "dt", "t_final", "integrator", "model", "formulation",
@@ -79,12 +88,12 @@ class SweepSpec:
         grid = itertools.product(*[a.values for a in self.axes])
         if not self.sample:
             for combo in grid:
-                yield dict(zip(self.names, combo))
+                yield dict(zip(self.names, combo, strict=True))
             return
         lhs = [tuple(float(v) for v in row) for row in self.sample_points()]
         for combo in grid:
             for row in lhs:
-                yield dict(zip(self.names, combo + row))
+                yield dict(zip(self.names, combo + row, strict=True))
 
 
 def _check_name(name: str, option: str, text: str) -> str:
@@ -144,7 +153,7 @@ def parse_axis(text: str, log: bool = False) -> Axis:
             vals = np.linspace(start, stop, num)
         values = tuple(float(v) for v in vals)
         if name in _INT_FIELDS:
-            values = tuple(int(round(v)) for v in values)
+            values = tuple(round(v) for v in values)
     elif log:
         raise InputError(option, text, FORMS["log-grid"], "a list is not a log grid; use --grid NAME=V1,V2,...")
     else:

@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import InputError
 from ..integrators import Tableau
 
-__all__ = ["stability_polynomial", "real_stability_interval", "stable_gains", "Candidate", "TuneResult", "tune"]
+__all__ = ["Candidate", "TuneResult", "real_stability_interval", "stability_polynomial", "stable_gains", "tune"]
 
 
 def stability_polynomial(tab: Tableau) -> np.ndarray:
