@@ -38,6 +38,7 @@ from .config import LIMIT_DESCRIPTIONS, Settings
 from .errors import ErrorResponse, error_response, install_error_handlers, item
 from .models import STATUSES, Catalog, Health, RunList, RunSettings
 from .service import RunService
+from .sweeps import router as sweeps_router
 
 __all__ = ["create_app"]
 
@@ -188,6 +189,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                            allow_methods=["GET", "POST"], allow_headers=["content-type"],
                            expose_headers=["location", "retry-after"])
     install_error_handlers(app)
+    app.include_router(sweeps_router)
     app.add_middleware(_BodySizeLimit, limit=settings.max_request_bytes)
 
     async def service() -> RunService:

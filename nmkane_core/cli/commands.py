@@ -43,10 +43,10 @@ def contributed() -> list[Command]:
 
 
 def builtin() -> list[Command]:
-    from . import analysis_cmd, bench_cmd, cache_cmd, figures_cmd, matrices_cmd, run_cmd
+    from . import analysis_cmd, bench_cmd, cache_cmd, figures_cmd, matrices_cmd, run_cmd, sweep_cmd, tune_cmd
 
     return [run_cmd.COMMAND, matrices_cmd.COMMAND, analysis_cmd.ACCELERATIONS, analysis_cmd.LINEARIZE,
-            bench_cmd.COMMAND, figures_cmd.COMMAND, cache_cmd.COMMAND]
+            sweep_cmd.COMMAND, tune_cmd.COMMAND, bench_cmd.COMMAND, figures_cmd.COMMAND, cache_cmd.COMMAND]
 
 
 @lru_cache(maxsize=1)

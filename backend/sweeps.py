@@ -1,0 +1,344 @@
+"""Sweeps over REST: many runs in the background, progress and rows fetched by id.
+
+    POST /api/sweeps              body = {settings, grid, log_grid, sample, samples, seed}
+                                  (the texts of ``nmkane sweep``'s options) -> 202 + id
+    GET  /api/sweeps/{id}         status, progress and the rows so far (?offset=&limit=)
+    GET  /api/sweeps/{id}.csv     the rows as CSV (the columns of ``nmkane sweep --out``)
+
+A sweep is checked before the 202 (every varied value against the system; its size against
+``NMKANE_MAX_SWEEP_RUNS``, default 10,000; its longest run against the service's
+``max_steps``): bad input answers 422 naming the field.  Sweeps run one at a time, their
+batches on the service's worker pool, or on the Dask scheduler named by
+``NMKANE_DASK_SCHEDULER`` (``tcp://HOST:PORT``; its workers need nmkane installed).  Rows are
+stored in the service's SQLite file (tables ``sweeps`` and ``sweep_rows``), batch by batch,
+each batch in one transaction.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import csv
+import io
+import math
+import os
+import secrets
+import sqlite3
+import threading
+import time
+
+import orjson
+from fastapi import APIRouter, Path, Query, Request
+from fastapi.responses import JSONResponse, Response
+from pydantic import BaseModel, ConfigDict, Field
+
+from nmkane_core.errors import InputError
+from nmkane_core.sweep.executors import _Executor, run_batch
+from nmkane_core.sweep.output import columns as output_columns
+from nmkane_core.sweep.runner import constraint_columns, run_sweep
+from nmkane_core.sweep.spec import SweepSpec, sweep_spec
+
+from .errors import ErrorResponse, error_response, item
+from .models import RunSettings
+
+__all__ = ["SweepRequest", "SweepStore", "max_sweep_runs", "router"]
+
+router = APIRouter()
+SWEEP_ID = Path(description="the sweep's id, as returned by POST /api/sweeps", min_length=1, max_length=64)
+_ERR = {"model": ErrorResponse}
+
+
+def max_sweep_runs() -> int:
+    """Runs per sweep this service accepts (``NMKANE_MAX_SWEEP_RUNS``, default 10,000)."""
+    try:
+        return max(1, int(os.environ.get("NMKANE_MAX_SWEEP_RUNS", "10000")))
+    except ValueError:
+        return 10_000
+
+
+class SweepRequest(BaseModel):
+    """A sweep: base run settings and what varies (the texts of ``nmkane sweep``'s options)."""
+
+    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
+        {"settings": {"system": "sliding-particle", "t_final": 2}, "grid": ["gamma1=-40:-10:4"],
+         "log_grid": ["gamma2=-10:-1000:3"]}]})
+
+    settings: RunSettings = Field(default_factory=lambda: RunSettings(), description="the base run settings")
+    grid: list[str] = Field(default_factory=list, max_length=8,
+                            description="NAME=START:STOP:NUM (both ends included) or NAME=V1,V2,...")
+    log_grid: list[str] = Field(default_factory=list, max_length=8, description="NAME=START:STOP:NUM, log-spaced")
+    sample: list[str] = Field(default_factory=list, max_length=8, description="NAME=LOW:HIGH (Latin hypercube)")
+    samples: int | None = Field(None, ge=1, description="Latin-hypercube points")
+    seed: int = Field(0, description="Latin-hypercube seed")
+
+
+class SweepCreated(BaseModel):
+    id: str
+    status: str
+    total: int
+
+
+class SweepState(BaseModel):
+    id: str
+    created: float
+    system: str
+    status: str = Field(description="queued | running | done | failed")
+    total: int
+    done: int
+    columns: list[str]
+    rows: list[dict]
+    offset: int
+    message: str = ""
+
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS sweeps (
+    id       TEXT PRIMARY KEY,
+    created  REAL NOT NULL,
+    system   TEXT NOT NULL,
+    status   TEXT NOT NULL,
+    total    INTEGER NOT NULL,
+    done     INTEGER NOT NULL,
+    request  BLOB NOT NULL,          -- JSON: the request as received
+    columns  BLOB NOT NULL,          -- JSON: the output columns
+    message  TEXT NOT NULL DEFAULT ''
+);
+CREATE TABLE IF NOT EXISTS sweep_rows (
+    sweep_id TEXT NOT NULL,
+    seq      INTEGER NOT NULL,
+    row      BLOB NOT NULL,          -- JSON: one run's row
+    PRIMARY KEY (sweep_id, seq)
+);
+"""
+
+
+class SweepStore:
+    """The sweeps of one SQLite file (the service's run database); one writer connection."""
+
+    def __init__(self, path):
+        self._lock = threading.Lock()
+        self._db = sqlite3.connect(path, check_same_thread=False, isolation_level=None, timeout=30)
+        self._db.execute("PRAGMA journal_mode=WAL")
+        self._db.executescript(SCHEMA)
+
+    def _tx(self, statements):
+        with self._lock:
+            self._db.execute("BEGIN IMMEDIATE")
+            try:
+                for sql, args in statements:
+                    if args and isinstance(args, list):
+                        self._db.executemany(sql, args)
+                    else:
+                        self._db.execute(sql, args or ())
+                self._db.execute("COMMIT")
+            except BaseException:
+                self._db.execute("ROLLBACK")
+                raise
+
+    def create(self, sweep_id, system, total, request: dict, columns: list[str]) -> float:
+        created = time.time()
+        self._tx([("INSERT INTO sweeps (id, created, system, status, total, done, request, columns) "
+                   "VALUES (?, ?, ?, 'queued', ?, 0, ?, ?)",
+                   (sweep_id, created, system, total, orjson.dumps(request), orjson.dumps(columns)))])
+        return created
+
+    def set_status(self, sweep_id, status, message=""):
+        self._tx([("UPDATE sweeps SET status = ?, message = ? WHERE id = ?", (status, message, sweep_id))])
+
+    def add_rows(self, sweep_id, start: int, rows: list[dict]) -> None:
+        """Rows ``start``, ``start + 1``, ... of a sweep, and its progress, in one transaction."""
+        data = [(sweep_id, start + i, orjson.dumps(r)) for i, r in enumerate(rows)]
+        self._tx([("INSERT INTO sweep_rows (sweep_id, seq, row) VALUES (?, ?, ?)", data),
+                  ("UPDATE sweeps SET done = ? WHERE id = ?", (start + len(rows), sweep_id))])
+
+    def get(self, sweep_id) -> dict | None:
+        with self._lock:
+            r = self._db.execute("SELECT id, created, system, status, total, done, columns, message FROM sweeps "
+                                 "WHERE id = ?", (sweep_id,)).fetchone()
+        if r is None:
+            return None
+        return {"id": r[0], "created": r[1], "system": r[2], "status": r[3], "total": r[4], "done": r[5],
+                "columns": orjson.loads(r[6]), "message": r[7]}
+
+    def rows(self, sweep_id, offset=0, limit=-1) -> list[dict]:
+        with self._lock:
+            got = self._db.execute("SELECT row FROM sweep_rows WHERE sweep_id = ? ORDER BY seq LIMIT ? OFFSET ?",
+                                   (sweep_id, limit, offset)).fetchall()
+        return [orjson.loads(r[0]) for r in got]
+
+
+class _Sink:
+    """run_sweep's output: rows into the store (``done`` is empty: a REST sweep starts fresh)."""
+
+    def __init__(self, store: SweepStore, sweep_id: str):
+        self.store, self.id, self.done, self.n = store, sweep_id, set(), 0
+
+    def write(self, rows):
+        clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
+                 for r in rows]
+        self.store.add_rows(self.id, self.n, clean)
+        self.n += len(rows)
+
+
+class PoolExecutor(_Executor):
+    """Batches on the service's thread pool (the compiled loops release the GIL)."""
+
+    name = "service-pool"
+
+    def __init__(self, pool: cf.ThreadPoolExecutor, workers: int, **kw):
+        super().__init__(**kw)
+        self.pool, self.workers = pool, workers
+
+    def rows(self, base, points, size):
+        from nmkane_core.sweep.executors import _batches
+
+        pending: set = set()
+        it = _batches(points, size)
+
+        def fill():
+            for batch in it:
+                pending.add(self.pool.submit(run_batch, self.systems, base, batch, (), self.time_limit))
+                if len(pending) >= self.workers:
+                    break
+
+        fill()
+        while pending:
+            done, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
+            for f in done:
+                pending.discard(f)
+                yield f.result()
+            fill()
+
+
+class SweepManager:
+    """The store and the one thread that runs sweeps in order."""
+
+    def __init__(self, app):
+        self.app = app
+        self.store = SweepStore(app.state.settings.database)
+        self.queue = cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="nmkane-sweep")
+
+    def executor(self):
+        address = os.environ.get("NMKANE_DASK_SCHEDULER", "").strip()
+        limit = self.app.state.settings.max_wall_time_s
+        if address:
+            from nmkane_core.sweep.executors import DaskExecutor
+
+            return DaskExecutor(address, time_limit=limit)
+        svc = self.app.state.service
+        if svc.pool is None:
+            svc.start()
+        return PoolExecutor(svc.pool, self.app.state.settings.max_concurrent_runs, time_limit=limit)
+
+    def run(self, sweep_id: str, base: dict, spec: SweepSpec) -> None:
+        self.store.set_status(sweep_id, "running")
+        try:
+            with self.executor() as ex:
+                res = run_sweep(base, spec, _Sink(self.store, sweep_id), executor=ex, progress=False)
+            counts = ", ".join(f"{k} {v}" for k, v in sorted(res.statuses.items()))
+            self.store.set_status(sweep_id, "done", f"{res.ran} runs in {res.wall_s:.2f} s: {counts}")
+        except Exception as e:                      # the service stopping, a lost scheduler
+            self.store.set_status(sweep_id, "failed", f"{type(e).__name__}: {e}")
+
+
+def _manager(request: Request) -> SweepManager:
+    app = request.app
+    with _LOCK:
+        m = getattr(app.state, "sweeps", None)
+        if m is None:
+            m = app.state.sweeps = SweepManager(app)
+    return m
+
+
+_LOCK = threading.Lock()
+_FIELDS = {"--grid": "grid", "--log-grid": "log_grid", "--sample": "sample", "--samples": "samples"}
+
+
+def _unprocessable(e: InputError):
+    head, _, rest = str(e.field).partition(" ")
+    loc = ["body", _FIELDS[head]] if head in _FIELDS else ["body", "settings", *str(e.field).split(".")]
+    field = f"{_FIELDS.get(head, head)} {rest}".strip() if head in _FIELDS else None
+    msg = f"{field or '.'.join(map(str, loc[1:]))}: got {e.value!r}" + (f" ({e.reason})" if e.reason else "") + \
+        f"; allowed: {e.allowed}"
+    return error_response(422, [item(loc, "value_error", e.value, e.reason, e.allowed, msg=msg)])
+
+
+def _check_limits(base: dict, spec: SweepSpec, max_steps: int) -> None:
+    from nmkane_core.plan import resolve
+    from nmkane_core.sweep.runner import _axis_values
+    from nmkane_core.sweep.spec import apply_point
+
+    limit = max_sweep_runs()
+    if len(spec) > limit:
+        raise InputError("--grid", f"{len(spec):,} runs", f"at most {limit:,} runs per sweep "
+                         "(NMKANE_MAX_SWEEP_RUNS)", "too many runs")
+    plan = resolve(base)
+    dts, tfs = [plan.dt], [plan.t_final]
+    for name, values in _axis_values(spec):
+        for v in values:
+            p = resolve(apply_point(base, {name: v}))
+            dts.append(p.dt)
+            tfs.append(p.t_final)
+    steps = math.ceil(max(tfs) / min(dts) - 1e-9)
+    if steps > max_steps:
+        raise InputError("--grid", f"{steps:,} steps", f"runs of at most {max_steps:,} steps (the service's "
+                         "max_steps)", "the sweep's longest run is too long")
+
+
+@router.post("/api/sweeps", status_code=202, response_model=SweepCreated, operation_id="create_sweep",
+             responses={422: {**_ERR, "description": "a bad specification, or a sweep over this service's limits"}})
+def create_sweep(body: SweepRequest, request: Request):
+    """Start a sweep; answers 202 with its id (fetch progress and rows with GET /api/sweeps/{id})."""
+    from nmkane_core.sweep.runner import check_spec
+
+    base = body.settings.model_dump(exclude_none=True)
+    try:
+        spec = sweep_spec(body.grid, body.log_grid, body.sample, body.samples, body.seed,
+                          max_points=max_sweep_runs())
+        check_spec(base, spec)
+        _check_limits(base, spec, request.app.state.settings.max_steps)
+        columns = output_columns(spec.names, constraint_columns(base, spec))
+    except InputError as e:
+        return _unprocessable(e)
+    m = _manager(request)
+    sweep_id = secrets.token_urlsafe(12)
+    m.store.create(sweep_id, base["system"], len(spec), body.model_dump(mode="json"), columns)
+    m.queue.submit(m.run, sweep_id, base, spec)
+    return JSONResponse({"id": sweep_id, "status": "queued", "total": len(spec)}, status_code=202,
+                        headers={"Location": f"/api/sweeps/{sweep_id}"})
+
+
+def _not_found(sweep_id):
+    return error_response(404, [item(["path", "sweep_id"], "not_found", sweep_id, "no sweep with this id",
+                                     "an id returned by POST /api/sweeps")])
+
+
+@router.get("/api/sweeps/{sweep_id}.csv", operation_id="get_sweep_csv",
+            responses={404: {"description": "no sweep with this id"}})
+def get_sweep_csv(request: Request, sweep_id: str = SWEEP_ID):
+    """The rows so far as CSV (the columns of ``nmkane sweep --out FILE.csv``)."""
+    m = _manager(request)
+    state = m.store.get(sweep_id)
+    if state is None:
+        return _not_found(sweep_id)
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(state["columns"])
+    for r in m.store.rows(sweep_id):
+        w.writerow(["" if r.get(c) is None else repr(r[c]) if isinstance(r.get(c), float) else r[c]
+                    for c in state["columns"]])
+    return Response(buf.getvalue(), media_type="text/csv",
+                    headers={"Content-Disposition": f'attachment; filename="{sweep_id}.csv"'})
+
+
+@router.get("/api/sweeps/{sweep_id}", response_model=SweepState, operation_id="get_sweep",
+            responses={404: {**_ERR, "description": "no sweep with this id"}})
+def get_sweep(request: Request, sweep_id: str = SWEEP_ID,
+              offset: int = Query(0, ge=0, description="rows to skip"),
+              limit: int = Query(1000, ge=1, le=10_000, description="rows to return")):
+    """Status, progress (``done`` of ``total``) and the rows so far, in completion order."""
+    m = _manager(request)
+    state = m.store.get(sweep_id)
+    if state is None:
+        return _not_found(sweep_id)
+    return {**state, "rows": m.store.rows(sweep_id, offset, limit), "offset": offset}
+
