@@ -143,13 +143,18 @@ class DeclaredScene:
         return self.bounds_
 
 
-def fit_camera(bounds, fov: float = 1.3) -> tuple[np.ndarray, np.ndarray]:
+def fit_camera(bounds, fov: float = 1.309, panel_shift: float = 0.4) -> tuple[np.ndarray, np.ndarray]:
     """(look_at, position) framing a box: seen from the front-right and above, far enough for the
-    box's bounding sphere (plus a margin) to fit the vertical field of view ``fov`` (radians)."""
+    box's bounding sphere (plus a margin) to fit the vertical field of view ``fov`` (radians,
+    viser's default 75°).  The control panel covers the right of the page, so the box is moved
+    left of the centre by ``panel_shift`` of the half-height of the view at its distance."""
     lo, hi = (np.asarray(b, float) for b in bounds)
     centre = (lo + hi) / 2
-    radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.6)
-    direction = np.array([0.55, -0.75, 0.45])
+    radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.4)
+    direction = np.array([0.55, -0.75, 0.5])
     direction /= np.linalg.norm(direction)
-    dist = 1.15 * radius / np.tan(fov / 2)
-    return centre, centre + direction * dist
+    dist = 1.1 * radius / np.tan(fov / 2)
+    right = np.cross(-direction, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    look_at = centre + right * panel_shift * dist * np.tan(fov / 2)
+    return look_at, look_at + direction * dist

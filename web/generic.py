@@ -182,7 +182,7 @@ class GenericView(SystemView):
             self.offset = self.offset - self.fixed_target
         else:
             c = self._centre()
-            look, pos = fit_camera((c - 2.0 * size, c + 2.0 * size))
+            look, pos = fit_camera((c - 1.2 * size, c + 1.2 * size))
             self.fixed_target, self.offset = None, pos - look
 
     def _size(self) -> float:
