@@ -36,7 +36,8 @@ class Control:
     ``attr`` names the handle on the session (``app.gamma``); ``field`` says where its value
     goes: ``"variant"`` (the system's model/formulation), ``"integrator"``, ``"gamma"``,
     ``"gamma1"``, ``"gamma2"``, ``"log_dt"``, ``"t_final"``, ``"initial.<name>"``,
-    ``"params.<name>"``, ``"logparams.<name>"`` (a log10 slider), ``"projection"``, or ``"option.<name>"`` (a display option of the view, e.g. compare).
+    ``"params.<name>"``, ``"logparams.<name>"`` (a log10 slider), ``"projection"``, or
+    ``"option.<name>"`` (a display option of the view, e.g. compare).
     ``kind`` is ``"slider"``, ``"dropdown"`` or ``"checkbox"``."""
 
     attr: str
