@@ -128,9 +128,14 @@ def test_scene_option_opens_on_a_system_and_an_unknown_one_is_refused(server):
         assert len(a.sim_log) == 1                    # one run: no detour through the first scene
     finally:
         a.close()
-    from web.server import launch
+    from web.server import launch, launch_app
     with pytest.raises(InputError, match="scene"):
         launch(port=0, scene="no-such-system")
+    handle = launch_app("127.0.0.1", 0, scene="knife-edge")     # what `nmkane serve --scene` passes
+    try:
+        assert handle.scene == "knife-edge"
+    finally:
+        handle.stop()
 
 
 def test_performance_switch_and_slider_to_new_motion(app):
