@@ -30,14 +30,29 @@ import inspect
 import json
 import math
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 
-__all__ = ["Frame", "Shape", "Visuals", "CompiledVisuals", "box", "cylinder", "sphere", "segments", "trace",
-           "ground", "rot_x", "rot_y", "rot_z", "compile_visuals"]
+__all__ = [
+    "CompiledVisuals",
+    "Frame",
+    "Shape",
+    "Visuals",
+    "box",
+    "compile_visuals",
+    "cylinder",
+    "ground",
+    "rot_x",
+    "rot_y",
+    "rot_z",
+    "segments",
+    "sphere",
+    "trace",
+]
 
 GENERATOR_VERSION = "1"
 AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
@@ -252,8 +267,8 @@ def _generate(vis: Visuals, state_names: Sequence[str], param_names: Sequence[st
         return [e.subs({s: sp.Symbol(_ident(s.name), real=True) for s in e.free_symbols}) for e in exprs]
 
     src = ["import numpy", "", ""]
-    src += body(ident_subs(size_exprs), "sizes", unpack(size_exprs, False)) + ["", ""]
-    src += body(ident_subs(pose_exprs), "poses", unpack(pose_exprs, True)) + [""]
+    src += [*body(ident_subs(size_exprs), "sizes", unpack(size_exprs, False)), "", ""]
+    src += [*body(ident_subs(pose_exprs), "poses", unpack(pose_exprs, True)), ""]
     return shapes, frames, "\n".join(src)
 
 

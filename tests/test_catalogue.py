@@ -111,7 +111,7 @@ def test_catalogue_systems_declare_visuals_that_compile_to_pose_functions(name):
         assert math.isfinite(p.min) and math.isfinite(p.max), p      # a slider range for every parameter
     cv = compile_visuals(system)
     r = simulate({"system": name, "t_final": 1.0}, progress=False)
-    frames, out = cv.frame_poses(r.state, r.settings["params"])
+    frames, _ = cv.frame_poses(r.state, r.settings["params"])
     assert frames
     for pos, rot in frames.values():
         assert pos.shape == (len(r.t), 3) and np.all(np.isfinite(pos))

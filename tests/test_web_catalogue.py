@@ -165,7 +165,7 @@ def test_performance_switch_and_slider_to_new_motion(app):
         assert min(switch) <= 1.0, (name, switch)
         h = handle(app, "t_final")
         slider = []
-        for i in range(3):
+        for _ in range(3):
             t0 = time.perf_counter()
             h.value = h.value + h.step
             slider.append(time.perf_counter() - t0)

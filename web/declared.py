@@ -114,7 +114,7 @@ class DeclaredScene:
         lo, hi = [], []
         for pos, _ in self.frame_poses.values():
             lo.append(pos.min(0)), hi.append(pos.max(0))
-        for name, (node, i) in self.traces.items():
+        for node, i in self.traces.values():
             pts = _clip(cv.point(out, i))
             node.points = geo.segments(pts[geo.decimate(len(pts), 2000)])
             lo.append(pts.min(0)), hi.append(pts.max(0))

@@ -12,6 +12,7 @@ the system declares (:mod:`web.declared`).
 from __future__ import annotations
 
 import math
+from typing import ClassVar
 
 import numpy as np
 
@@ -92,7 +93,7 @@ class GenericView(SystemView):
     """Any system on the page, from its core declaration (one instance per system and browser)."""
 
     follows = True
-    camera_views = {"system": None}
+    camera_views: ClassVar[dict] = {"system": None}
     reset_label = "Reset to the system's defaults"
     speed = 1.0
 

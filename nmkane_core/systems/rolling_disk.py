@@ -41,11 +41,11 @@ def _model():
     P = O.locatenew("P", x * N.x + y * N.y)          # the contact point on the plane
     P.set_vel(N, u[0] * N.x + u[1] * N.y)
     C = P.locatenew("C", r * B.z)                    # the disk's centre
-    C.set_vel(N, P.vel(N) + (C.pos_from(P)).dt(N).subs({qi.diff(): ui for qi, ui in zip(q, u)}))
+    C.set_vel(N, P.vel(N) + (C.pos_from(P)).dt(N).subs({qi.diff(): ui for qi, ui in zip(q, u, strict=True)}))
     disk = me.RigidBody("disk", C, D, m, (me.inertia(B, m * r ** 2 / 4, m * r ** 2 / 2, m * r ** 2 / 4), C))
     # velocity of the disk's material point at the contact: v_C + ω × (P − C)
     v_contact = C.vel(N) + D.ang_vel_in(N).cross(-r * B.z)
-    kd = [qi.diff() - ui for qi, ui in zip(q, u)]
+    kd = [qi.diff() - ui for qi, ui in zip(q, u, strict=True)]
     energy = disk.kinetic_energy(N) + m * g * r * sp.cos(th)
     return MechanicalModel.from_mechanics(
         "default", q=list(q), u=list(u), kd_eqs=kd, bodies=[disk], loads=[(C, -m * g * N.z)], frame=N,
