@@ -62,10 +62,11 @@ def _web_app() -> Callable[..., Any]:
 
 
 def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080, web: bool = True,
-          settings: Settings | None = None) -> None:
+          settings: Settings | None = None, app_options: dict | None = None) -> None:
     """Serve until SIGINT or SIGTERM, then stop both servers. Binds to loopback by default.
 
-    Port 0 picks a free port (the URLs printed show the real ones).
+    Port 0 picks a free port (the URLs printed show the real ones).  ``app_options`` are
+    passed to the web app's ``launch_app`` (e.g. ``scene``: the system new browsers open on).
 
     In the main thread, ``serve`` handles SIGINT and SIGTERM itself.  Once a signal has
     asked it to stop, further SIGINT/SIGTERM are ignored (``SIG_IGN``) from then on: the
@@ -100,7 +101,7 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
                 log.warning("3D web app not available (%s); serving the REST API only", e)
                 print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
             else:
-                handle = launch_app(host, viser_port)
+                handle = launch_app(host, viser_port, **(app_options or {}))
                 print(f"nmkane 3D web app  http://{url_host}:{handle.port}/", flush=True)
         print("press Ctrl-C to stop", flush=True)
         while not stopping:

@@ -131,6 +131,12 @@ class System:
         Variant → a sentence appended to a ``singular`` run's message (why it happens).
     default_dt, default_t_final, default_integrator, default_gamma, default_gamma1, default_gamma2:
         Run settings used when a request leaves them out.
+    visuals:
+        A zero-argument function returning :class:`~nmkane_core.visuals.Visuals` (shapes on
+        frames and points, sympy expressions of the state and parameters), or None: the web
+        app draws what a system declares (compiled once, see :mod:`nmkane_core.visuals`).
+    what_to_try:
+        A short teaching paragraph: experiments worth making with this system.
     source_files:
         Extra files the models are built from.  The files that define the variant
         functions are found by themselves; list helper modules they import, so that a
@@ -155,6 +161,8 @@ class System:
     default_gamma1: float = 0.0
     default_gamma2: float = 0.0
     source_files: tuple[str, ...] = ()
+    visuals: Callable[[], Any] | None = None
+    what_to_try: str = ""
     _models: dict = field(default_factory=dict, repr=False)
     _derivations: dict = field(default_factory=dict, repr=False)
     _kernels: dict = field(default_factory=dict, repr=False)

@@ -14,6 +14,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+CATCH_UP_S = 15.0             # how long reports that do not show our preset are taken as stale (a slow browser)
+
 
 class CameraRig:
     """Aims ``client.camera`` (None: no camera, e.g. a test's shared server) for a system view.
@@ -65,7 +67,7 @@ class CameraRig:
         ours = self.offset
         if self.reset_at:                         # waiting for the browser to show our preset
             caught_up = ours is not None and np.linalg.norm(offset - ours) <= 1e-3 * (1 + np.linalg.norm(ours))
-            if not caught_up and time.monotonic() - self.reset_at < 5.0:
+            if not caught_up and time.monotonic() - self.reset_at < CATCH_UP_S:
                 return                            # a report sent before our preset arrived
             self.reset_at = 0.0
         self.offset = offset

@@ -36,7 +36,8 @@ class Control:
     ``attr`` names the handle on the session (``app.gamma``); ``field`` says where its value
     goes: ``"variant"`` (the system's model/formulation), ``"integrator"``, ``"gamma"``,
     ``"gamma1"``, ``"gamma2"``, ``"log_dt"``, ``"t_final"``, ``"initial.<name>"``,
-    ``"params.<name>"``, or ``"option.<name>"`` (a display option of the view, e.g. compare).
+    ``"params.<name>"``, ``"logparams.<name>"`` (a log10 slider), ``"projection"``, or
+    ``"option.<name>"`` (a display option of the view, e.g. compare).
     ``kind`` is ``"slider"``, ``"dropdown"`` or ``"checkbox"``."""
 
     attr: str
@@ -163,8 +164,8 @@ def settings_from(system, controls: dict, read: Callable) -> tuple[dict, dict]:
         kind, _, name = c.field.partition(".")
         if kind == "variant":
             s[system.option] = v
-        elif kind == "integrator":
-            s["integrator"] = v
+        elif kind in ("integrator", "projection"):
+            s[kind] = v
         elif kind in ("gamma", "gamma1", "gamma2"):
             s[kind] = float(v)
         elif kind == "log_dt":
@@ -173,6 +174,8 @@ def settings_from(system, controls: dict, read: Callable) -> tuple[dict, dict]:
             t_final = float(v)
         elif kind in ("initial", "params"):
             s.setdefault(kind, {})[name] = float(v)
+        elif kind == "logparams":                 # a log-scale slider: its value is log10
+            s.setdefault("params", {})[name] = float(f"{10.0 ** float(v):.6g}")
         elif kind == "option":
             options[name] = v
     dt = system.default_dt if dt is None else dt

@@ -100,6 +100,12 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
         env = dict(os.environ)
         root = str(Path(__file__).resolve().parents[1])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+        from nmkane_core import plugins               # the child knows the systems plugged in here (--systems)
+
+        specs = [s for s in env.get(plugins.ENV_VAR, "").split(os.pathsep) if s.strip()]
+        specs += [k for k in getattr(plugins, "_LOADED", {}) if k not in specs]
+        if specs:
+            env[plugins.ENV_VAR] = os.pathsep.join(specs)
         child = subprocess.Popen([sys.executable, "-m", "web.matrices", system, variant, tmp], env=env,
                                  stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         with _guard:

@@ -35,10 +35,18 @@ class PlotPanel:
             for key, title in view.plots:
                 self.handles[(view.kind, key)] = self._add_plot(gui, title, x_scale, visible=i == 0)
 
+    def add_view(self, gui, view, order: float | None = None) -> None:
+        """Plots of a view added after the page was built (a system chosen later), hidden."""
+        self.views[view.kind] = view
+        x_scale = {"x": uplot.Scale(time=False, auto=False, range=(0.0, 20.0))}
+        for i, (key, title) in enumerate(view.plots):
+            self.handles[(view.kind, key)] = self._add_plot(
+                gui, title, x_scale, visible=False, order=None if order is None else order + 1e-3 * i)
+
     @staticmethod
-    def _add_plot(gui, title: str, x_scale: dict, visible: bool = True):
+    def _add_plot(gui, title: str, x_scale: dict, visible: bool = True, order: float | None = None):
         z = np.zeros(2)
-        return gui.add_uplot(
+        return gui.add_uplot(order=order,
             data=(z, z), series=(uplot.Series(label="t [s]"), uplot.Series(label="—", stroke=COLORS[0], width=2)),
             title=title, scales=x_scale, axes=pl.marker_axes(0.0), aspect=1.9, visible=visible)
 

@@ -19,6 +19,7 @@ from nmkane_core.simulate import simulate as core_simulate
 from nmkane_core.registry import get_system
 
 from . import matrices as mx
+from .generic import warm_systems
 from .session import MechanismApp
 from .systems import VIEWS
 
@@ -32,11 +33,12 @@ class WebApp:
     The handle ``launch()`` returns: ``.port`` (the port actually bound) and ``.stop()``.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 8080, simulate=core_simulate):
+    def __init__(self, host: str = "127.0.0.1", port: int = 8080, simulate=core_simulate, scene: str | None = None):
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
         self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
         self.server.scene.set_up_direction("+z")
-        preset = VIEWS[0].initial_camera()           # where a new browser's camera starts
+        self.scene = scene                           # the system new browsers open on (None: the first)
+        preset = VIEWS[0].initial_camera() if scene in (None, VIEWS[0].system) else None   # the camera's start
         if preset is not None:
             self.server.initial_camera.look_at, self.server.initial_camera.position = preset
         self.port = self.server.get_port()
@@ -64,7 +66,8 @@ class WebApp:
 
     def _connect(self, client: viser.ClientHandle) -> None:
         cid = client.client_id
-        session = MechanismApp(client, simulate=self._simulate, connected=lambda: self.connected(cid))
+        session = MechanismApp(client, simulate=self._simulate, connected=lambda: self.connected(cid),
+                               scene=self.scene)
         with self._lock:
             self.sessions[cid] = session
 
@@ -137,20 +140,25 @@ def warm() -> None:
         shown = view.matrices_variants()
         first.append((system.name, shown[0]))
         rest += [(system.name, v) for v in shown[1:]]
-    for key in first + rest:             # every view's first model, then the others
+    others = warm_systems(skip={view.system for view in VIEWS})     # every other system's kernels, visuals
+    for key in first + others + rest:    # every system's first model, then the others
         with contextlib.suppress(Exception):
             mx.panel(*key)
 
 
-def launch(host: str = "127.0.0.1", port: int = 8080) -> WebApp:
-    """Start the web app in the background; returns a handle with ``.stop()`` and ``.port``."""
-    return WebApp(host=host, port=port)
+def launch(host: str = "127.0.0.1", port: int = 8080, scene: str | None = None) -> WebApp:
+    """Start the web app in the background; returns a handle with ``.stop()`` and ``.port``.
+    ``scene``: the registered system new browsers open on (default: the first)."""
+    if scene is not None:
+        get_system(scene, "scene")                   # unknown: InputError naming the choices
+    return WebApp(host=host, port=port, scene=scene)
 
 
 def launch_app(host: str, port: int, **options) -> WebApp:
     """The composition point's entry (``nmkane.apps``): start in the background and return a
-    handle with ``.port`` (the bound port) and ``.stop()``; unknown options are ignored."""
-    return launch(host, port)
+    handle with ``.port`` (the bound port) and ``.stop()``.  Options: ``scene`` (the system new
+    browsers open on); unknown options are ignored."""
+    return launch(host, port, scene=options.get("scene"))
 
 
 def main() -> None:
@@ -160,11 +168,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(prog="python -m web", description="nmkane 3D web app (viser)")
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, default=8080)
+    ap.add_argument("--scene", default=None, help="the system new browsers open on")
     args = ap.parse_args()
     stopping: list[int] = []               # no lock in a signal handler (see backend.serve)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stopping.append(signum))
-    app = launch(args.host, args.port)
+    app = launch(args.host, args.port, scene=args.scene)
     print(f"nmkane 3D web app {app.url}  (Ctrl-C to stop)", flush=True)
     try:
         while not stopping:

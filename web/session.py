@@ -23,7 +23,7 @@ from .camera import CameraRig
 from .controls import ControlPanel, settings_from
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
-from .systems import VIEWS, AppellHamelView
+from .systems import VIEWS, AppellHamelView, scene_choices
 
 CAMERA_VIEWS = tuple(AppellHamelView.camera_views)      # the camera-target dropdown
 
@@ -41,7 +41,7 @@ class MechanismApp:
     and its parameter sliders a dict (``app.params``, ``app.pt_params``)."""
 
     def __init__(self, target, *, simulate=core_simulate, sync: bool = False,
-                 connected: Callable[[], bool] | None = None):
+                 connected: Callable[[], bool] | None = None, scene: str | None = None):
         self.target = target
         self.client = target if isinstance(target, viser.ClientHandle) else None
         self.gui, self.scene = target.gui, target.scene
@@ -56,6 +56,7 @@ class MechanismApp:
         self._shown_t = None
         self.views = {cls.kind: cls(self.scene) for cls in VIEWS}
         self.system_view = next(iter(self.views.values()))    # the chosen system's view
+        self.choices = scene_choices()                         # dropdown title -> system name
         self.mechanism = self.views["ah"].mechanism
         self.particle = self.views["pt"].particle
         self.camera = CameraRig(self.client, self.alive)
@@ -63,6 +64,10 @@ class MechanismApp:
         self._build_gui()
         if self.client is not None:
             self.client.camera.on_update(lambda cam: self.camera.on_report(self.system_view, cam))
+        first = next((t for t, n in self.choices.items() if n == scene), None) if scene else None
+        if first is not None and first != self.scene_choice.value:
+            self.scene_choice.value = first          # its callback shows the system and simulates
+            return
         self._aim_camera(reset=True)
         self.request()
 
@@ -71,8 +76,8 @@ class MechanismApp:
         gui = self.gui
         self.controls = ControlPanel(gui, self.show_status)
         gui.add_markdown("Nonminimal Kane's equations — Bajodah, Hodges & Chen (2005)")
-        titles = tuple(v.title for v in self.views.values())
-        self.scene_choice = gui.add_dropdown("Scene", options=titles, initial_value=titles[0])
+        titles = tuple(self.choices)
+        self.scene_choice = gui.add_dropdown("Scene", options=titles, initial_value=self.system_view.title)
         self.status = gui.add_markdown("computing … (the first run loads the compiled kernels)")
 
         with gui.add_folder("Playback"):
@@ -82,24 +87,15 @@ class MechanismApp:
             self.follow = gui.add_checkbox("Camera follows", initial_value=True)
             self.view = gui.add_dropdown("Camera target", options=CAMERA_VIEWS, initial_value=CAMERA_VIEWS[0])
             self.view_reset = gui.add_button("Reset view")
+            self.fit_view = gui.add_button("Fit view")
 
         self.sim_controls: dict[str, dict] = {}        # kind -> {Control: handle}
         self.folders, self.resets = {}, {}
         for i, view in enumerate(self.views.values()):
-            self.folders[view.kind] = folder = gui.add_folder(view.folder, **({} if i == 0 else {"visible": False}))
-            with folder:
-                handles = {c: self.controls.add(c) for c in view.controls}
-                with gui.add_folder(view.params_folder, expand_by_default=False):
-                    params = {c.attr: self.controls.add(c) for c in view.param_controls}
-                self.resets[view.kind] = gui.add_button(view.reset_label)
-            for c, h in handles.items():
-                setattr(self, c.attr, h)
-            setattr(self, view.params_attr, params)
-            handles.update({c: params[c.attr] for c in view.param_controls})
-            self.sim_controls[view.kind] = handles
+            self._add_view_gui(view, visible=i == 0)
         self.reset, self.pt_reset = self.resets["ah"], self.resets["pt"]
 
-        with gui.add_folder("Plots and summary"):
+        with gui.add_folder("Plots and summary") as self.plots_folder:
             self.plots = PlotPanel(gui, self.views)
             self.summary = self.plots.summary
             self.plot_handles = self.plots.handles
@@ -108,18 +104,54 @@ class MechanismApp:
             self.matrices = MatricesPanel(gui, self.lock, self.alive)
 
         # wiring: every simulation input re-simulates; playback controls do not
-        for handles in self.sim_controls.values():
-            for h in handles.values():
-                self.controls.on_change(h, self.request)
-        for button in self.resets.values():
-            button.on_click(lambda _: self.reset_to_paper())
         self.scene_choice.on_update(lambda _: self._on_scene())
         self.play.on_click(lambda _: self.set_playing(not self.playing))
         self.controls.on_change(self.speed, lambda: None)
         self.controls.on_change(self.time, self._on_time)
         self.view.on_update(lambda _: self.reset_view())
         self.view_reset.on_click(lambda _: self.reset_view())
+        self.fit_view.on_click(lambda _: self.reset_view())
         self.follow.on_update(lambda _: self._aim_camera(reset=True) if self.follow.value else None)
+
+    def _add_view_gui(self, view, visible: bool, order: float | None = None) -> None:
+        """A view's simulation folder (controls, parameters, reset button), wired to re-simulate."""
+        gui = self.gui
+        self.folders[view.kind] = folder = gui.add_folder(view.folder, visible=visible, order=order)
+        with folder:
+            what = getattr(view.core, "what_to_try", "") if view.kind.startswith("gen:") else ""
+            if what:
+                gui.add_markdown(f"*{view.core.description}*  \n**What to try:** {what}")
+            handles = {c: self.controls.add(c) for c in view.controls}
+            with gui.add_folder(view.params_folder, expand_by_default=False):
+                params = {c.attr: self.controls.add(c) for c in view.param_controls}
+            self.resets[view.kind] = gui.add_button(view.reset_label)
+        if not view.kind.startswith("gen:"):             # the hand-made views' handles by name (tests)
+            for c, h in handles.items():
+                setattr(self, c.attr, h)
+            setattr(self, view.params_attr, params)
+        handles.update({c: params[c.attr] for c in view.param_controls})
+        self.sim_controls[view.kind] = handles
+        for h in handles.values():
+            self.controls.on_change(h, self.request)
+        self.resets[view.kind].on_click(lambda _: self.reset_to_paper())
+
+    def _view_for(self, title: str):
+        """The view of a dropdown entry: a hand-made one, or a generic view built on first use."""
+        for v in self.views.values():
+            if v.title == title and not v.kind.startswith("gen:"):
+                return v
+        name = self.choices[title]
+        kind = f"gen:{name}"
+        if kind not in self.views:
+            from .generic import GenericView
+
+            view = GenericView(self.scene, name)
+            self.views[kind] = view
+            first = next(iter(self.folders.values()))
+            self._add_view_gui(view, visible=False, order=getattr(first, "order", None))
+            with self.plots_folder:
+                self.plots.add_view(self.gui, view)
+        return self.views[kind]
 
     @property
     def kind(self) -> str:
@@ -174,10 +206,12 @@ class MechanismApp:
         self.request()
 
     def _on_scene(self) -> None:
-        self.system_view = next(v for v in self.views.values() if v.title == self.scene_choice.value)
+        with self.lock:
+            self.system_view = self._view_for(self.scene_choice.value)
         for kind, folder in self.folders.items():
             folder.visible = kind == self.kind
-        self.view.visible = self.follow.visible = self.system_view.follows
+        self.follow.visible = self.system_view.follows
+        self.view.visible = self.system_view.follows and not self.kind.startswith("gen:")
         for v in self.views.values():
             v.root.visible = v is self.system_view
         self.plots.show_kind(self.kind)
@@ -212,6 +246,10 @@ class MechanismApp:
                 self.matrices.show(view.system, view.matrices_variant(traj.request["settings"]))
                 self.traj = traj
                 self.t_now = min(self.t_now, traj.t_end)
+                if getattr(view, "fit_pending", False) and traj.kind == self.kind:
+                    view.fit_pending = False         # first sight of this system: frame it
+                    self.show_time(self.t_now)
+                    self._aim_camera(reset=True)
                 self._writing_time = True
                 try:
                     self.time.max = max(traj.t_end, 0.01)

@@ -299,3 +299,21 @@ class ParticleView(SystemView):
 
 
 VIEWS = (AppellHamelView, ParticleView)
+
+
+def scene_choices() -> dict[str, str]:
+    """The scene dropdown: title -> system name for every registered system (built-in,
+    catalogue, plugged in); the hand-made views first, under their own titles."""
+    from nmkane_core.registry import system_names
+
+    out = {cls.title: cls.system for cls in VIEWS}
+    made = set(out.values())
+    for name in system_names():
+        if name in made:
+            continue
+        try:
+            title = get_system(name).title or name
+        except Exception:                            # a broken plug-in: listed by name, reported when chosen
+            title = name
+        out[title if title not in out else f"{title} ({name})"] = name
+    return out
