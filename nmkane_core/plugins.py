@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
 
-__all__ = ["ENTRY_POINT_GROUP", "ENV_VAR", "PluginError", "load_systems", "load_default_plugins"]
+__all__ = ["ENTRY_POINT_GROUP", "ENV_VAR", "PluginError", "load_systems", "load_default_plugins", "loaded_specs"]
 
 ENTRY_POINT_GROUP = "nmkane.systems"
 ENV_VAR = "NMKANE_SYSTEMS"
@@ -103,6 +103,13 @@ def load_systems(specs, *, strict: bool = False) -> list[PluginError]:
                                      "its systems", err.error) from None
                 errors.append(err)
     return errors
+
+
+def loaded_specs() -> list[str]:
+    """The systems files and modules loaded in this process (to hand to a child process,
+    e.g. through ``NMKANE_SYSTEMS``)."""
+    with _LOCK:
+        return list(_LOADED)
 
 
 def _from_entry_points() -> list[PluginError]:

@@ -103,7 +103,7 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
         from nmkane_core import plugins               # the child knows the systems plugged in here (--systems)
 
         specs = [s for s in env.get(plugins.ENV_VAR, "").split(os.pathsep) if s.strip()]
-        specs += [k for k in getattr(plugins, "_LOADED", {}) if k not in specs]
+        specs += [k for k in plugins.loaded_specs() if k not in specs]
         if specs:
             env[plugins.ENV_VAR] = os.pathsep.join(specs)
         child = subprocess.Popen([sys.executable, "-m", "web.matrices", system, variant, tmp], env=env,
