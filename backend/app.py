@@ -57,6 +57,7 @@ POST_RESPONSES = {
                                   "description": "the stored run as CSV"}}},
     400: {**_ERR, "description": "the body could not be read as text (e.g. not UTF-8)"},
     413: {**_ERR, "description": "request body larger than max_request_bytes"},
+    415: {**_ERR, "description": "the body is not declared as JSON (Content-Type)"},
     422: {**_ERR, "description": "invalid settings: field path, value, reason and what is allowed"},
     503: {**_ERR, "description": "queue_limit runs already admitted; retry after Retry-After seconds",
           "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}}},
@@ -114,6 +115,27 @@ class _BodySizeLimit:
             return message
 
         return await self.app(scope, counted, send)
+
+
+class _HeadAsGet:
+    """Pure ASGI: answer HEAD on every GET route like GET, without the body (FastAPI's routes
+    answer only the methods they declare; HTTP says a GET resource also answers HEAD)."""
+
+    def __init__(self, app):
+        self.app = app
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or scope["method"] != "HEAD":
+            return await self.app(scope, receive, send)
+
+        async def headers_only(message):
+            if message["type"] == "http.response.body":
+                if message.get("more_body", False):
+                    return
+                message = {"type": "http.response.body", "body": b"", "more_body": False}
+            await send(message)
+
+        return await self.app({**scope, "method": "GET"}, receive, headers_only)
 
 
 def _too_large(size, limit: int) -> dict:
@@ -189,6 +211,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
                            expose_headers=["location", "retry-after"])
     install_error_handlers(app)
     app.add_middleware(_BodySizeLimit, limit=settings.max_request_bytes)
+    app.add_middleware(_HeadAsGet)
 
     async def service() -> RunService:
         if svc.pool is None:          # an app used without its lifespan (a bare TestClient)
