@@ -164,7 +164,8 @@ def _gain(name: str, value, size: int, warnings: list[str], what: str) -> np.nda
         except (TypeError, ValueError):
             raise InputError(name, value, f"a number or a {size}×{size} matrix", "not a matrix") from None
         if G.shape != (size, size):
-            raise InputError(name, value, f"a number or a {size}×{size} matrix ({what})",
+            raise InputError(name, value, f"a number or a {size}×{size} matrix"
+                             + (f" ({what})" if size == 0 else " (one row and column per constraint)"),
                              f"shape {G.shape}")
         if not np.all(np.isfinite(G)) or np.abs(G).max(initial=0) > LIMITS["max_gain"]:
             raise InputError(name, value, f"finite entries with |Γ_ij| ≤ {LIMITS['max_gain']:g}", "out of range")
