@@ -31,6 +31,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from nmkane_core.errors import InconsistentStateError, InputError
 from nmkane_core.schema import RunSettings
 
+from .store import StoreFull
+
 __all__ = ["ErrorItem", "ErrorResponse", "error_response", "install_error_handlers", "plain"]
 
 log = logging.getLogger("nmkane.backend")
@@ -208,6 +210,13 @@ def install_error_handlers(app: FastAPI) -> None:
     async def _input_error(request: Request, exc: InputError):
         parts = getattr(exc, "errors", None) or [exc]        # several fields at once: one item each
         return error_response(422, [input_error_item(e) for e in parts])
+
+    @app.exception_handler(StoreFull)
+    async def _store_full(request: Request, exc: StoreFull):
+        return error_response(507, [item(["store"], "store_full", None, "the run store is full",
+                                         "delete runs (DELETE /api/runs/{id}, `nmkane store prune`) or raise "
+                                         "NMKANE_MAX_STORED_RUNS / NMKANE_MAX_STORE_MB, or set "
+                                         "NMKANE_STORE_FULL=evict-oldest", msg=str(exc))])
 
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(request: Request, exc: StarletteHTTPException):

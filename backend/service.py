@@ -187,7 +187,7 @@ class RunService:
         with self._lock:
             self._stopping.clear()
             if self.store is None:
-                self.store = RunStore(self.settings.database)
+                self.store = RunStore(self.settings.database, self.settings.store_cap)
             if self.pool is None:
                 self.pool = ThreadPoolExecutor(max_workers=self.settings.max_concurrent_runs,
                                                thread_name_prefix="nmkane-run")

@@ -4,14 +4,29 @@ the time scrubber and readouts at ``REFRESH_HZ``.
 
 :func:`launch_app` (the composition point's entry, ``web.server:launch_app``) and
 :func:`launch` start it in the background; :func:`main` blocks (``python -m web``).
+
+Connections pass a gate (:meth:`WebApp._gate`) before anything is sent to them: the
+websocket handshake must name an allowed host (``Host``: loopback names, the bound address,
+``allowed_hosts``, or an IP address — DNS rebinding needs a name), come from a page of this
+server (``Origin``, when a browser sends one), carry the token when one is set (the printed
+URL passes it to viser's client as ``?websocket=ws://…/?token=…``), and find a free seat
+(``max_sessions``, ``NMKANE_MAX_SESSIONS``, default 40).  A turned-away browser is closed
+with code 1002, which viser's client shows as a "Connection rejected" notice with the
+reason; it retries every second while its tab has focus, and gets in when a seat is free.
+(viser 1.1 has no public hook for this: the gate is registered on its websocket server,
+``ViserServer._websock_server``, and reads the handshake from ``_live_connections``.)
 """
 
 from __future__ import annotations
 
 import contextlib
+import ipaddress
+import os
+import secrets
 import signal
 import threading
 import time
+from urllib.parse import parse_qs, quote, urlsplit
 
 import viser
 
@@ -24,6 +39,33 @@ from .systems import VIEWS
 
 FPS = 40.0                    # poses sent per second (the target is ≥ 30)
 REFRESH_HZ = 4.0              # plot markers, scrubber, readouts
+MAX_SESSIONS = 40             # browsers served at once by default (NMKANE_MAX_SESSIONS)
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+REJECTED = 1002               # close code viser's client shows as "Connection rejected: <reason>"
+
+
+def _host_name(value: str) -> str:
+    value = value.strip().lower()
+    if value.startswith("["):
+        return value[1:value.find("]")] if "]" in value else value
+    return value.split(":", 1)[0] if value.count(":") == 1 else value
+
+
+def _is_ip(name: str) -> bool:
+    try:
+        ipaddress.ip_address(name)
+        return True
+    except ValueError:
+        return False
+
+
+def _max_sessions_default() -> int:
+    raw = os.environ.get("NMKANE_MAX_SESSIONS", "").strip()
+    if not raw:
+        return MAX_SESSIONS
+    if not raw.isdigit() or int(raw) < 1:
+        raise ValueError(f"environment variable NMKANE_MAX_SESSIONS={raw!r}: an integer ≥ 1 is needed")
+    return int(raw)
 
 
 class WebApp:
@@ -32,8 +74,21 @@ class WebApp:
     The handle ``launch()`` returns: ``.port`` (the port actually bound) and ``.stop()``.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 8080, simulate=core_simulate):
+    def __init__(self, host: str = "127.0.0.1", port: int = 8080, simulate=core_simulate, *,
+                 token: str | None = None, allowed_hosts=(), max_sessions: int | None = None):
+        """``token``: asked for on every connection (None: none); ``allowed_hosts``: host names
+        accepted besides the loopback names and ``host``; ``max_sessions``: browsers served at once."""
+        self.token = token
+        self.max_sessions = _max_sessions_default() if max_sessions is None else int(max_sessions)
+        if self.max_sessions < 1:
+            raise ValueError(f"max_sessions = {max_sessions!r}: an integer ≥ 1 is needed")
+        self.allowed_hosts = frozenset([*LOOPBACK_NAMES, _host_name(host), *(_host_name(h) for h in allowed_hosts)])
+        self._admitted: set[int] = set()             # connections past the gate (sessions or about to be)
+        self.rejected = 0
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
+        ws = self.server._websock_server               # the gate runs before anything is sent
+        ws.on_client_connect(self._gate)
+        ws.on_client_disconnect(self._ungate)
         self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
         self.server.scene.set_up_direction("+z")
         preset = VIEWS[0].initial_camera()           # where a new browser's camera starts
@@ -56,7 +111,49 @@ class WebApp:
 
     @property
     def url(self) -> str:
-        return f"http://{self.host}:{self.port}/"
+        """The page's URL (with the token for viser's websocket when one is set)."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        base = f"http://{host}:{self.port}/"
+        if not self.token:
+            return base
+        return base + "?websocket=" + quote(f"ws://{host}:{self.port}/?token={self.token}", safe="")
+
+    def _refusal(self, request) -> str | None:
+        """Why a websocket handshake is turned away (None: admitted); checks Host, Origin, token."""
+        headers = request.headers
+        host = headers.get("Host", "")
+        name = _host_name(host)
+        if name not in self.allowed_hosts and not _is_ip(name):
+            return f"host {name[:40]!r} not allowed (nmkane serve --allow-host)"
+        origin = headers.get("Origin")
+        if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
+            return "cross-origin connection refused"
+        if self.token is not None:
+            given = parse_qs(urlsplit(request.path).query).get("token", [""])[0]
+            if not secrets.compare_digest(given.encode(), self.token.encode()):
+                return "access token missing or wrong: open the URL nmkane serve printed"
+        return None
+
+    async def _gate(self, conn) -> None:
+        """On the websocket server's event loop, before any message is sent to the connection."""
+        ws = self.server._websock_server._live_connections.get(conn.client_id)
+        if ws is None:
+            return
+        reason = self._refusal(ws.request)
+        if reason is None:
+            with self._lock:
+                if len(self._admitted) >= self.max_sessions:
+                    reason = (f"nmkane is full ({self.max_sessions} browsers); this page retries and gets "
+                              "in when one leaves")
+                else:
+                    self._admitted.add(conn.client_id)
+        if reason is not None:
+            self.rejected += 1
+            await ws.close(REJECTED, reason[:120])
+
+    async def _ungate(self, conn) -> None:
+        with self._lock:
+            self._admitted.discard(conn.client_id)
 
     def connected(self, client_id: int) -> bool:
         """The browser is still connected (viser drops it before the disconnect callbacks run)."""
@@ -142,15 +239,18 @@ def warm() -> None:
             mx.panel(*key)
 
 
-def launch(host: str = "127.0.0.1", port: int = 8080) -> WebApp:
-    """Start the web app in the background; returns a handle with ``.stop()`` and ``.port``."""
-    return WebApp(host=host, port=port)
+def launch(host: str = "127.0.0.1", port: int = 8080, **options) -> WebApp:
+    """Start the web app in the background; returns a handle with ``.stop()`` and ``.port``.
+    ``options``: ``token``, ``allowed_hosts``, ``max_sessions`` (see :class:`WebApp`)."""
+    return WebApp(host=host, port=port, **options)
 
 
 def launch_app(host: str, port: int, **options) -> WebApp:
     """The composition point's entry (``nmkane.apps``): start in the background and return a
-    handle with ``.port`` (the bound port) and ``.stop()``; unknown options are ignored."""
-    return launch(host, port)
+    handle with ``.port`` (the bound port), ``.url`` and ``.stop()``; options it knows
+    (``token``, ``allowed_hosts``, ``max_sessions``) are passed on, others are ignored."""
+    known = {k: v for k, v in options.items() if k in ("token", "allowed_hosts", "max_sessions")}
+    return launch(host, port, **known)
 
 
 def main() -> None:
