@@ -227,7 +227,7 @@ def install_error_handlers(app: FastAPI) -> None:
             it = item(["body"], "too_large", None, "request body too large", f"at most {limit:,} bytes")
         elif status == 400:                     # FastAPI could not read the body (e.g. not UTF-8)
             cause = exc.__cause__ or exc.__context__
-            reason = f"{exc.detail}: {type(cause).__name__}" if cause else str(exc.detail)
+            reason = f"{exc.detail}: {type(cause).__name__}: {cause}" if cause else str(exc.detail)
             it = item(["body"], "invalid_body", None, reason, "a JSON object in UTF-8 with the run settings")
         elif status == 404:
             it = item(["path"], "not_found", request.url.path, "no such resource",
