@@ -34,7 +34,7 @@ FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=list(Healt
 # ~12 s (a first projected one, whose loops the service warms in the background, ~17 s),
 # past schemathesis' 10 s read timeout (a warm cache on the CI machine had hidden both).
 _SETTINGS = Settings(data_dir="unused", warm_kernels=True, max_wall_time_s=0.2, max_steps=100_000,
-                     max_rows=5_000)
+                     max_rows=5_000, allowed_hosts=("testserver",))   # the ASGI test client's host name
 _APP = create_app(_SETTINGS)
 schema = schemathesis.openapi.from_asgi("/openapi.json", _APP)
 

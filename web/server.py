@@ -20,6 +20,7 @@ reason; it retries every second while its tab has focus, and gets in when a seat
 from __future__ import annotations
 
 import contextlib
+import gc
 import ipaddress
 import os
 import secrets
@@ -41,6 +42,7 @@ FPS = 40.0                    # poses sent per second (the target is ≥ 30)
 REFRESH_HZ = 4.0              # plot markers, scrubber, readouts
 MAX_SESSIONS = 40             # browsers served at once by default (NMKANE_MAX_SESSIONS)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+TRIM_DELAY_S = 2.0            # after a session closes, return its memory this much later
 REJECTED = 1002               # close code viser's client shows as "Connection rejected: <reason>"
 
 
@@ -57,6 +59,33 @@ def _is_ip(name: str) -> bool:
         return True
     except ValueError:
         return False
+
+
+def _libc_trim():
+    """glibc's ``malloc_trim`` (None elsewhere)."""
+    try:
+        import ctypes
+
+        return ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+
+
+_TRIM = _libc_trim()
+_trim_lock = threading.Lock()
+
+
+def _release_memory() -> None:
+    """Give the memory a closed session freed back to the system.  Python frees a session's
+    objects, but glibc keeps freed heap pages in its per-thread arenas (every session's
+    threads allocate): measured, 25 sessions opened and closed left the process 25–30 MB
+    larger per cycle, and ``malloc_trim(0)`` returned it all."""
+    if _TRIM is not None and _trim_lock.acquire(blocking=False):
+        try:
+            gc.collect()                 # a session's objects are in reference cycles: free them first
+            _TRIM(0)
+        finally:
+            _trim_lock.release()
 
 
 def _max_sessions_default() -> int:
@@ -84,6 +113,7 @@ class WebApp:
             raise ValueError(f"max_sessions = {max_sessions!r}: an integer ≥ 1 is needed")
         self.allowed_hosts = frozenset([*LOOPBACK_NAMES, _host_name(host), *(_host_name(h) for h in allowed_hosts)])
         self._admitted: set[int] = set()             # connections past the gate (sessions or about to be)
+        self._trim_due: float | None = None           # when to return closed sessions' memory (monotonic)
         self.rejected = 0
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
         ws = self.server._websock_server               # the gate runs before anything is sent
@@ -170,6 +200,8 @@ class WebApp:
             session = self.sessions.pop(client.client_id, None)
         if session is not None:
             session.close()
+            del session
+            self._trim_due = time.monotonic() + TRIM_DELAY_S   # once its threads have ended too
 
     def _animate(self) -> None:
         period = 1.0 / FPS
@@ -187,6 +219,10 @@ class WebApp:
                     s.tick(dt_wall, refresh)
                 except Exception:                  # a client gone mid-frame: skip it this frame
                     pass
+            sessions = s = None                    # hold no closed session until the next frame
+            if self._trim_due is not None and time.monotonic() >= self._trim_due:
+                self._trim_due = None
+                _release_memory()
             self.frame_times.append(t0)
             self.frame_work_s.append(time.perf_counter() - t0)
             del self.frame_times[:-400], self.frame_work_s[:-400]
