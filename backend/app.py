@@ -43,7 +43,6 @@ from nmkane_core.schema import RunResult
 from .config import LIMIT_DESCRIPTIONS, Settings
 from .errors import ErrorResponse, error_response, install_error_handlers, item
 from .guard import HostCheck, TokenCheck, allowed_host_names
-from .store import StoreFull
 from .models import STATUSES, Catalog, Health, RunList, RunSettings
 from .service import RunService
 

@@ -136,7 +136,7 @@ def _short_msg(msg: str) -> str:
     """A message made elsewhere (``InputError``): UTF-8-safe, with long runs of characters (an
     echoed value) shortened."""
     msg = text(msg)
-    return re.sub(r"\S{%d,}" % (MAX_ECHO + 1), lambda m: m.group()[:MAX_ECHO] + "…", msg)
+    return re.sub(rf"\S{{{MAX_ECHO + 1},}}", lambda m: m.group()[:MAX_ECHO] + "…", msg)
 
 
 def error_response(status: int, items: list[dict], headers: dict | None = None) -> JSONResponse:
@@ -233,9 +233,13 @@ def install_error_handlers(app: FastAPI) -> None:
             it = item(["path"], "not_found", request.url.path, "no such resource",
                       "the routes listed at /docs")
         elif status == 405:
+            # the methods of the first route whose path matches (the one documented for it:
+            # /api/runs/x.csv also matches /api/runs/{run_id}, declared after it)
+            first = next((route for route in request.app.routes
+                          if getattr(route, "path_regex", None) is not None
+                          and route.path_regex.match(request.url.path)), None)
             methods = sorted({m for route in request.app.routes
-                              if getattr(route, "path_regex", None) is not None
-                              and route.path_regex.match(request.url.path)
+                              if first is not None and getattr(route, "path", None) == first.path
                               for m in (getattr(route, "methods", None) or ())})
             headers["Allow"] = ", ".join(methods)
             it = item(["method"], "method_not_allowed", request.method, "method not allowed on this path",

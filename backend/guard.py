@@ -17,12 +17,12 @@ from __future__ import annotations
 
 import ipaddress
 import secrets
-from typing import Iterable
+from collections.abc import Iterable
 
 from .errors import error_response, item
 
-__all__ = ["host_allowed", "HostCheck", "TokenCheck", "read_deadline_protocol", "LOOPBACK_NAMES", "is_loopback", "host_name",
-           "new_token", "allowed_host_names"]
+__all__ = ["LOOPBACK_NAMES", "HostCheck", "TokenCheck", "allowed_host_names", "host_allowed", "host_name",
+           "is_loopback", "new_token", "read_deadline_protocol"]
 
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 

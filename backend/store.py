@@ -29,7 +29,7 @@ from pathlib import Path
 import orjson
 import zstandard
 
-__all__ = ["RunStore", "StoreCap", "StoreFull", "POLICIES"]
+__all__ = ["POLICIES", "RunStore", "StoreCap", "StoreFull"]
 
 #: what a full store does with a new run
 POLICIES = ("refuse", "evict-oldest")
@@ -38,7 +38,7 @@ POLICIES = ("refuse", "evict-oldest")
 class StoreFull(Exception):
     """The store is at its cap and its policy is ``refuse``."""
 
-    def __init__(self, cap: "StoreCap", count: int, size: int, need: int = 0):
+    def __init__(self, cap: StoreCap, count: int, size: int, need: int = 0):
         self.cap, self.count, self.size, self.need = cap, count, size, need
         super().__init__(f"the run store is full ({count:,} of at most {cap.max_runs:,} runs, "
                          f"{size / 1e6:,.1f} of at most {cap.max_bytes / 1e6:,.1f} MB); it keeps every stored run "

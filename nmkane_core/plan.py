@@ -21,7 +21,7 @@ from .schema import LIMITS, RunSettings
 from .registry import get_system
 from .system import System
 
-__all__ = ["Plan", "resolve", "validate_settings", "raise_all", "output_rows", "min_every", "round_up"]
+__all__ = ["Plan", "min_every", "output_rows", "raise_all", "resolve", "round_up", "validate_settings"]
 
 @dataclass
 class Plan:
@@ -77,7 +77,7 @@ def validate_settings(settings: Mapping) -> RunSettings:
             errors.append(InputError(field, _shown(err.get("input")),
                                      err["msg"].replace("Input should be", "a value")))
         raise_all(errors)
-        raise AssertionError("unreachable")     # pragma: no cover
+        raise AssertionError("unreachable") from None     # pragma: no cover
 
 
 def raise_all(errors: list[InputError]) -> None:
@@ -281,8 +281,9 @@ def _check_finite_start(system: System, variant: str, p: np.ndarray, x0: np.ndar
                                  ("a constraint violation", np.isfinite(V).all()),
                                  ("an output", np.isfinite(O).all())) if not ok]
     if bad:
+        verb = "overflows" if len(bad) == 1 else "overflow"
         raise InputError("initial", _shown(full), "initial values small enough that the energy, the constraint "
-                         "terms and the outputs are finite numbers", f"{' and '.join(bad)} {'overflows' if len(bad) == 1 else 'overflow'} at t = 0")
+                         "terms and the outputs are finite numbers", f"{' and '.join(bad)} {verb} at t = 0")
 
 
 def output_rows(nsteps: int, every: int) -> int:

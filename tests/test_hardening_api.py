@@ -225,7 +225,7 @@ def _closed_within(sock, seconds) -> tuple[bool, bytes]:
             if not chunk:
                 return True, got
             got += chunk
-    except socket.timeout:
+    except TimeoutError:
         return False, got
     except ConnectionResetError:
         return True, got

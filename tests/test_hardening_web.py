@@ -1,6 +1,7 @@
 """Issue 16, the web app's connections: Host and Origin checks, the token, the session cap
 (a clear reason for a browser turned away), and what a closed session leaves behind."""
 
+import contextlib
 import gc
 import socket
 import threading
@@ -47,10 +48,8 @@ def _open(app, host=None, origin="same", path="/", camera=True):
     ws = connect(f"ws://{host}{path}", sock=sock, subprotocols=[PROTOCOL], additional_headers=headers,
                  open_timeout=20, max_size=None)
     if camera:
-        try:
+        with contextlib.suppress(ConnectionClosed):
             ws.send(msgspec.msgpack.encode(CAMERA))
-        except ConnectionClosed:
-            pass
     return ws
 
 
