@@ -56,7 +56,9 @@ def test_api_never_answers_5xx_and_conforms_to_its_schema(case):
 
 
 def test_stateful_post_then_fetch_conforms():
-    base = schema.as_state_machine()
+    # DELETE is left out of the sequences: a run deleted and then fetched is rightly 404, which the
+    # state machine's "created resource not found" check would report (DELETE: test_hardening_api.py)
+    base = schema.exclude(method="DELETE").as_state_machine()
 
     class Machine(base):
         def validate_response(self, response, case, additional_checks=None, **kwargs):

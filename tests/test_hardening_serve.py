@@ -38,3 +38,6 @@ def test_stop_during_background_compilation_on_an_empty_cache(tmp_path):
     took = time.monotonic() - t0
     assert proc.returncode == 0, f"exit status {proc.returncode}:\n{''.join(lines)}{out}"
     assert "stopped" in out and took < 30, (took, out)
+    # The crash needed the interpreter to exit while a compilation ran (seen once, not every time):
+    # the server must either have finished compiling or have abandoned it without a teardown.
+    assert "projection loops ready" in out or "compilation was abandoned" in out, out

@@ -61,6 +61,21 @@ def _is_ip(name: str) -> bool:
         return False
 
 
+def _reachable(host: str) -> str:
+    """An address browsers can use for a server bound to ``host`` (a wildcard bind: this
+    machine's address on its default route, found without sending anything)."""
+    if host not in ("0.0.0.0", "::", ""):
+        return host
+    try:
+        import socket
+
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
+            probe.connect(("192.0.2.1", 9))          # TEST-NET-1: a route lookup, no packet sent
+            return probe.getsockname()[0]
+    except OSError:
+        return "127.0.0.1"
+
+
 def _libc_trim():
     """glibc's ``malloc_trim`` (None elsewhere)."""
     try:
@@ -142,7 +157,8 @@ class WebApp:
     @property
     def url(self) -> str:
         """The page's URL (with the token for viser's websocket when one is set)."""
-        host = f"[{self.host}]" if ":" in self.host else self.host
+        host = _reachable(self.host)
+        host = f"[{host}]" if ":" in host else host
         base = f"http://{host}:{self.port}/"
         if not self.token:
             return base
