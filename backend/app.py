@@ -6,6 +6,12 @@
     GET  /api/runs                recent runs (summaries), ?limit=&offset=&system=&status=
     GET  /api/runs/{id}           a stored run document
     GET  /api/runs/{id}.csv       the same as CSV (the CLI's CSV)
+    DELETE /api/runs/{id}         delete a stored run (204)
+
+Every request must name an allowed host (``Host``: loopback names, the bound address and
+``--allow-host`` names; 400 otherwise); with a token configured (``nmkane serve`` on a
+non-loopback address), requests that write need ``Authorization: Bearer <token>`` (401).
+A full store refuses new runs with 507 (or evicts the oldest, when configured so).
 
 Route functions are thin: the work is in :class:`backend.service.RunService` (worker
 pool, admission, limits, encoding) and :class:`backend.store.RunStore` (SQLite).  Run
@@ -36,6 +42,7 @@ from nmkane_core.schema import RunResult
 
 from .config import LIMIT_DESCRIPTIONS, Settings
 from .errors import ErrorResponse, error_response, install_error_handlers, item
+from .guard import HostCheck, TokenCheck, allowed_host_names
 from .models import STATUSES, Catalog, Health, RunList, RunSettings
 from .service import RunService
 from .sweeps import router as sweeps_router
@@ -58,7 +65,10 @@ POST_RESPONSES = {
                                   "description": "the stored run as CSV"}}},
     400: {**_ERR, "description": "the body could not be read as text (e.g. not UTF-8)"},
     413: {**_ERR, "description": "request body larger than max_request_bytes"},
+    415: {**_ERR, "description": "the body is not declared as JSON (Content-Type)"},
     422: {**_ERR, "description": "invalid settings: field path, value, reason and what is allowed"},
+    507: {**_ERR, "description": "the run store is full (max_stored_runs or max_store_bytes); delete runs "
+                                 "or raise the cap"},
     503: {**_ERR, "description": "queue_limit runs already admitted; retry after Retry-After seconds",
           "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}}},
 }
@@ -115,6 +125,27 @@ class _BodySizeLimit:
             return message
 
         return await self.app(scope, counted, send)
+
+
+class _HeadAsGet:
+    """Pure ASGI: answer HEAD on every GET route like GET, without the body (FastAPI's routes
+    answer only the methods they declare; HTTP says a GET resource also answers HEAD)."""
+
+    def __init__(self, app):
+        self.app = app
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http" or scope["method"] != "HEAD":
+            return await self.app(scope, receive, send)
+
+        async def headers_only(message):
+            if message["type"] == "http.response.body":
+                if message.get("more_body", False):
+                    return
+                message = {"type": "http.response.body", "body": b"", "more_body": False}
+            await send(message)
+
+        return await self.app({**scope, "method": "GET"}, receive, headers_only)
 
 
 def _too_large(size, limit: int) -> dict:
@@ -191,6 +222,10 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     install_error_handlers(app)
     app.include_router(sweeps_router)
     app.add_middleware(_BodySizeLimit, limit=settings.max_request_bytes)
+    app.add_middleware(_HeadAsGet)
+    if settings.token:
+        app.add_middleware(TokenCheck, token=settings.token)
+    app.add_middleware(HostCheck, allowed=allowed_host_names(extra=settings.allowed_hosts))   # outermost
 
     async def service() -> RunService:
         if svc.pool is None:          # an app used without its lifespan (a bare TestClient)
@@ -259,6 +294,15 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         if doc is None:
             return _not_found(run_id)
         return JSONBytes(doc)
+
+    @app.delete("/api/runs/{run_id}", status_code=204, responses={**NOT_FOUND, 401: {
+        **_ERR, "description": "an access token is asked for and was missing or wrong"}},
+        operation_id="delete_run")
+    def delete_run(run_id: str = RUN_ID, svc: RunService = Depends(service)):
+        """Delete a stored run (its document, CSV and listing entry)."""
+        if not svc.store.delete(run_id):
+            return _not_found(run_id)
+        return Response(status_code=204)
 
     return app
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import logging
 import math
+import re
 from typing import Any, Optional, Union
 
 from fastapi import FastAPI, Request
@@ -29,6 +30,8 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from nmkane_core.errors import InconsistentStateError, InputError
 from nmkane_core.schema import RunSettings
+
+from .store import StoreFull
 
 __all__ = ["ErrorItem", "ErrorResponse", "error_response", "install_error_handlers", "plain"]
 
@@ -49,19 +52,43 @@ class ErrorResponse(BaseModel):
     detail: list[ErrorItem]
 
 
+MAX_ECHO = 200          # characters of an offending value echoed back
+MAX_ECHO_DIGITS = 30    # digits of an integer echoed back whole
+
+
+def text(value: str, limit: int | None = None) -> str:
+    """``value`` as text that encodes as UTF-8: lone surrogates (valid in a JSON string, not in
+    UTF-8) are written as ``\\udXXX`` escapes; with ``limit``, shortened to that many characters."""
+    try:
+        value.encode("utf-8")
+    except UnicodeEncodeError:
+        value = value.encode("utf-8", "backslashreplace").decode("utf-8")
+    if limit is not None and len(value) > limit:
+        value = value[:limit] + f"… ({len(value)} characters)"
+    return value
+
+
 def plain(value: Any, depth: int = 0) -> Any:
-    """A short, JSON-safe copy of an offending input value (non-finite numbers as strings)."""
-    if value is None or isinstance(value, (bool, int)):
+    """A short, JSON-safe copy of an offending input value (non-finite numbers as strings, text
+    made UTF-8-safe, long strings and integers shortened)."""
+    if value is None or isinstance(value, bool):
         return value
+    if isinstance(value, int):
+        if abs(value) < 10 ** MAX_ECHO_DIGITS:
+            return value
+        digits = int(value.bit_length() * 0.30103) + 1      # str() of a huge int is slow or refused
+        return f"{'-' if value < 0 else ''}an integer of about {digits:,} digits"
     if isinstance(value, float):
         return value if math.isfinite(value) else repr(value).replace("nan", "NaN").replace("inf", "Infinity")
     if isinstance(value, str):
-        return value if len(value) <= 200 else value[:200] + f"… ({len(value)} characters)"
+        return text(value, MAX_ECHO)
+    if isinstance(value, (bytes, bytearray)):
+        return text(bytes(value[:MAX_ECHO + 1]).decode("utf-8", "replace"), MAX_ECHO)
     if depth >= 3:
         return "…"
     if isinstance(value, dict):
         items = list(value.items())
-        out = {str(k)[:100]: plain(v, depth + 1) for k, v in items[:20]}
+        out = {text(str(k), 100): plain(v, depth + 1) for k, v in items[:20]}
         if len(items) > 20:
             out["…"] = f"{len(items) - 20} more"
         return out
@@ -80,6 +107,10 @@ def _field(loc: list) -> str:
     return ".".join(str(p) for p in rest) or (str(loc[0]) if loc else "")
 
 
+def _loc(loc: list) -> list:
+    return [p if isinstance(p, int) else text(str(p), 100) for p in loc]
+
+
 def _sentence(field: str, value: Any, reason: str | None, allowed: str | None) -> str:
     text = f"{field or 'request'}: got {value!r}" if value is not None else f"{field or 'request'}"
     if reason:
@@ -91,10 +122,21 @@ def _sentence(field: str, value: Any, reason: str | None, allowed: str | None) -
 
 def item(loc: list, type: str, value: Any = None, reason: str | None = None,
          allowed: str | None = None, msg: str | None = None) -> dict:
+    loc = _loc(loc)
     field = _field(loc)
     value = plain(value)
-    return {"loc": loc, "field": field, "msg": msg or _sentence(field, value, reason, allowed), "type": type,
-            "value": value, "reason": reason, "allowed": allowed}
+    reason = None if reason is None else text(reason, 2 * MAX_ECHO)
+    allowed = None if allowed is None else text(allowed, 2 * MAX_ECHO)
+    msg = _sentence(field, value, reason, allowed) if msg is None else _short_msg(msg)
+    return {"loc": loc, "field": field, "msg": msg, "type": type, "value": value, "reason": reason,
+            "allowed": allowed}
+
+
+def _short_msg(msg: str) -> str:
+    """A message made elsewhere (``InputError``): UTF-8-safe, with long runs of characters (an
+    echoed value) shortened."""
+    msg = text(msg)
+    return re.sub(rf"\S{{{MAX_ECHO + 1},}}", lambda m: m.group()[:MAX_ECHO] + "…", msg)
 
 
 def error_response(status: int, items: list[dict], headers: dict | None = None) -> JSONResponse:
@@ -133,9 +175,10 @@ def validation_items(exc: RequestValidationError) -> list[dict]:
         loc = list(err.get("loc", ()))
         kind = err.get("type", "value_error")
         reason = err.get("msg", "")
-        if kind == "json_invalid":
-            reason = f"not valid JSON: {(err.get('ctx') or {}).get('error', 'decode error')}"
-            value = None
+        if kind == "json_invalid":          # FastAPI puts the character position in loc
+            where = f" at character {loc[1]}" if len(loc) > 1 and isinstance(loc[1], int) else ""
+            reason = f"not valid JSON{where}: {(err.get('ctx') or {}).get('error', 'decode error')}"
+            loc, value = ["body"], None
         else:
             value = err.get("input")
             reason = reason.replace("Input should be", "should be")
@@ -154,11 +197,26 @@ def install_error_handlers(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _validation(request: Request, exc: RequestValidationError):
+        if any(isinstance(e.get("input"), (bytes, bytearray)) for e in exc.errors()):
+            # FastAPI hands over the raw bytes when the content type is not JSON
+            kind = request.headers.get("content-type", "")
+            return error_response(415, [item(["header", "content-type"], "unsupported_media_type", kind,
+                                             "the body is not declared as JSON",
+                                             "Content-Type: application/json (a JSON object with the run "
+                                             "settings)")])
         return error_response(422, validation_items(exc))
 
     @app.exception_handler(InputError)
     async def _input_error(request: Request, exc: InputError):
-        return error_response(422, [input_error_item(exc)])
+        parts = getattr(exc, "errors", None) or [exc]        # several fields at once: one item each
+        return error_response(422, [input_error_item(e) for e in parts])
+
+    @app.exception_handler(StoreFull)
+    async def _store_full(request: Request, exc: StoreFull):
+        return error_response(507, [item(["store"], "store_full", None, "the run store is full",
+                                         "delete runs (DELETE /api/runs/{id}, `nmkane store prune`) or raise "
+                                         "NMKANE_MAX_STORED_RUNS / NMKANE_MAX_STORE_MB, or set "
+                                         "NMKANE_STORE_FULL=evict-oldest", msg=str(exc))])
 
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(request: Request, exc: StarletteHTTPException):
@@ -169,15 +227,19 @@ def install_error_handlers(app: FastAPI) -> None:
             it = item(["body"], "too_large", None, "request body too large", f"at most {limit:,} bytes")
         elif status == 400:                     # FastAPI could not read the body (e.g. not UTF-8)
             cause = exc.__cause__ or exc.__context__
-            reason = f"{exc.detail}: {type(cause).__name__}" if cause else str(exc.detail)
+            reason = f"{exc.detail}: {type(cause).__name__}: {cause}" if cause else str(exc.detail)
             it = item(["body"], "invalid_body", None, reason, "a JSON object in UTF-8 with the run settings")
         elif status == 404:
             it = item(["path"], "not_found", request.url.path, "no such resource",
                       "the routes listed at /docs")
         elif status == 405:
+            # the methods of the first route whose path matches (the one documented for it:
+            # /api/runs/x.csv also matches /api/runs/{run_id}, declared after it)
+            first = next((route for route in request.app.routes
+                          if getattr(route, "path_regex", None) is not None
+                          and route.path_regex.match(request.url.path)), None)
             methods = sorted({m for route in request.app.routes
-                              if getattr(route, "path_regex", None) is not None
-                              and route.path_regex.match(request.url.path)
+                              if first is not None and getattr(route, "path", None) == first.path
                               for m in (getattr(route, "methods", None) or ())})
             headers["Allow"] = ", ".join(methods)
             it = item(["method"], "method_not_allowed", request.method, "method not allowed on this path",

@@ -7,12 +7,28 @@ is a callable ``launch_app(host, port, **options)`` returning a handle with ``.p
 ``.stop()``.  viser runs its own websocket server on its own port, so the two are separate
 servers in one process: uvicorn in a thread, the web app in its own threads, and the main
 thread waiting for Ctrl-C or SIGTERM, then stopping both.
+
+Exposure: on a loopback address (the default) nothing changes.  Bound to another address,
+``serve`` makes an access token (``secrets``) and prints it, as Jupyter does: REST writes
+need ``Authorization: Bearer <token>``, the web app's URL carries ``?token=``; ``auth=False``
+(``--no-auth``) serves without one.  Both servers answer only to allowed host names
+(loopback names, the bound address, ``allow_hosts``), and the web app's websocket only to
+pages of its own origin.
+
+Stopping while kernels compile in the background (a first start): numba compiles through
+llvmlite with the GIL released, so a compilation thread keeps running while the interpreter
+exits, and LLVM's static destructors at exit can crash it (a segmentation fault instead of
+a clean stop).  The warm-up threads stop between steps; ``serve`` waits ``WARM_JOIN_S`` for
+them and, if one is still compiling, ends the process with ``os._exit(0)`` once everything
+else is stopped and flushed (nothing is left to tear down: the store is closed).
 """
 
 from __future__ import annotations
 
 import logging
+import os
 import signal
+import sys
 import threading
 import time
 from importlib.metadata import entry_points
@@ -22,10 +38,13 @@ import uvicorn
 
 from .app import create_app
 from .config import Settings
+from .guard import allowed_host_names, is_loopback, new_token, read_deadline_protocol
 
-__all__ = ["serve", "APP_GROUP"]
+__all__ = ["serve", "APP_GROUP", "WARM_JOIN_S"]
 
 APP_GROUP = "nmkane.apps"
+WARM_JOIN_S = 5.0           # stop: how long to wait for a background compilation before abandoning it
+WARM_THREAD_PREFIX = "nmkane-warm"
 
 log = logging.getLogger("nmkane.serve")
 
@@ -33,6 +52,8 @@ log = logging.getLogger("nmkane.serve")
 def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server, threading.Thread, int]:
     config = uvicorn.Config(create_app(settings), host=host, port=port, log_level="warning",
                             lifespan="on", server_header=False,
+                            # a client must send each request (head and body) within read_timeout_s
+                            http=read_deadline_protocol(settings.read_timeout_s),
                             # let runs in flight finish (each is stored before its 201), within bounds
                             timeout_graceful_shutdown=int(settings.max_wall_time_s) + 5)
     server = uvicorn.Server(config)
@@ -61,12 +82,42 @@ def _web_app() -> Callable[..., Any]:
     return found[0].load()
 
 
+def _abandon_compilation() -> None:
+    """Wait ``WARM_JOIN_S`` for background compilation threads; if one is still running, end
+    the process now (see the module docstring: an exit while LLVM compiles can crash)."""
+    deadline = time.monotonic() + WARM_JOIN_S
+    for t in threading.enumerate():
+        if t.name.startswith(WARM_THREAD_PREFIX) and t is not threading.current_thread():
+            t.join(max(0.0, deadline - time.monotonic()))
+    busy = [t.name for t in threading.enumerate() if t.name.startswith(WARM_THREAD_PREFIX) and t.is_alive()]
+    if busy:
+        print("nmkane: stopped (a background kernel compilation was abandoned; the next start compiles "
+              "what is missing)", flush=True)
+        sys.stderr.flush()
+        logging.shutdown()
+        os._exit(0)
+
+
+def _auth(host: str, auth: bool, settings: Settings) -> str | None:
+    """The access token (None: none asked for): loopback needs none, another address does unless
+    ``auth`` is False; an NMKANE_TOKEN in the settings is used as given."""
+    if settings.token is not None:
+        return settings.token
+    if is_loopback(host) or not auth:
+        return None
+    return new_token()
+
+
 def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080, web: bool = True,
-          settings: Settings | None = None, app_options: dict | None = None) -> None:
+          settings: Settings | None = None, allow_hosts: tuple[str, ...] = (), auth: bool = True,
+          max_sessions: int | None = None, app_options: dict | None = None) -> None:
     """Serve until SIGINT or SIGTERM, then stop both servers. Binds to loopback by default.
 
-    Port 0 picks a free port (the URLs printed show the real ones).  ``app_options`` are
-    passed to the web app's ``launch_app`` (e.g. ``scene``: the system new browsers open on).
+    Port 0 picks a free port (the URLs printed show the real ones).  ``allow_hosts``: host
+    names clients may use besides the loopback names and ``host``; ``auth``: on a
+    non-loopback ``host``, ask for an access token (printed at start); ``max_sessions``:
+    browsers the web app serves at once (None: its default); ``app_options``: passed on to
+    the web app's ``launch_app`` (e.g. ``scene``: the system new browsers open on).
 
     In the main thread, ``serve`` handles SIGINT and SIGTERM itself.  Once a signal has
     asked it to stop, further SIGINT/SIGTERM are ignored (``SIG_IGN``) from then on: the
@@ -78,6 +129,11 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
     reason (the API stopped).
     """
     settings = settings if settings is not None else Settings()
+    settings.token = _auth(host, auth, settings)
+    settings.allowed_hosts = allowed_host_names(host, (*settings.allowed_hosts, *allow_hosts))
+    if not is_loopback(host) and settings.token is None:
+        print(f"nmkane: WARNING: serving {host} without an access token (--no-auth): anyone who can reach "
+              "these ports can run and delete runs", flush=True)
     # The handler only appends to a list: no lock.  (It used to call Event.set(); a second
     # signal arriving while the first handler held the Event's lock — Ctrl-C twice, or a
     # supervisor forwarding SIGTERM on top of its own — deadlocked the main thread for good.)
@@ -94,6 +150,10 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
         url_host = f"[{host}]" if ":" in host else host
         print(f"nmkane REST API    http://{url_host}:{port}/api   (docs: http://{url_host}:{port}/docs; "
               f"runs stored in {settings.database})", flush=True)
+        query = f"?token={settings.token}" if settings.token else ""
+        if settings.token:
+            print(f"nmkane access token {settings.token}   (REST writes: 'Authorization: Bearer <token>')",
+                  flush=True)
         if web:
             try:
                 launch_app = _web_app()
@@ -101,8 +161,13 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
                 log.warning("3D web app not available (%s); serving the REST API only", e)
                 print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
             else:
-                handle = launch_app(host, viser_port, **(app_options or {}))
-                print(f"nmkane 3D web app  http://{url_host}:{handle.port}/", flush=True)
+                options = {**(app_options or {}), "token": settings.token,
+                           "allowed_hosts": settings.allowed_hosts}
+                if max_sessions is not None:
+                    options["max_sessions"] = max_sessions
+                handle = launch_app(host, viser_port, **options)
+                web_url = getattr(handle, "url", None) or f"http://{url_host}:{handle.port}/{query}"
+                print(f"nmkane 3D web app  {web_url}", flush=True)
         print("press Ctrl-C to stop", flush=True)
         while not stopping:
             time.sleep(0.2)                  # a signal interrupts the sleep; its handler runs here
@@ -120,4 +185,5 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
         for sig, h in previous.items():   # see the docstring: after a signal stop, repeats are ignored
             signal.signal(sig, signal.SIG_IGN if stopping else h)
         if server is not None:
+            _abandon_compilation()
             print("nmkane: stopped", flush=True)

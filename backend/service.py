@@ -22,7 +22,7 @@ import orjson
 from nmkane_core.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK, kernel_for
 from nmkane_core.errors import InputError
 from nmkane_core.integrators import ScipyMethod
-from nmkane_core.plan import Plan, resolve
+from nmkane_core.plan import Plan, min_every, output_rows, raise_all, resolve, round_up
 from nmkane_core.run import Run
 from nmkane_core.schema import RunSettings, RunSummary
 from nmkane_core.registry import get_system, system_names
@@ -187,7 +187,7 @@ class RunService:
         with self._lock:
             self._stopping.clear()
             if self.store is None:
-                self.store = RunStore(self.settings.database)
+                self.store = RunStore(self.settings.database, self.settings.store_cap)
             if self.pool is None:
                 self.pool = ThreadPoolExecutor(max_workers=self.settings.max_concurrent_runs,
                                                thread_name_prefix="nmkane-run")
@@ -306,16 +306,18 @@ class RunService:
         if plan.integrator.adaptive:
             return                      # bounded while running: OutputGuard and max_wall_time_s
         steps = math.ceil(plan.t_final / plan.dt - 1e-9)
+        errors = []
         if steps > s.max_steps:
-            raise InputError("dt", plan.dt,
-                             f"t_final/dt ≤ {s.max_steps:,} steps on this service "
-                             f"(dt ≥ {plan.t_final / s.max_steps:.3g} s for t_final = {plan.t_final:g} s)",
-                             f"{steps:,} steps")
-        rows = steps // plan.every + (1 if steps % plan.every else 0) + 1
+            errors.append(InputError("dt", plan.dt,
+                                     f"t_final/dt ≤ {s.max_steps:,} steps on this service "
+                                     f"(dt ≥ {round_up(plan.t_final / s.max_steps):.3g} s for t_final = "
+                                     f"{plan.t_final:g} s)", f"{steps:,} steps"))
+        rows = output_rows(steps, plan.every)
         if rows > s.max_rows:
-            raise InputError("every", plan.every,
-                             f"an integer ≥ {math.ceil(steps / (s.max_rows - 1))} "
-                             f"(at most {s.max_rows:,} output rows on this service)", f"{rows:,} rows")
+            errors.append(InputError("every", plan.every,
+                                     f"an integer ≥ {min_every(steps, s.max_rows)} "
+                                     f"(at most {s.max_rows:,} output rows on this service)", f"{rows:,} rows"))
+        raise_all(errors)
 
     def execute(self, settings: RunSettings) -> tuple[str, bytes, tuple]:
         """Resolve, check, simulate, encode (in a run worker); returns the id, the document

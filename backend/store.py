@@ -8,6 +8,14 @@ half-written run, and every acknowledged run is still there after a restart.
 
 One connection writes (behind a lock); each thread that reads gets its own read-only
 connection, so fetches never wait for a commit.
+
+The store has a cap (:class:`StoreCap`): at most ``max_runs`` runs and ``max_bytes`` bytes of
+stored rows (settings, summary and the compressed document).  When a new run would pass it,
+the policy decides: ``refuse`` (the default) raises :class:`StoreFull` and nothing already
+stored is touched — an acknowledged run is never deleted behind anyone's back; ``evict-oldest``
+deletes the oldest runs, in the same transaction as the insert, until the new one fits.  Runs
+are deleted explicitly with :meth:`RunStore.delete` and :meth:`RunStore.prune`.  (SQLite
+reuses the pages of deleted rows; the file itself shrinks only with ``VACUUM``.)
 """
 
 from __future__ import annotations
@@ -21,7 +29,35 @@ from pathlib import Path
 import orjson
 import zstandard
 
-__all__ = ["RunStore"]
+__all__ = ["POLICIES", "RunStore", "StoreCap", "StoreFull"]
+
+#: what a full store does with a new run
+POLICIES = ("refuse", "evict-oldest")
+
+
+class StoreFull(Exception):
+    """The store is at its cap and its policy is ``refuse``."""
+
+    def __init__(self, cap: StoreCap, count: int, size: int, need: int = 0):
+        self.cap, self.count, self.size, self.need = cap, count, size, need
+        super().__init__(f"the run store is full ({count:,} of at most {cap.max_runs:,} runs, "
+                         f"{size / 1e6:,.1f} of at most {cap.max_bytes / 1e6:,.1f} MB); it keeps every stored run "
+                         f"(policy {cap.policy!r}): delete runs (DELETE /api/runs/{{id}}, `nmkane store prune`) "
+                         "or raise the cap")
+
+
+class StoreCap:
+    """The store's cap: ``max_runs`` runs, ``max_bytes`` bytes of rows, and the ``policy`` when a
+    new run would pass it (one of :data:`POLICIES`)."""
+
+    def __init__(self, max_runs: int, max_bytes: int, policy: str = "refuse"):
+        if policy not in POLICIES:
+            raise ValueError(f"store policy {policy!r}: one of {', '.join(POLICIES)}")
+        self.max_runs, self.max_bytes, self.policy = int(max_runs), int(max_bytes), policy
+
+
+UNCAPPED = StoreCap(2 ** 62, 2 ** 62)
+_ROW_BYTES = "length(settings) + length(summary) + length(document)"
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -43,8 +79,9 @@ _ZSTD_LEVEL = 1        # 570 kB of JSON -> 210 kB in ~1 ms (zlib level 1: 226 kB
 class RunStore:
     """The run table of one SQLite file."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, cap: StoreCap | None = None):
         self.path = Path(path)
+        self.cap = cap if cap is not None else UNCAPPED
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self._write_lock = threading.Lock()
         self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
@@ -57,6 +94,36 @@ class RunStore:
         self._readers: list[sqlite3.Connection] = []
         self._readers_lock = threading.Lock()
         self._closed = False
+        self._count, self._bytes = self._db.execute(
+            f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs").fetchone()
+
+    # -- the cap --------------------------------------------------------------------
+    @property
+    def size(self) -> int:
+        """Bytes of the stored rows (what the cap counts)."""
+        return self._bytes
+
+    def check_room(self) -> None:
+        """Raise :class:`StoreFull` when a new run would be refused now (checked before a run
+        starts, so a full store answers at once; the insert checks again)."""
+        if self.cap.policy == "refuse" and (self._count >= self.cap.max_runs or self._bytes >= self.cap.max_bytes):
+            raise StoreFull(self.cap, self._count, self._bytes)
+
+    def _make_room(self, need: int) -> None:
+        """Under the write lock, in the insert's transaction: room for one row of ``need`` bytes."""
+        cap = self.cap
+        if self._count + 1 <= cap.max_runs and self._bytes + need <= cap.max_bytes:
+            return
+        if cap.policy == "refuse" or need > cap.max_bytes:
+            raise StoreFull(cap, self._count, self._bytes, need)
+        rows = self._db.execute(f"SELECT id, {_ROW_BYTES} FROM runs ORDER BY created, rowid").fetchall()
+        count, size, drop = self._count, self._bytes, []
+        for run_id, nbytes in rows:
+            if count + 1 <= cap.max_runs and size + need <= cap.max_bytes:
+                break
+            drop.append(run_id)
+            count, size = count - 1, size - nbytes
+        self._db.executemany("DELETE FROM runs WHERE id = ?", [(r,) for r in drop])
 
     # -- codec (compressor objects are not thread-safe: one per thread) ---------------
     def _codec(self):
@@ -100,18 +167,56 @@ class RunStore:
         run_id, system, status, settings, summary, blob = record
         created = time.time()
         row = (run_id, created, system, status, settings, summary, blob)
+        need = len(settings) + len(summary) + len(blob)
         with self._write_lock:
             if self._closed:
                 raise RuntimeError("the run store is closed")
             self._db.execute("BEGIN IMMEDIATE")
             try:
+                self._refresh_totals()           # another process (`nmkane store prune`) may have deleted
+                self._make_room(need)
                 self._db.execute("INSERT INTO runs (id, created, system, status, settings, summary, document) "
                                  "VALUES (?, ?, ?, ?, ?, ?, ?)", row)
                 self._db.execute("COMMIT")
             except BaseException:
                 self._db.execute("ROLLBACK")
                 raise
+            finally:
+                self._refresh_totals()
         return created
+
+    def _refresh_totals(self) -> None:
+        self._count, self._bytes = self._db.execute(
+            f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs").fetchone()
+
+    # -- deleting -------------------------------------------------------------------
+    def delete(self, run_id: str) -> bool:
+        """Delete one run; False when there is none with this id."""
+        with self._write_lock:
+            if self._closed:
+                raise RuntimeError("the run store is closed")
+            gone = self._db.execute("DELETE FROM runs WHERE id = ?", (run_id,)).rowcount
+            self._refresh_totals()
+        return gone > 0
+
+    def prune(self, keep: int | None = None, older_than_s: float | None = None) -> int:
+        """Delete all but the newest ``keep`` runs, and/or the runs older than ``older_than_s``
+        seconds; returns how many were deleted."""
+        cond, args = [], []
+        if keep is not None:
+            cond.append("id NOT IN (SELECT id FROM runs ORDER BY created DESC, rowid DESC LIMIT ?)")
+            args.append(int(keep))
+        if older_than_s is not None:
+            cond.append("created < ?")
+            args.append(time.time() - float(older_than_s))
+        if not cond:
+            return 0
+        with self._write_lock:
+            if self._closed:
+                raise RuntimeError("the run store is closed")
+            gone = self._db.execute("DELETE FROM runs WHERE " + " AND ".join(cond), args).rowcount
+            self._refresh_totals()
+        return gone
 
     # -- reading --------------------------------------------------------------------
     def document(self, run_id: str) -> bytes | None:

@@ -214,12 +214,19 @@ def format_table(rows) -> str:
     return "\n".join(lines)
 
 
-def main(json_out: bool = False, quick: bool = False) -> int:
+def main(json_out: bool = False, quick: bool = False, strict: bool = False) -> int:
+    """Measure, print every row with PASS/FAIL against its target, and return the exit status:
+    0, or with ``strict`` 1 when a row misses its target (timings on a busy machine vary, so a
+    missed target is reported, not an error, unless asked)."""
     log = (lambda *_: None) if json_out else (lambda msg: print(msg, file=sys.stderr))
     rows = run_bench(quick=quick, log=log)
+    failed = [r["workload"] for r in rows if r["pass"] is False]
     if json_out:
         print(json.dumps({"machine": {"cpus": os.cpu_count(), "python": sys.version.split()[0]},
-                          "rows": rows}, indent=2))
+                          "rows": rows, "failed": failed, "strict": strict}, indent=2))
     else:
         print(format_table(rows))
-    return 0 if all(r["pass"] is not False for r in rows) else 1
+        if failed:
+            print(f"\n{len(failed)} of {sum(r['pass'] is not None for r in rows)} targets missed on this machine "
+                  f"now{' (--strict: exit status 1)' if strict else ' (reported; --strict makes this an error)'}")
+    return 1 if strict and failed else 0

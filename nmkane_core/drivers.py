@@ -45,28 +45,36 @@ def kernel_for(system: System, variant: str):
 
 def prepare(plan: Plan):
     """Load — or, on a model's first use, compile — everything ``simulate(plan)`` runs, so
-    that the run itself starts at once (the CLI does this under a "first use" notice).
-    Returns the kernel module."""
+    that the run itself starts at once (the CLI does this under a "first use" notice): the
+    selected variant's kernel and loop and, when the run may switch models, those of every
+    equivalent variant it may switch to.  Returns the kernel module of the selected variant."""
     mod = kernel_for(plan.system, plan.variant)
-    _prime(plan, mod)
+    _prime(plan, mod, plan.p)
+    if plan.switching:
+        for variant in plan.system.equivalents.get(plan.variant, ()):
+            _prime(plan, kernel_for(plan.system, variant), plan.system.param_vector(variant, plan.params))
     return mod
 
 
-def _prime(plan: Plan, mod) -> None:
-    """Call the run's compiled loop once with no work, so that a first run compiles (or
-    loads from the disk cache) before its clock starts: ``time_limit`` bounds integration,
-    not compilation, and the time shows as ``kernel_load_s``.  Argument types are exactly
-    those of the real calls below (numba compiles one copy per type signature)."""
+def _prime(plan: Plan, mod, p: np.ndarray) -> None:
+    """Call the run's compiled loop (with the kernel module ``mod`` and its parameter vector
+    ``p``) once with no work, so that a first run compiles (or loads from the disk cache)
+    before its clock starts: ``time_limit`` bounds integration, not compilation, and the
+    time shows as ``kernel_load_s``.  The helpers a driver calls around the loop (initial
+    diagnostics, the conditioning check of a model switch) are called once too.  Argument
+    types are exactly those of the real calls below (numba compiles one copy per type signature)."""
     from . import precompile
 
     precompile.wait(mod)                   # a new kernel's loop may be compiling next door
     tab = plan.integrator
     n2 = plan.x0.size
+    mod.diagnostics_rows(np.zeros(1), plan.x0[None, :].copy(), p, np.empty(1), np.empty((1, mod.NV)))
     if isinstance(tab, ScipyMethod):       # scipy calls the right-hand side and diagnostics
-        mod.rhs_ws(0.0, plan.x0.copy(), plan.p, plan.G, plan.G1, plan.G2, np.empty((1, n2)), 0,
+        mod.rhs_ws(0.0, plan.x0.copy(), p, plan.G, plan.G1, plan.G2, np.empty((1, n2)), 0,
                    mod.make_workspace())
-        mod.diagnostics(0.0, plan.x0.copy(), plan.p, np.empty(mod.NV))
+        mod.diagnostics(0.0, plan.x0.copy(), p, np.empty(mod.NV))
         return
+    mod.rhs(0.0, plan.x0.copy(), p, plan.G, plan.G1, plan.G2)     # the switcher's conditioning check
     x = plan.x0.copy()
     out_t, out_x = np.empty(1), np.empty((1, n2))
     out_E, out_V = np.empty(1), np.empty((1, mod.NV))
@@ -77,11 +85,11 @@ def _prime(plan: Plan, mod) -> None:
         mod.integrate_adaptive(*AdaptiveArgs(
             x, 0.0, plan.t_final, h=0.1, rtol=plan.rtol, atol=plan.atol, hmin=1e-13, hmax=1.0, max_steps=0,
             every=1, accepted=0,
-            p=plan.p, G=plan.G, G1=plan.G1, G2=plan.G2, TA=tab.A, TB=tab.b, TE=tab.E, TC=tab.c, err_exp=0.2,
+            p=p, G=plan.G, G1=plan.G1, G2=plan.G2, TA=tab.A, TB=tab.b, TE=tab.E, TC=tab.c, err_exp=0.2,
             rcond_min=0.0, proj=proj, out_t=out_t, out_x=out_x, out_E=out_E, out_V=out_V, stats=stats))
     else:
         mod.integrate_fixed(*FixedArgs(
-            x, 0.0, plan.dt, plan.t_final, k0=0, k1=0, nsteps=1, every=1, p=plan.p, G=plan.G, G1=plan.G1,
+            x, 0.0, plan.dt, plan.t_final, k0=0, k1=0, nsteps=1, every=1, p=p, G=plan.G, G1=plan.G1,
             G2=plan.G2, TA=tab.A, TB=tab.b, TC=tab.c, rcond_min=0.0, proj=proj, out_t=out_t, out_x=out_x,
             out_E=out_E, out_V=out_V, row=0, stats=stats))
 

@@ -21,7 +21,7 @@ from .schema import LIMITS, RunSettings
 from .registry import get_system
 from .system import System
 
-__all__ = ["Plan", "resolve", "validate_settings"]
+__all__ = ["Plan", "min_every", "output_rows", "raise_all", "resolve", "round_up", "validate_settings"]
 
 @dataclass
 class Plan:
@@ -56,15 +56,90 @@ class Plan:
 
 
 def validate_settings(settings: Mapping) -> RunSettings:
-    """The schema's checks (types, finite numbers, ranges) with errors as :class:`InputError`."""
+    """The schema's checks (types, finite numbers, ranges) with errors as :class:`InputError`.
+
+    ``settings``: a mapping of run settings (a dict; numpy scalars and arrays and tuples are
+    taken as the numbers and lists they hold).  Validation is strict, as on the REST service:
+    no booleans or numeric strings for numbers, no 2.0 for an integer.  Every violated field
+    is named in one message (the error's ``errors`` lists them one by one).
+    """
     from pydantic import ValidationError
 
+    if not isinstance(settings, Mapping):
+        raise InputError("settings", _shown(settings), "a mapping (dict) of run settings, e.g. "
+                         "{'system': 'appell-hamel', 'dt': 0.01}", f"a {type(settings).__name__}")
     try:
-        return RunSettings.model_validate(dict(settings))
+        return RunSettings.model_validate(_plain_data(dict(settings)), strict=True)
     except ValidationError as e:
-        err = e.errors()[0]
-        field = ".".join(str(p) for p in err["loc"]) or "settings"
-        raise InputError(field, err.get("input"), err["msg"].replace("Input should be", "a value")) from None
+        errors = []
+        for err in e.errors():
+            field = ".".join(str(p) for p in err["loc"]) or "settings"
+            errors.append(InputError(field, _shown(err.get("input")),
+                                     err["msg"].replace("Input should be", "a value")))
+        raise_all(errors)
+        raise AssertionError("unreachable") from None     # pragma: no cover
+
+
+def raise_all(errors: list[InputError]) -> None:
+    """Raise the one error, or one :class:`InputError` naming every field (its ``errors``
+    attribute keeps them one by one, for a REST answer with one item each)."""
+    if not errors:
+        return
+    if len(errors) == 1:
+        raise errors[0]
+    first = errors[0]
+    combined = InputError(first.field, first.value, first.allowed, first.reason)
+    combined.args = ("; ".join(str(e) for e in errors) + f" ({len(errors)} problems)",)
+    combined.errors = errors                    # type: ignore[attr-defined]
+    raise combined
+
+
+def _plain_data(value, depth: int = 0):
+    """numpy scalars and arrays, and tuples, as the Python numbers and lists they hold."""
+    if depth > 8:
+        return value
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, tuple):
+        return [_plain_data(v, depth + 1) for v in value]
+    if isinstance(value, list):
+        return [_plain_data(v, depth + 1) for v in value]
+    if isinstance(value, dict):
+        return {k: _plain_data(v, depth + 1) for k, v in value.items()}
+    return value
+
+
+def _shown(value, depth: int = 0):
+    """``value``, or a short text standing for it when it is too large or deep to print."""
+    if isinstance(value, bool) or value is None or isinstance(value, float):
+        return value
+    if isinstance(value, int):
+        if abs(value) < 10 ** 30:
+            return value
+        return f"an integer of about {int(value.bit_length() * 0.30103) + 1:,} digits"
+    if isinstance(value, str):
+        return value if len(value) <= 200 else value[:200] + f"… ({len(value)} characters)"
+    if isinstance(value, (list, tuple, dict)):
+        if depth >= 4:
+            return f"a {type(value).__name__} nested too deeply to show"
+        items = list(value.items()) if isinstance(value, dict) else list(value)
+        if len(items) > 20:
+            return f"a {type(value).__name__} of {len(items)} items"
+        if isinstance(value, dict):
+            return {k: _shown(v, depth + 1) for k, v in items}
+        return type(value)(_shown(v, depth + 1) for v in items)
+    text = repr(value)
+    return value if len(text) <= 200 else text[:200] + "…"
+
+
+def round_up(x: float) -> float:
+    """``x`` rounded up to three significant digits (a hint that is then accepted)."""
+    if x <= 0 or not math.isfinite(x):
+        return x
+    scale = 10.0 ** (math.floor(math.log10(x)) - 2)
+    return math.ceil(x / scale * (1 - 1e-12)) * scale
 
 
 def _check_float(name, value, lo, hi, lo_open=True, unit=""):
@@ -89,7 +164,8 @@ def _gain(name: str, value, size: int, warnings: list[str], what: str) -> np.nda
         except (TypeError, ValueError):
             raise InputError(name, value, f"a number or a {size}×{size} matrix", "not a matrix") from None
         if G.shape != (size, size):
-            raise InputError(name, value, f"a number or a {size}×{size} matrix ({what})",
+            raise InputError(name, value, f"a number or a {size}×{size} matrix"
+                             + (f" ({what})" if size == 0 else " (one row and column per constraint)"),
                              f"shape {G.shape}")
         if not np.all(np.isfinite(G)) or np.abs(G).max(initial=0) > LIMITS["max_gain"]:
             raise InputError(name, value, f"finite entries with |Γ_ij| ≤ {LIMITS['max_gain']:g}", "out of range")
@@ -111,30 +187,47 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
                          f"{system.name} has no {other}")
     variant = system.check_variant(getattr(s, system.option), system.option)
     integ = get_integrator(s.integrator or system.default_integrator)
-    dt = _check_float("dt", s.dt if s.dt is not None else system.default_dt,
-                      0.0, LIMITS["max_dt"], unit="s")
-    if dt < LIMITS["min_dt"]:
-        raise InputError("dt", dt, f"a number in [{LIMITS['min_dt']:g}, {LIMITS['max_dt']:g}] s", "too small")
-    t_final = _check_float("t_final", s.t_final if s.t_final is not None else system.default_t_final,
-                           0.0, LIMITS["max_t_final"], unit="s")
-    if s.every < 1 or s.every > LIMITS["max_steps"]:
-        raise InputError("every", s.every, f"an integer in [1, {LIMITS['max_steps']}]")
-    nsteps = math.ceil(t_final / dt - 1e-9)
-    if isinstance(integ, Tableau) and not integ.adaptive:
+    errors: list[InputError] = []
+
+    def check(fn, *args, **kw):
+        try:
+            return fn(*args, **kw)
+        except InputError as e:
+            errors.append(e)
+            return None
+
+    dt = check(_check_float, "dt", s.dt if s.dt is not None else system.default_dt,
+               0.0, LIMITS["max_dt"], unit="s")
+    if dt is not None and dt < LIMITS["min_dt"]:
+        errors.append(InputError("dt", dt, f"a number in [{LIMITS['min_dt']:g}, {LIMITS['max_dt']:g}] s",
+                                 "too small"))
+        dt = None
+    t_final = check(_check_float, "t_final", s.t_final if s.t_final is not None else system.default_t_final,
+                    0.0, LIMITS["max_t_final"], unit="s")
+    every = s.every
+    if every < 1 or every > LIMITS["max_steps"]:
+        errors.append(InputError("every", every, f"an integer in [1, {LIMITS['max_steps']}]"))
+        every = None
+    if dt is not None and t_final is not None and isinstance(integ, Tableau) and not integ.adaptive:
+        nsteps = math.ceil(t_final / dt - 1e-9)
         if nsteps > LIMITS["max_steps"]:
-            raise InputError("dt", dt, f"t_final/dt ≤ {LIMITS['max_steps']:,} steps "
-                             f"(dt ≥ {t_final / LIMITS['max_steps']:.3g} s for t_final = {t_final:g} s)",
-                             f"{nsteps:,} steps")
-        rows = nsteps // s.every + 2
-        if rows > LIMITS["max_rows"]:
-            raise InputError("every", s.every, f"an integer ≥ {math.ceil(nsteps / LIMITS['max_rows'])} "
-                             f"(at most {LIMITS['max_rows']:,} output rows)", f"{rows:,} rows")
-    rtol = _check_float("rtol", s.rtol, 0.0, 0.1)
-    if rtol < 1e-14:
-        raise InputError("rtol", s.rtol, "a number in [1e-14, 0.1]", "too small")
-    atol = _check_float("atol", s.atol, 0.0, 1.0)
-    rcond_min = _check_float("rcond_min", s.rcond_min, 0.0, 0.1, lo_open=False)
-    rcond_switch = _check_float("rcond_switch", s.rcond_switch, 0.0, 0.5, lo_open=False)
+            errors.append(InputError("dt", dt, f"t_final/dt ≤ {LIMITS['max_steps']:,} steps "
+                                     f"(dt ≥ {round_up(t_final / LIMITS['max_steps']):.3g} s for "
+                                     f"t_final = {t_final:g} s)", f"{nsteps:,} steps"))
+        elif every is not None:
+            rows = output_rows(nsteps, every)
+            if rows > LIMITS["max_rows"]:
+                errors.append(InputError("every", every, f"an integer ≥ {min_every(nsteps, LIMITS['max_rows'])} "
+                                         f"(at most {LIMITS['max_rows']:,} output rows)", f"{rows:,} rows"))
+    rtol = check(_check_float, "rtol", s.rtol, 0.0, 0.1)
+    if rtol is not None and rtol < 1e-14:
+        errors.append(InputError("rtol", s.rtol, "a number in [1e-14, 0.1]", "too small"))
+    atol = check(_check_float, "atol", s.atol, 0.0, 1.0)
+    rcond_min = check(_check_float, "rcond_min", s.rcond_min, 0.0, 0.1, lo_open=False)
+    rcond_switch = check(_check_float, "rcond_switch", s.rcond_switch, 0.0, 0.5, lo_open=False)
+    raise_all(errors)
+    assert dt is not None and t_final is not None and rtol is not None and atol is not None
+    assert rcond_min is not None and rcond_switch is not None
     params = system.resolve_params(s.params)
     p = system.param_vector(variant, params)
     md = system.info(variant)
@@ -157,6 +250,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     correction: dict[str, float] = {}
     x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial,
                              correction=correction)
+    _check_finite_start(system, variant, p, x0, full)
     if correction:
         warnings.append("the initial state was projected onto the constraint manifold: "
                         + ", ".join(f"{k} {v:+.3g}" for k, v in correction.items()))
@@ -173,6 +267,33 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
                 rcond_min, rcond_switch, s.switching, proj, x0, full, resolved, warnings)
     plan.initial_correction = correction
     return plan
+
+
+def _check_finite_start(system: System, variant: str, p: np.ndarray, x0: np.ndarray, full: dict) -> None:
+    """The energy, constraint violations and outputs at the initial state must be finite (a
+    finite but huge state can overflow them: a run would have nothing finite to show)."""
+    mod = system.kernel(variant)[0]
+    E, V, O = np.empty(1), np.empty((1, mod.NV)), np.empty((1, mod.NO))
+    mod.diagnostics_rows(np.zeros(1), x0[None, :], p, E, V)
+    if mod.NO:
+        mod.outputs_rows(np.zeros(1), x0[None, :], p, O)
+    bad = [what for what, ok in (("the energy", not system.info(variant).has_energy or np.isfinite(E).all()),
+                                 ("a constraint violation", np.isfinite(V).all()),
+                                 ("an output", np.isfinite(O).all())) if not ok]
+    if bad:
+        verb = "overflows" if len(bad) == 1 else "overflow"
+        raise InputError("initial", _shown(full), "initial values small enough that the energy, the constraint "
+                         "terms and the outputs are finite numbers", f"{' and '.join(bad)} {verb} at t = 0")
+
+
+def output_rows(nsteps: int, every: int) -> int:
+    """Output rows of a fixed-step run: the initial state, every ``every``-th step and the last."""
+    return -(-nsteps // every) + 1
+
+
+def min_every(nsteps: int, max_rows: int) -> int:
+    """The smallest ``every`` that keeps a run of ``nsteps`` steps to ``max_rows`` output rows."""
+    return max(1, -(-nsteps // (max_rows - 1)))
 
 
 def _plain(v, default):

@@ -94,6 +94,17 @@ class LoopOutput:
     fail_msg: str | None = None
 
 
+def _finite_stats(stats: np.ndarray, out: LoopOutput) -> None:
+    """Maxima of a diverged run recomputed over the rows kept when they overflowed."""
+    if not np.isfinite(stats[STATS_MAX_DRIFT]):
+        E = out.E
+        stats[STATS_MAX_DRIFT] = float(np.max(np.abs(E - E[0]))) if np.isfinite(E).all() else 0.0
+    viol = stats[STATS_VIOL:]
+    bad = ~np.isfinite(viol)
+    if bad.any():
+        viol[bad] = np.max(np.abs(out.V), axis=0)[bad]
+
+
 def finish(plan: Plan, mod, out: LoopOutput, wall: float) -> Run:
     """The :class:`Run` of a driver's output: named arrays, the status and its message, the summary."""
     md = plan.info
@@ -137,10 +148,29 @@ def finish(plan: Plan, mod, out: LoopOutput, wall: float) -> Run:
         else:
             message = f"the step size fell below its minimum at t = {t_end:.6g} s"
     x = out.x
+    O = np.empty((x.shape[0], mod.NO))
+    if mod.NO:
+        mod.outputs_rows(out.t, x, plan.p, O)
+    # The loops stop when the state stops being finite; its energy, constraint violations or
+    # outputs can overflow first (huge speeds): keep the rows before, end the run as diverged.
+    good = np.isfinite(out.t) & np.isfinite(x).all(axis=1) & np.isfinite(out.V).all(axis=1) & \
+        np.isfinite(O).all(axis=1)
+    if md.has_energy:
+        good &= np.isfinite(out.E)
+    if not good.all():
+        keep = max(1, int(np.argmin(good)))      # row 0 is checked finite by plan.resolve
+        t_end = float(out.t[keep - 1])
+        out = LoopOutput(status=STATUS_DIVERGED, stop=None, t=out.t[:keep], x=x[:keep], E=out.E[:keep],
+                         V=out.V[:keep], stats=stats, steps=out.steps, evals=out.evals, t_end=t_end,
+                         switches=out.switches, fail_msg=out.fail_msg)
+        x, O = out.x, O[:keep]
+        status = "diverged"
+        message = (f"the energy, a constraint violation or an output stopped being finite (overflow) after "
+                   f"t = {t_end:.6g} s; the run stopped and keeps the rows up to there (try smaller initial "
+                   f"speeds, a smaller dt or gains of smaller magnitude)")
+        _finite_stats(stats, out)
     state = {name: x[:, i].copy() for i, name in enumerate(md.state_names)}
     if mod.NO:
-        O = np.empty((x.shape[0], mod.NO))
-        mod.outputs_rows(out.t, x, plan.p, O)
         for i, name in enumerate(md.outputs):
             state[name] = O[:, i].copy()          # contiguous, like every other array
     state = {k: state[k] for k in system.state_names if k in state}

@@ -97,19 +97,35 @@ def simulate_many(settings_list, *, workers: int | None = None, progress: bool |
 
 
 class _Progress:
+    """The progress bar of one run on stderr (tqdm): shown once a run has taken ``DELAY`` s.
+
+    ``update`` goes through tqdm's own ``update`` (not ``refresh``), which keeps its delay
+    and its record of what was printed, so a short run prints nothing and ``close`` clears
+    the bar it drew.  A terminal that reports zero columns (some pseudo-terminals: ``script``,
+    container consoles) gets a bar of ``FALLBACK_COLUMNS``: tqdm would take it as −1 rows and draw nothing.
+    """
+
+    DELAY = 1.0
+    FALLBACK_COLUMNS = 100
+
     def __init__(self, total: float, enabled: bool):
         self.bar = None
         if enabled:
             from tqdm import tqdm
 
-            self.bar = tqdm(total=total, unit="s", unit_scale=False, delay=1.0, leave=False,
+            try:
+                columns = os.get_terminal_size(sys.stderr.fileno()).columns
+            except (OSError, ValueError, AttributeError):
+                columns = 0
+            self.bar = tqdm(total=total, unit="s", unit_scale=False, delay=self.DELAY, leave=False,
+                            mininterval=0.25, ncols=None if columns else self.FALLBACK_COLUMNS,
+                            nrows=None if columns else 24,      # tqdm reads 0 rows as -1: draws nothing
                             desc="simulating", bar_format="{desc}: {percentage:3.0f}%|{bar}| "
                             "t = {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]")
 
     def update(self, t: float):
-        if self.bar is not None:
-            self.bar.n = t
-            self.bar.refresh()
+        if self.bar is not None and t > self.bar.n:
+            self.bar.update(t - self.bar.n)
 
     def close(self):
         if self.bar is not None:

@@ -32,7 +32,7 @@ def settings(tmp_path):
 
 @pytest.fixture()
 def client(settings):
-    with TestClient(create_app(settings)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(settings)) as c:
         yield c
 
 
@@ -105,7 +105,8 @@ def test_health_and_systems_expose_the_limits(client):
     assert sp["formulations"] == ["nonminimal", "minimal"]
     limits = data["service_limits"]
     assert set(limits) == set(data["service_limit_descriptions"]) == {
-        "max_steps", "max_rows", "max_request_bytes", "max_wall_time_s", "queue_limit", "max_concurrent_runs"}
+        "max_steps", "max_rows", "max_request_bytes", "max_wall_time_s", "queue_limit", "max_concurrent_runs",
+        "max_stored_runs", "max_store_bytes", "read_timeout_s"}
     assert limits["max_request_bytes"] == 65_536
     assert "kutta-merson" in data["integrators"] and set(data["projections"]) == {"none", "blajer", "yoon"}
 
@@ -195,7 +196,7 @@ def test_hostile_bodies_get_4xx_in_the_error_shape_never_5xx(client):
         _error(r, r.status_code)
     long_value = _error(client.post("/api/runs", json={"system": "a" * 60000}))["value"]
     assert len(long_value) < 300                                    # echoed values are shortened
-    _error(client.post("/api/runs", content=b"system=appell-hamel", headers={"content-type": "text/plain"}))
+    _error(client.post("/api/runs", content=b"system=appell-hamel", headers={"content-type": "text/plain"}), 415)
 
 
 def test_oversized_body_gets_413(client):
@@ -268,7 +269,7 @@ def test_non_finite_output_rows_are_left_out():
 # --------------------------------------------------------------------------- limits
 def test_run_past_wall_time_limit_ends_with_status_timeout(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_wall_time_s=0.05)
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         r = c.post("/api/runs", json=LONG)
         assert r.status_code == 201
         doc = r.json()
@@ -278,7 +279,7 @@ def test_run_past_wall_time_limit_ends_with_status_timeout(tmp_path):
 
 def test_service_step_and_row_caps_refuse_before_running(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_steps=1000, max_rows=500)
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         err = _error(c.post("/api/runs", json=SMALL))
         assert err["field"] == "dt" and "1,000" in err["allowed"] and err["reason"] == "2,000 steps"
         err = _error(c.post("/api/runs", json={**SMALL, "t_final": 8}))
@@ -291,7 +292,7 @@ def test_service_step_and_row_caps_refuse_before_running(tmp_path):
 def test_adaptive_run_stops_at_the_row_cap_with_bounded_memory(tmp_path, integrator, rows):
     # tolerances this tight make millions of rows (GBs) within the wall-time limit otherwise
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_rows=rows)
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         r = c.post("/api/runs", json={"system": "sliding-particle", "integrator": integrator,
                                       "rtol": 1e-12, "atol": 1e-14, "t_final": 1e5})
         assert r.status_code == 201
@@ -302,7 +303,7 @@ def test_adaptive_run_stops_at_the_row_cap_with_bounded_memory(tmp_path, integra
 
 def test_output_over_the_row_cap_is_thinned_keeping_the_last_row(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_rows=50)
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         doc = c.post("/api/runs", json={"system": "appell-hamel", "integrator": "kutta-merson-adaptive",
                                         "t_final": 20, "rtol": 1e-12}).json()
         assert len(doc["t"]) <= 50 and doc["t"][-1] == doc["summary"]["t_end"] > doc["t"][-2]
@@ -329,7 +330,7 @@ def _wait_running(c, n=1):
 
 def test_past_queue_limit_answers_503_with_retry_after(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, queue_limit=1, max_wall_time_s=1.0)
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         th, out = _in_background(c, LONG)
         _wait_running(c)
         r = c.post("/api/runs", json=SMALL)
@@ -342,7 +343,7 @@ def test_past_queue_limit_answers_503_with_retry_after(tmp_path):
 
 def test_at_most_max_concurrent_runs_simulate_at_once_the_rest_wait(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=1, max_wall_time_s=0.3)
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         jobs = [_in_background(c, LONG) for _ in range(3)]
         _wait_running(c)
         seen = []
@@ -356,7 +357,7 @@ def test_at_most_max_concurrent_runs_simulate_at_once_the_rest_wait(tmp_path):
 
 def test_a_running_simulation_does_not_block_the_event_loop(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=1, max_wall_time_s=3.0)
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         th, out = _in_background(c, LONG)
         _wait_running(c)
         for path in ("/api/health", "/api/systems", "/api/runs"):
@@ -369,9 +370,9 @@ def test_a_running_simulation_does_not_block_the_event_loop(tmp_path):
 
 # --------------------------------------------------------------------------- durability, config
 def test_runs_survive_a_restart(settings):
-    with TestClient(create_app(settings)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(settings)) as c:
         posted = [c.post("/api/runs", json={**SMALL, "t_final": 1}) for _ in range(3)]
-    with TestClient(create_app(settings)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(settings)) as c:
         for r in posted:
             again = c.get(f"/api/runs/{r.json()['id']}")
             assert again.status_code == 200 and again.content == r.content
@@ -388,7 +389,7 @@ def test_database_path_from_environment(tmp_path, monkeypatch):
     s = Settings(warm_kernels=False)
     assert s.database == tmp_path / "x.db" and s.max_rows == 1234
     assert s.cors_origins == ("http://a.example", "http://b.example")
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         assert c.post("/api/runs", json={**SMALL, "t_final": 1}).status_code == 201
     assert (tmp_path / "x.db").exists()
     with pytest.raises(ValueError, match="max_concurrent_runs"):
@@ -404,7 +405,7 @@ def test_cors_is_closed_by_default_and_opens_to_configured_origins(client, tmp_p
     assert "access-control-allow-origin" not in r.headers
     assert "access-control-allow-origin" not in client.get("/api/health", headers={"Origin": "http://evil.example"}).headers
     s = Settings(data_dir=tmp_path, warm_kernels=False, cors_origins=("http://class.example",))
-    with TestClient(create_app(s)) as c:
+    with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         ok = c.options("/api/runs", headers={**pre, "Origin": "http://class.example"})
         assert ok.headers["access-control-allow-origin"] == "http://class.example"
         assert "access-control-allow-origin" not in c.options("/api/runs", headers=pre).headers

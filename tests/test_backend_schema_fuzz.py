@@ -34,7 +34,7 @@ FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=list(Healt
 # ~12 s (a first projected one, whose loops the service warms in the background, ~17 s),
 # past schemathesis' 10 s read timeout (a warm cache on the CI machine had hidden both).
 _SETTINGS = Settings(data_dir="unused", warm_kernels=True, max_wall_time_s=0.2, max_steps=100_000,
-                     max_rows=5_000)
+                     max_rows=5_000, allowed_hosts=("testserver",))   # the ASGI test client's host name
 _APP = create_app(_SETTINGS)
 schema = schemathesis.openapi.from_asgi("/openapi.json", _APP)
 
@@ -56,7 +56,9 @@ def test_api_never_answers_5xx_and_conforms_to_its_schema(case):
 
 
 def test_stateful_post_then_fetch_conforms():
-    base = schema.as_state_machine()
+    # DELETE is left out of the sequences: a run deleted and then fetched is rightly 404, which the
+    # state machine's "created resource not found" check would report (DELETE: test_hardening_api.py)
+    base = schema.exclude(method="DELETE").as_state_machine()
 
     class Machine(base):
         def validate_response(self, response, case, additional_checks=None, **kwargs):

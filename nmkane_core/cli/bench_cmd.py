@@ -10,12 +10,13 @@ from .command import Command
 def _add_arguments(bench: argparse.ArgumentParser) -> None:
     bench.add_argument("--json", action="store_true", help="machine-readable output")
     bench.add_argument("--quick", action="store_true", help="shorter workloads (smoke test)")
+    bench.add_argument("--strict", action="store_true", help="exit with status 1 when a row misses its target")
 
 
 def _run(args: argparse.Namespace) -> int:
     from ..bench import main as bench_main
 
-    return bench_main(json_out=args.json, quick=args.quick)
+    return bench_main(json_out=args.json, quick=args.quick, strict=args.strict)
 
 
 COMMAND = Command("bench", "measure the kernels' speed and print a table", _add_arguments, _run)
