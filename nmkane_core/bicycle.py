@@ -17,7 +17,7 @@ from .initial import initial_state
 from .registry import get_system
 from .systems.whipple_bicycle import NAME
 
-__all__ = ["upright_state", "bicycle_eigenvalues", "ROLL_STEER"]
+__all__ = ["ROLL_STEER", "bicycle_eigenvalues", "upright_state"]
 
 #: the linearized state: roll, steer, roll rate, steer rate
 ROLL_STEER = ("q4", "q7", "u4", "u7")
@@ -31,7 +31,7 @@ def upright_state(speed: float, params: Mapping[str, float] | None = None) -> di
         raise InputError("speed", speed, "a finite forward speed in m/s", "not a finite number")
     system = get_system(NAME)
     values = system.resolve_params(params or {})
-    given = {k: 0.0 for k in ("q1", "q2", "q3", "q4", "q6", "q7", "q8", "u4", "u7")}
+    given = dict.fromkeys(("q1", "q2", "q3", "q4", "q6", "q7", "q8", "u4", "u7"), 0.0)
     given["u6"] = -float(speed) / values["rR"]
     _, full = initial_state(system, system.default_variant, values, given)
     return full

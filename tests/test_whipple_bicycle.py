@@ -62,31 +62,32 @@ CAPSIZE_SPEED = 6.02426201538837
 
 # Basu-Mandal et al. (2007) Table 1, in their coordinates: rear wheel centre (x, y, z), yaw θ,
 # lean ψ (from horizontal), pitch φ, steer ψf, wheel rotations βr, βf; rates; accelerations
-BM_STATE = dict(x=0.0, y=0.0, z=0.2440472102925, th=0.0, psi=0.9501292851472, phi=3.1257073014894,
-                psf=0.2311385135743, br=0.0, bf=0.0)
-BM_RATES = dict(x=-2.8069345714545, y=-0.1480982396001, z=0.1058778746261, th=0.7830033527065,
-                psi=0.6068425835418, phi=-0.0119185528069, psf=0.4859824687093, br=8.9129896614890,
-                bf=8.0133620584155)
-BM_ACC = dict(x=-0.5041626315047, y=-0.3449706619454, z=-1.4604528332980, th=0.8353281706379,
-              psi=-7.8555281128244, phi=0.1205543897884, psf=-4.6198904039403, br=1.8472554144217,
-              bf=2.4548072904550)
+BM_STATE = {"x": 0.0, "y": 0.0, "z": 0.2440472102925, "th": 0.0, "psi": 0.9501292851472, "phi": 3.1257073014894,
+                "psf": 0.2311385135743, "br": 0.0, "bf": 0.0}
+BM_RATES = {"x": -2.8069345714545, "y": -0.1480982396001, "z": 0.1058778746261, "th": 0.7830033527065,
+                "psi": 0.6068425835418, "phi": -0.0119185528069, "psf": 0.4859824687093, "br": 8.9129896614890,
+                "bf": 8.0133620584155}
+BM_ACC = {"x": -0.5041626315047, "y": -0.3449706619454, "z": -1.4604528332980, "th": 0.8353281706379,
+              "psi": -7.8555281128244, "phi": 0.1205543897884, "psf": -4.6198904039403, "br": 1.8472554144217,
+              "bf": 2.4548072904550}
 
 
 def _basu_mandal_in_moore():
     """Their state, rates and accelerations in Moore's q, u, u̇ (u_i = dq_i/dt): q1 = −rR sinθ cosψ − x,
-    q2 = y − rR cosθ cosψ, q3 = −θ, q4 = π/2 − ψ, q5 = π − φ + λ, q6 = −βr, q7 = −ψf, q8 = −βf."""
+    q2 = y − rR cosθ cosψ, q3 = −θ, q4 = π/2 − ψ, q5 = π − φ + λ, q6 = −βr, q7 = −ψf,
+    q8 = −βf."""
     s, r, a = BM_STATE, BM_RATES, BM_ACC
     st, ct, sp, cp = math.sin(s["th"]), math.cos(s["th"]), math.sin(s["psi"]), math.cos(s["psi"])
     td, pd, tdd, pdd = r["th"], r["psi"], a["th"], a["psi"]
-    q = dict(q1=-RR * st * cp - s["x"], q2=s["y"] - RR * ct * cp, q3=-s["th"], q4=math.pi / 2 - s["psi"],
-             q5=math.pi - s["phi"] + LAM, q6=-s["br"], q7=-s["psf"], q8=-s["bf"])
-    u = dict(u1=RR * pd * st * sp - RR * td * ct * cp - r["x"], u2=r["y"] + RR * td * st * cp + RR * pd * ct * sp,
-             u3=-td, u4=-pd, u5=-r["phi"], u6=-r["br"], u7=-r["psf"], u8=-r["bf"])
-    ud = dict(u1=RR * (pdd * st * sp + pd * td * ct * sp + pd * pd * st * cp)
+    q = {"q1": -RR * st * cp - s["x"], "q2": s["y"] - RR * ct * cp, "q3": -s["th"], "q4": math.pi / 2 - s["psi"],
+             "q5": math.pi - s["phi"] + LAM, "q6": -s["br"], "q7": -s["psf"], "q8": -s["bf"]}
+    u = {"u1": RR * pd * st * sp - RR * td * ct * cp - r["x"], "u2": r["y"] + RR * td * st * cp + RR * pd * ct * sp,
+             "u3": -td, "u4": -pd, "u5": -r["phi"], "u6": -r["br"], "u7": -r["psf"], "u8": -r["bf"]}
+    ud = {"u1": RR * (pdd * st * sp + pd * td * ct * sp + pd * pd * st * cp)
               - RR * (tdd * ct * cp - td * td * st * cp - td * pd * ct * sp) - a["x"],
-              u2=a["y"] + RR * (tdd * st * cp + td * td * ct * cp - td * pd * st * sp)
+              "u2": a["y"] + RR * (tdd * st * cp + td * td * ct * cp - td * pd * st * sp)
               + RR * (pdd * ct * sp - pd * td * st * sp + pd * pd * ct * cp),
-              u3=-tdd, u4=-pdd, u5=-a["phi"], u6=-a["br"], u7=-a["psf"], u8=-a["bf"])
+              "u3": -tdd, "u4": -pdd, "u5": -a["phi"], "u6": -a["br"], "u7": -a["psf"], "u8": -a["bf"]}
     return q, u, ud
 
 
@@ -214,3 +215,13 @@ def test_bicycle_eigenvalues_table(bicycle):
     assert [r["speed"] for r in rows] == [2.0, 6.0]
     got = [complex(*z) for z in rows[1]["eigenvalues"]]
     assert np.allclose(_sorted(got), _sorted(EIGENVALUES[6]), atol=1e-9)
+
+
+def test_bad_speed_is_refused_with_the_field_named(bicycle):
+    from nmkane_core import InputError
+    from nmkane_core.bicycle import upright_state
+
+    with pytest.raises(InputError, match="speed"):
+        upright_state(float("nan"))
+    with pytest.raises(InputError, match="rR"):
+        upright_state(5.0, {"rR": -1.0})

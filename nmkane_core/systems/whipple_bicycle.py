@@ -152,7 +152,7 @@ def _model():
 
     kinetic = sum(b.kinetic_energy(N) for b in bodies)
     potential = -g * sum(m * p.pos_from(dn).dot(N.z) for p, m in ((do, mR), (bo, mB), (ho, mH), (fo, mF)))
-    kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
+    kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
     return MechanicalModel.from_mechanics(
         "default", q=q, u=u, kd_eqs=kd, bodies=bodies, loads=loads, frame=N, params=par,
         nonholonomic=nonholonomic, holonomic=holonomic,
