@@ -126,6 +126,7 @@ def run_bench(quick: bool = False, log=print) -> list[dict]:
     # 4b. a user's own system from a systems file (examples/isokinetic_bowl.py: 3 coordinates,
     # a holonomic surface and a square-root speed constraint), whole `nmkane run` processes
     _user_system_rows(add)
+    _bicycle_rows(add, quick)
 
     # 5. interactive re-runs (settings in → arrays out)
     variants = [{"gamma": -1.0}, {"gamma": -5.0}, {"dt": 0.005}, {"model": "linear"}, {"dt": 0.02},
@@ -194,6 +195,44 @@ def _user_system_rows(add) -> None:
         first <= 10.0)
     add("user system: fresh process, kernel cached (whole `nmkane run --systems`)", cached, None, "≤ 1.5 s",
         cached <= 1.5, f"(sympy imported: {'yes' if out == 'True' else 'no'})")
+
+
+def _bicycle_rows(add, quick: bool) -> None:
+    """The Whipple bicycle (8 coordinates, 4 nonholonomic + 1 holonomic constraints): first use
+    in an empty cache, a fresh cached process, 10 s of motion warm, eigenvalues at 100 speeds."""
+    from .bicycle import bicycle_eigenvalues
+
+    probe = ("from nmkane_core import accelerations\nfrom nmkane_core.bicycle import upright_state\n"
+             "accelerations('whipple-bicycle', upright_state(5.0))")
+
+    def child(env):
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                              env={**os.environ, **env})
+        if proc.returncode != 0:
+            raise RuntimeError(proc.stderr)
+        return time.perf_counter() - t0
+
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {"NMKANE_CACHE_DIR": tmp, "NUMBA_CACHE_DIR": tmp}
+        first = child(env)
+        cached = min(child(env) for _ in range(2))
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    add("Whipple bicycle: first use, empty cache (derivation + compilation)", first, None, "≤ 30 s",
+        first <= 30.0, f"(a process computing accelerations at a state; load average {load:.1f})")
+    add("Whipple bicycle: fresh process, kernel cached (same process)", cached, None, "≤ 2 s", cached <= 2.0)
+    plan = resolve({"system": "whipple-bicycle", "integrator": "kutta-merson", "dt": 0.001, "t_final": 10.0,
+                    "every": 1000, "initial": {"u4": 0.5}})
+    simulate(plan, progress=False)                                       # warm
+    wall, run = _best(lambda: simulate(plan, progress=False))
+    evals = run.summary["rhs_evals"]
+    add("Whipple bicycle: 10 s at dt=0.001, Kutta–Merson, warm", wall, evals / wall, "≤ 0.1 s", wall <= 0.1,
+        f"({evals:,} rhs evaluations)")
+    speeds = np.linspace(0.0, 10.0, 20 if quick else 100)
+    bicycle_eigenvalues(speeds[:2])                                      # warm
+    wall, _ = _best(lambda: bicycle_eigenvalues(speeds), repeat=2)
+    add(f"Whipple bicycle: eigenvalues at {len(speeds)} speeds (linearize)", wall, None,
+        "≤ 1 s" if not quick else None, wall <= 1.0 if not quick else None)
 
 
 def format_table(rows) -> str:

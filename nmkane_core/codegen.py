@@ -38,6 +38,9 @@ __all__ = ["cache_dir", "generate_source", "compiled_kernel", "kernel", "fingerp
 GENERIC_FILES = ("_kernel_loops.py", "_kernel_projection.py")
 
 _LOCK = threading.Lock()
+
+#: expression trees larger than this (nodes, summed over one function) skip cse's pre-optimizations
+CSE_BASIC_MAX_NODES = 20_000
 _LOADED: dict[str, object] = {}
 
 
@@ -78,7 +81,11 @@ def _block(name: str, signature: str, kt, assignments: list[tuple],
     sub.update(zip(kt.args_p, ps))
     sub[kt.args_t] = tt
     exprs = [sp.sympify(a[1]).xreplace(sub) for a in assignments]
-    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic")
+    # cse's "basic" pre-optimizations (factoring) save a few percent of operations but cost
+    # time that grows fast with the size: a bicycle's terms take 8 s with them, 0.6 s without
+    size = sum(1 for e in exprs for _ in sp.preorder_traversal(e))
+    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"),
+                           optimizations="basic" if size <= CSE_BASIC_MAX_NODES else None)
     used = set()
     for e in exprs:
         used |= {s.name for s in sp.sympify(e).free_symbols}

@@ -16,8 +16,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--model")
     p.add_argument("--formulation")
     p.add_argument("--at", type=assignment, action="append", default=[], metavar="NAME=VALUE",
-                   help="the state: every coordinate and speed (default: the system's default state; "
-                        "values given here replace those)")
+                   help="the state: independent values (the others taken from the system's default state, "
+                        "the dependent ones completed from the constraints) or every coordinate and speed")
     p.add_argument("--set", type=assignment, action="append", default=[], metavar="NAME=VALUE",
                    help="a physical parameter")
     p.add_argument("--json", action="store_true", help="machine-readable output")
@@ -29,8 +29,22 @@ def _state(args):
     load_plugged_systems(args)
     system = get_system(args.system)
     variant = getattr(args, system.option) or None
-    state = {**system.default_initial, **dict(args.at)}
-    return system, variant, state, dict(args.set)
+    params = dict(args.set)
+    # independent values only: the rest from the defaults, dependent ones completed; a full
+    # state as it is (checked against the constraints by the analysis)
+    given = dict(args.at)
+    if len(given) < len(system.state_names):
+        from ..errors import InputError
+        from ..initial import initial_state
+
+        try:
+            _, state = initial_state(system, system.check_variant(variant), system.resolve_params(params), given)
+        except InputError as e:            # name the option of this command, not `run --init`
+            field = e.field.replace("initial.", "--at ", 1) if e.field.startswith("initial.") else e.field
+            raise InputError(field.replace("initial", "--at", 1), e.value, e.allowed, e.reason) from None
+    else:
+        state = given
+    return system, variant, state, params
 
 
 def _accelerations(args: argparse.Namespace) -> int:

@@ -2,7 +2,8 @@
 the paper's two examples and a catalogue of classic nonholonomic systems.
 :mod:`nmkane_core.registry` registers :data:`BUILTIN`."""
 
-from . import appell_hamel, chaplygin_sleigh, knife_edge, odometer_puck, rolling_disk, sliding_particle
+from . import (appell_hamel, chaplygin_sleigh, knife_edge, odometer_puck, rolling_disk, sliding_particle,
+               whipple_bicycle)
 
 BUILTIN = {
     "appell-hamel": appell_hamel.appell_hamel,
@@ -11,4 +12,5 @@ BUILTIN = {
     "chaplygin-sleigh": chaplygin_sleigh.chaplygin_sleigh,
     "rolling-disk": rolling_disk.rolling_disk,
     "odometer-puck": odometer_puck.odometer_puck,
+    "whipple-bicycle": whipple_bicycle.whipple_bicycle,
 }

@@ -1,0 +1,176 @@
+"""The Carvallo–Whipple bicycle in the benchmark parameters of Meijaard et al. (2007).
+
+Four rigid bodies — rear wheel R, rear frame B with the rider, front frame H (fork and
+handlebar), front wheel F — two knife-edge wheels rolling without slip on level ground.
+Coordinates as in Moore (2012) (z down, x forward, y to the right):
+
+* q1, q2  rear contact point in the ground plane (N.x, N.y); q3 yaw (about N.z);
+* q4 roll (about the yaw frame's x); q5 pitch of the rear frame (about the roll frame's y;
+  q5 = λ when upright); q6 rear wheel rotation; q7 steer (about the steer axis);
+  q8 front wheel rotation;  u_i = dq_i/dt.
+
+Constraints (Bajodah, Hodges & Chen's setting): four nonholonomic ones — the wheels' material
+contact points have no horizontal velocity (``rear_longitudinal``, ``rear_lateral``,
+``front_longitudinal``, ``front_lateral``) — and a holonomic one, the front wheel touching the
+ground (``front_contact``, a function of q4, q5, q7; pitch q5 is its dependent coordinate).
+Independent speeds u4 (roll rate), u6 (rear wheel rate), u7 (steer rate).  Forward speed
+v = −rR·u6 when upright.
+
+The holonomic equations Q u̇ = P come from sympy.physics.mechanics' KanesMethod on the
+unconstrained system (eight speeds), exactly as for the paper's examples.  The geometry is
+written directly in the benchmark parameters (Meijaard Table 1): the rear frame C is the
+benchmark frame turned by λ about y, so that C.z is the steer axis; d1, d2, d3 (Moore's
+offsets) and the mass centres l1..l4 follow from w, c, λ, rR, rF, xB, zB, xH, zH.
+
+:mod:`nmkane_core.bicycle` has the state of upright straight running at a speed and the
+eigenvalues of the linearized roll/steer motion at speeds.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..system import Parameter, System
+
+NAME = "whipple-bicycle"
+LAM = math.pi / 10
+
+PARAMETERS = {
+    "w": Parameter(1.02, 0.0, 10.0, "m", "wheel base"),
+    "c": Parameter(0.08, -2.0, 2.0, "m", "trail"),
+    "lam": Parameter(LAM, -1.5, 1.5, "rad", "steer axis tilt (from vertical)"),
+    "g": Parameter(9.81, 0.0, 100.0, "m/s²", "gravitational acceleration", min_inclusive=True),
+    "rR": Parameter(0.3, 0.0, 5.0, "m", "rear wheel radius"),
+    "mR": Parameter(2.0, 0.0, 1e3, "kg", "rear wheel mass"),
+    "IRxx": Parameter(0.0603, 0.0, 1e3, "kg·m²", "rear wheel moment of inertia about a diameter"),
+    "IRyy": Parameter(0.12, 0.0, 1e3, "kg·m²", "rear wheel moment of inertia about the axle"),
+    "xB": Parameter(0.3, -10.0, 10.0, "m", "rear frame (with rider) mass centre, forward of the rear contact"),
+    "zB": Parameter(-0.9, -10.0, 10.0, "m", "rear frame (with rider) mass centre, z down (negative: above)"),
+    "mB": Parameter(85.0, 0.0, 1e4, "kg", "rear frame (with rider) mass"),
+    "IBxx": Parameter(9.2, 0.0, 1e4, "kg·m²", "rear frame inertia xx (benchmark axes)"),
+    "IByy": Parameter(11.0, 0.0, 1e4, "kg·m²", "rear frame inertia yy"),
+    "IBzz": Parameter(2.8, 0.0, 1e4, "kg·m²", "rear frame inertia zz"),
+    "IBxz": Parameter(2.4, -1e4, 1e4, "kg·m²", "rear frame inertia xz (tensor element)"),
+    "xH": Parameter(0.9, -10.0, 10.0, "m", "front frame mass centre, forward of the rear contact"),
+    "zH": Parameter(-0.7, -10.0, 10.0, "m", "front frame mass centre, z down (negative: above)"),
+    "mH": Parameter(4.0, 0.0, 1e4, "kg", "front frame (fork and handlebar) mass"),
+    "IHxx": Parameter(0.05892, 0.0, 1e3, "kg·m²", "front frame inertia xx (benchmark axes)"),
+    "IHyy": Parameter(0.06, 0.0, 1e3, "kg·m²", "front frame inertia yy"),
+    "IHzz": Parameter(0.00708, 0.0, 1e3, "kg·m²", "front frame inertia zz"),
+    "IHxz": Parameter(-0.00756, -1e3, 1e3, "kg·m²", "front frame inertia xz (tensor element)"),
+    "rF": Parameter(0.35, 0.0, 5.0, "m", "front wheel radius"),
+    "mF": Parameter(3.0, 0.0, 1e3, "kg", "front wheel mass"),
+    "IFxx": Parameter(0.1405, 0.0, 1e3, "kg·m²", "front wheel moment of inertia about a diameter"),
+    "IFyy": Parameter(0.28, 0.0, 1e3, "kg·m²", "front wheel moment of inertia about the axle"),
+}
+PARAM_NAMES = tuple(PARAMETERS)
+
+#: upright straight running at 5 m/s, a full consistent state for the benchmark parameters:
+#: upright and unsteered the steer axis is at λ from vertical, so the pitch q5 = λ for any
+#: geometry; u1 = v, u6 = −v/rR, u8 = −v/rF (other parameters: completed from u6)
+DEFAULT_SPEED = 5.0
+DEFAULT_INITIAL = {"q1": 0.0, "q2": 0.0, "q3": 0.0, "q4": 0.0, "q5": LAM, "q6": 0.0, "q7": 0.0, "q8": 0.0,
+                   "u1": DEFAULT_SPEED, "u2": 0.0, "u3": 0.0, "u4": 0.0, "u5": 0.0,
+                   "u6": -DEFAULT_SPEED / 0.3, "u7": 0.0, "u8": -DEFAULT_SPEED / 0.35}
+
+
+def _model():
+    import sympy as sp
+    from sympy.physics import mechanics as me
+
+    from ..model import MechanicalModel
+
+    q = me.dynamicsymbols("q1:9")
+    u = me.dynamicsymbols("u1:9")
+    t = me.dynamicsymbols._t
+    par = sp.symbols(" ".join(PARAM_NAMES), real=True)
+    (w, c, lam, g, rR, mR, IRxx, IRyy, xB, zB, mB, IBxx, IByy, IBzz, IBxz,
+     xH, zH, mH, IHxx, IHyy, IHzz, IHxz, rF, mF, IFxx, IFyy) = par
+
+    # Moore's offsets in the benchmark parameters: d1 rear wheel centre → steer axis (along
+    # C.x), d3 steer axis → front wheel centre (along E.x), d2 between their feet along the axis
+    cl, sl = sp.cos(lam), sp.sin(lam)
+    d1 = cl * (w + c) - rR * sl
+    d3 = rF * sl - c * cl
+    d2 = w * sl + (rR - rF) * cl
+    # mass centres in the rear frame C (from the rear wheel centre) and the front frame E
+    # (from the steer axis point), upright: benchmark (x, z) turned by λ
+    l1, l2 = xB * cl - (zB + rR) * sl, xB * sl + (zB + rR) * cl
+    l3, l4 = xH * cl - (zH + rR) * sl - d1, xH * sl + (zH + rR) * cl
+
+    N = me.ReferenceFrame("N")
+    A = N.orientnew("A", "Axis", (q[2], N.z))        # yaw
+    B = A.orientnew("B", "Axis", (q[3], A.x))        # roll
+    C = B.orientnew("C", "Axis", (q[4], B.y))        # pitch: rear frame, C.z along the steer axis
+    D = C.orientnew("D", "Axis", (q[5], C.y))        # rear wheel
+    E = C.orientnew("E", "Axis", (q[6], C.z))        # steer: front frame
+    F = E.orientnew("F", "Axis", (q[7], E.y))        # front wheel
+    A.set_ang_vel(N, u[2] * N.z)
+    B.set_ang_vel(A, u[3] * A.x)
+    C.set_ang_vel(B, u[4] * B.y)
+    D.set_ang_vel(C, u[5] * C.y)
+    E.set_ang_vel(C, u[6] * C.z)
+    F.set_ang_vel(E, u[7] * E.y)
+    Cb = C.orientnew("Cb", "Axis", (-lam, C.y))      # benchmark axes of the rear frame
+    Eb = E.orientnew("Eb", "Axis", (-lam, E.y))      # benchmark axes of the front frame
+
+    O = me.Point("O")
+    O.set_vel(N, 0)
+    dn = O.locatenew("dn", q[0] * N.x + q[1] * N.y)  # rear contact point
+    dn.set_vel(N, u[0] * N.x + u[1] * N.y)
+    do = dn.locatenew("do", -rR * B.z)              # rear wheel centre
+    do.v2pt_theory(dn, N, B)
+    ce = do.locatenew("ce", d1 * C.x)               # on the steer axis
+    ce.v2pt_theory(do, N, C)
+    bo = do.locatenew("bo", l1 * C.x + l2 * C.z)    # rear frame mass centre
+    bo.v2pt_theory(do, N, C)
+    fo = ce.locatenew("fo", d2 * C.z + d3 * E.x)    # front wheel centre
+    fo.v2pt_theory(ce, N, E)
+    ho = ce.locatenew("ho", l3 * E.x + l4 * E.z)    # front frame mass centre
+    ho.v2pt_theory(ce, N, E)
+
+    rear = me.RigidBody("R", do, D, mR, (me.inertia(C, IRxx, IRyy, IRxx), do))
+    frame = me.RigidBody("B", bo, C, mB, (me.inertia(Cb, IBxx, IByy, IBzz, 0, 0, IBxz), bo))
+    fork = me.RigidBody("H", ho, E, mH, (me.inertia(Eb, IHxx, IHyy, IHzz, 0, 0, IHxz), ho))
+    front = me.RigidBody("F", fo, F, mF, (me.inertia(E, IFxx, IFyy, IFxx), fo))
+    bodies = [rear, frame, fork, front]
+    loads = [(p, m * g * N.z) for p, m in ((do, mR), (bo, mB), (ho, mH), (fo, mF))]
+
+    # contact geometry: s = E.y·A.z; the front contact lies rF from the centre along the
+    # wheel plane's steepest descent (A.z − s E.y)/√(1 − s²)
+    s = E.y.dot(A.z)
+    root = sp.sqrt(1 - s ** 2)
+    to_front_contact = rF * (A.z - s * E.y) / root
+    v_rear = do.vel(N) + D.ang_vel_in(N).cross(rR * B.z)          # material contact points
+    v_front = fo.vel(N) + F.ang_vel_in(N).cross(to_front_contact)
+    nonholonomic = {
+        "rear_longitudinal": v_rear.dot(A.x), "rear_lateral": v_rear.dot(A.y),
+        "front_longitudinal": v_front.dot(A.x), "front_lateral": v_front.dot(A.y),
+    }
+    # (fn − dn)·A.z = 0: the front contact point on the ground
+    holonomic = {"front_contact": fo.pos_from(dn).dot(A.z) + rF * root}
+
+    kinetic = sum(b.kinetic_energy(N) for b in bodies)
+    potential = -g * sum(m * p.pos_from(dn).dot(N.z) for p, m in ((do, mR), (bo, mB), (ho, mH), (fo, mF)))
+    kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
+    return MechanicalModel.from_mechanics(
+        "default", q=q, u=u, kd_eqs=kd, bodies=bodies, loads=loads, frame=N, params=par,
+        nonholonomic=nonholonomic, holonomic=holonomic,
+        u_independent=(u[3], u[5], u[6]), q_dependent=(q[4],),
+        energy=kinetic + potential,
+        description="Carvallo–Whipple bicycle, Moore's coordinates, Meijaard's benchmark parameters")
+
+
+def whipple_bicycle() -> System:
+    return System(
+        name=NAME,
+        title="Whipple bicycle (benchmark)",
+        variants=_model,
+        parameters=PARAMETERS,
+        default_initial=DEFAULT_INITIAL,
+        default_dt=0.001,
+        default_t_final=5.0,
+        default_integrator="kutta-merson",
+        description="Carvallo–Whipple bicycle with the benchmark parameters of Meijaard et al. (2007): "
+                    "rolling without slip (nonholonomic), front wheel ground contact (holonomic).",
+    )
