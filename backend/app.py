@@ -24,10 +24,9 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import datetime as dt
+import sys
 from functools import lru_cache
 from importlib import metadata
-import sys
-from typing import Optional
 
 import numpy as np
 import orjson
@@ -51,32 +50,48 @@ __all__ = ["create_app"]
 
 try:
     VERSION = metadata.version("nmkane")
-except metadata.PackageNotFoundError:       # running from a source tree without install
+except metadata.PackageNotFoundError:  # running from a source tree without install
     VERSION = "0.1.0"
 
 RUN_ID = Path(description="the run's id, as returned by POST /api/runs", min_length=1, max_length=64)
 
 _ERR = {"model": ErrorResponse}
 POST_RESPONSES = {
-    201: {"description": "the run result document (also for runs that ended singular, diverged or timeout)",
-          "links": {"GetRun": {"operationId": "get_run", "parameters": {"run_id": "$response.body#/id"},
-                               "description": "the stored run"},
-                    "GetRunCsv": {"operationId": "get_run_csv", "parameters": {"run_id": "$response.body#/id"},
-                                  "description": "the stored run as CSV"}}},
+    201: {
+        "description": "the run result document (also for runs that ended singular, diverged or timeout)",
+        "links": {
+            "GetRun": {
+                "operationId": "get_run",
+                "parameters": {"run_id": "$response.body#/id"},
+                "description": "the stored run",
+            },
+            "GetRunCsv": {
+                "operationId": "get_run_csv",
+                "parameters": {"run_id": "$response.body#/id"},
+                "description": "the stored run as CSV",
+            },
+        },
+    },
     400: {**_ERR, "description": "the body could not be read as text (e.g. not UTF-8)"},
     413: {**_ERR, "description": "request body larger than max_request_bytes"},
     415: {**_ERR, "description": "the body is not declared as JSON (Content-Type)"},
     422: {**_ERR, "description": "invalid settings: field path, value, reason and what is allowed"},
-    507: {**_ERR, "description": "the run store is full (max_stored_runs or max_store_bytes); delete runs "
-                                 "or raise the cap"},
-    503: {**_ERR, "description": "queue_limit runs already admitted; retry after Retry-After seconds",
-          "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}}},
+    507: {
+        **_ERR,
+        "description": "the run store is full (max_stored_runs or max_store_bytes); delete runs or raise the cap",
+    },
+    503: {
+        **_ERR,
+        "description": "queue_limit runs already admitted; retry after Retry-After seconds",
+        "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}},
+    },
 }
-NOT_FOUND = {404: {**_ERR, "description": "no run with this id"},
-             422: {**_ERR, "description": "malformed id"}}
+NOT_FOUND = {404: {**_ERR, "description": "no run with this id"}, 422: {**_ERR, "description": "malformed id"}}
 _ERR_JSON = {"content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorResponse"}}}}
-NOT_FOUND_CSV = {404: {**_ERR_JSON, "description": "no run with this id"},
-                 422: {**_ERR_JSON, "description": "malformed id"}}
+NOT_FOUND_CSV = {
+    404: {**_ERR_JSON, "description": "no run with this id"},
+    422: {**_ERR_JSON, "description": "malformed id"},
+}
 
 
 class JSONBytes(JSONResponse):
@@ -121,7 +136,7 @@ class _BodySizeLimit:
             if message["type"] == "http.request":
                 seen += len(message.get("body", b""))
                 if seen > self.limit:
-                    raise _BodyTooLarge()         # FastAPI passes HTTPExceptions to the handlers
+                    raise _BodyTooLarge()  # FastAPI passes HTTPExceptions to the handlers
             return message
 
         return await self.app(scope, counted, send)
@@ -158,7 +173,7 @@ def _catalog() -> dict:
 
 
 def _iso(ts: float) -> str:
-    return dt.datetime.fromtimestamp(ts, dt.timezone.utc).isoformat(timespec="milliseconds").replace("+00:00", "Z")
+    return dt.datetime.fromtimestamp(ts, dt.UTC).isoformat(timespec="milliseconds").replace("+00:00", "Z")
 
 
 def _csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
@@ -176,9 +191,15 @@ def _csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
     del d
     for start in range(0, max(t.size, 1), rows_per_chunk):
         part = slice(start, start + rows_per_chunk)
-        text = Run(system="", settings={}, t=t[part], state={k: v[part] for k, v in state.items()},
-                   energy=None if energy is None else energy[part],
-                   violation={k: v[part] for k, v in violation.items()}, summary={}).to_csv()
+        text = Run(
+            system="",
+            settings={},
+            t=t[part],
+            state={k: v[part] for k, v in state.items()},
+            energy=None if energy is None else energy[part],
+            violation={k: v[part] for k, v in violation.items()},
+            summary={},
+        ).to_csv()
         yield text if start == 0 else text.split("\n", 1)[1]
 
 
@@ -191,44 +212,54 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     async def lifespan(app: FastAPI):
         svc.start()
         if settings.warm_kernels:
+
             def report(line: str) -> None:
                 print(line, file=sys.stderr, flush=True)
 
             report("nmkane: preparing the kernels (the first start after install compiles them)")
             first, later = svc.warm_steps()
             await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm, report, first)
-            report("nmkane: the service is ready; the loops with a post-step projection load in the "
-                   "background (a first start after install compiles them, one to two minutes)")
+            report(
+                "nmkane: the service is ready; the loops with a post-step projection load in the "
+                "background (a first start after install compiles them, one to two minutes)"
+            )
             svc.warm_in_background(later, report)
         try:
             yield
         finally:
             await asyncio.get_running_loop().run_in_executor(None, svc.stop)
 
-    app = FastAPIOffline(                   # /docs served with local assets: works offline
-        title="nmkane", version=VERSION, lifespan=lifespan,
+    app = FastAPIOffline(  # /docs served with local assets: works offline
+        title="nmkane",
+        version=VERSION,
+        lifespan=lifespan,
         description="Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005) as a service: run "
-                    "simulations of the Appell–Hamel mechanism and the sliding particle, and fetch "
-                    "them later by id. Limits are listed in GET /api/systems under `service_limits`. "
-                    "Every error answers `{\"detail\": [{loc, field, value, reason, allowed, msg, type}]}`.")
+        "simulations of the Appell–Hamel mechanism and the sliding particle, and fetch "
+        "them later by id. Limits are listed in GET /api/systems under `service_limits`. "
+        'Every error answers `{"detail": [{loc, field, value, reason, allowed, msg, type}]}`.',
+    )
     app.state.settings = settings
     app.state.service = svc
     if settings.cors_origins:
         from fastapi.middleware.cors import CORSMiddleware
 
-        app.add_middleware(CORSMiddleware, allow_origins=list(settings.cors_origins),
-                           allow_methods=["GET", "POST"], allow_headers=["content-type"],
-                           expose_headers=["location", "retry-after"])
+        app.add_middleware(
+            CORSMiddleware,
+            allow_origins=list(settings.cors_origins),
+            allow_methods=["GET", "POST"],
+            allow_headers=["content-type"],
+            expose_headers=["location", "retry-after"],
+        )
     install_error_handlers(app)
     app.include_router(sweeps_router)
     app.add_middleware(_BodySizeLimit, limit=settings.max_request_bytes)
     app.add_middleware(_HeadAsGet)
     if settings.token:
         app.add_middleware(TokenCheck, token=settings.token)
-    app.add_middleware(HostCheck, allowed=allowed_host_names(extra=settings.allowed_hosts))   # outermost
+    app.add_middleware(HostCheck, allowed=allowed_host_names(extra=settings.allowed_hosts))  # outermost
 
     async def service() -> RunService:
-        if svc.pool is None:          # an app used without its lifespan (a bare TestClient)
+        if svc.pool is None:  # an app used without its lifespan (a bare TestClient)
             svc.start()
         return svc
 
@@ -238,26 +269,47 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
     @app.get("/api/health", response_model=Health, operation_id="health")
     def health(svc: RunService = Depends(service)):
-        return Health(status="ok", version=VERSION, runs_stored=svc.store.count(), runs_in_flight=svc.admitted,
-                      runs_running=svc.running, queue_limit=settings.queue_limit)
+        return Health(
+            status="ok",
+            version=VERSION,
+            runs_stored=svc.store.count(),
+            runs_in_flight=svc.admitted,
+            runs_running=svc.running,
+            queue_limit=settings.queue_limit,
+        )
 
     @app.get("/api/systems", response_model=Catalog, operation_id="systems")
     def systems():
         """Systems, parameters (defaults, ranges, units), models or formulations, constraint names,
         integrators, projections, and the limits of the library and of this service."""
-        return {**_catalog(), "service_limits": settings.limits(),
-                "service_limit_descriptions": dict(LIMIT_DESCRIPTIONS)}
+        return {
+            **_catalog(),
+            "service_limits": settings.limits(),
+            "service_limit_descriptions": dict(LIMIT_DESCRIPTIONS),
+        }
 
-    @app.post("/api/runs", status_code=201, response_model=RunResult, response_class=JSONBytes,
-              responses=POST_RESPONSES, operation_id="create_run")
+    @app.post(
+        "/api/runs",
+        status_code=201,
+        response_model=RunResult,
+        response_class=JSONBytes,
+        responses=POST_RESPONSES,
+        operation_id="create_run",
+    )
     async def create_run(body: RunSettings, svc: RunService = Depends(service)):
         """Run a simulation and store it; answers 201 with the run result document and its
         `Location`. Omitted fields take the system's defaults."""
         if not svc.admit():
             wait = svc.retry_after()
-            return error_response(503, [item([], "overloaded", None, f"{settings.queue_limit} runs already "
-                                             "admitted", f"retry after {wait} s")],
-                                  headers={"Retry-After": str(wait)})
+            return error_response(
+                503,
+                [
+                    item(
+                        [], "overloaded", None, f"{settings.queue_limit} runs already admitted", f"retry after {wait} s"
+                    )
+                ],
+                headers={"Retry-After": str(wait)},
+            )
         try:
             run_id, doc = await svc.run(body)
         finally:
@@ -265,17 +317,20 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return JSONBytes(doc, status_code=201, headers={"Location": f"/api/runs/{run_id}"})
 
     @app.get("/api/runs", response_model=RunList, response_class=JSONBytes, operation_id="list_runs")
-    def list_runs(limit: int = Query(20, ge=1, le=200, description="runs per page"),
-                  offset: int = Query(0, ge=0, le=2**62, description="runs to skip (newest first)"),
-                  system: Optional[str] = Query(None, max_length=64, description="only runs of this system"),
-                  status: Optional[STATUSES] = Query(None, description="only runs with this status"),
-                  svc: RunService = Depends(service)):
+    def list_runs(
+        limit: int = Query(20, ge=1, le=200, description="runs per page"),
+        offset: int = Query(0, ge=0, le=2**62, description="runs to skip (newest first)"),
+        system: str | None = Query(None, max_length=64, description="only runs of this system"),
+        status: STATUSES | None = Query(None, description="only runs with this status"),
+        svc: RunService = Depends(service),
+    ):
         """Recent runs, newest first: id, time, system, status, resolved settings and summary."""
         runs = svc.store.list(limit, offset, system, status)
         for r in runs:
             r["created"] = _iso(r["created"])
-        return JSONBytes(orjson.dumps({"runs": runs, "total": svc.store.count(system, status),
-                                       "limit": limit, "offset": offset}))
+        return JSONBytes(
+            orjson.dumps({"runs": runs, "total": svc.store.count(system, status), "limit": limit, "offset": offset})
+        )
 
     @app.get("/api/runs/{run_id}.csv", response_class=CSVResponse, responses=NOT_FOUND_CSV, operation_id="get_run_csv")
     def get_run_csv(run_id: str = RUN_ID, svc: RunService = Depends(service)):
@@ -283,11 +338,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         doc = svc.store.document(run_id)
         if doc is None:
             return _not_found(run_id)
-        return StreamingResponse(_csv_chunks(doc), media_type=CSVResponse.media_type,
-                                 headers={"Content-Disposition": f'attachment; filename="{run_id}.csv"'})
+        return StreamingResponse(
+            _csv_chunks(doc),
+            media_type=CSVResponse.media_type,
+            headers={"Content-Disposition": f'attachment; filename="{run_id}.csv"'},
+        )
 
-    @app.get("/api/runs/{run_id}", response_model=RunResult, response_class=JSONBytes, responses=NOT_FOUND,
-             operation_id="get_run")
+    @app.get(
+        "/api/runs/{run_id}",
+        response_model=RunResult,
+        response_class=JSONBytes,
+        responses=NOT_FOUND,
+        operation_id="get_run",
+    )
     def get_run(run_id: str = RUN_ID, svc: RunService = Depends(service)):
         """The stored run result document, exactly as POST /api/runs answered it."""
         doc = svc.store.document(run_id)
@@ -295,9 +358,12 @@ def create_app(settings: Settings | None = None) -> FastAPI:
             return _not_found(run_id)
         return JSONBytes(doc)
 
-    @app.delete("/api/runs/{run_id}", status_code=204, responses={**NOT_FOUND, 401: {
-        **_ERR, "description": "an access token is asked for and was missing or wrong"}},
-        operation_id="delete_run")
+    @app.delete(
+        "/api/runs/{run_id}",
+        status_code=204,
+        responses={**NOT_FOUND, 401: {**_ERR, "description": "an access token is asked for and was missing or wrong"}},
+        operation_id="delete_run",
+    )
     def delete_run(run_id: str = RUN_ID, svc: RunService = Depends(service)):
         """Delete a stored run (its document, CSV and listing entry)."""
         if not svc.store.delete(run_id):
@@ -308,5 +374,6 @@ def create_app(settings: Settings | None = None) -> FastAPI:
 
 
 def _not_found(run_id: str):
-    return error_response(404, [item(["path", "run_id"], "not_found", run_id, "no run with this id",
-                                     "an id returned by POST /api/runs")])
+    return error_response(
+        404, [item(["path", "run_id"], "not_found", run_id, "no run with this id", "an id returned by POST /api/runs")]
+    )

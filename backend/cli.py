@@ -12,39 +12,66 @@ from nmkane_core.errors import InputError, NmkaneError
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--host", default="127.0.0.1",
-                   help="address to bind (default: loopback); another address asks for an access token")
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to bind (default: loopback); another address asks for an access token",
+    )
     p.add_argument("--api-port", type=int, default=8000, help="REST API port (0: a free one)")
     p.add_argument("--viser-port", type=int, default=8080, help="3D web app port (0: a free one)")
     p.add_argument("--no-web", action="store_true", help="REST service only")
-    p.add_argument("--scene", metavar="NAME", default=None,
-                   help="the system the 3D web app opens new browsers on (any registered or plugged-in system)")
-    p.add_argument("--allow-host", action="append", default=[], metavar="NAME",
-                   help="a host name clients may use to reach this server (Host header), besides the "
-                        "loopback names and the bound address; repeatable")
-    p.add_argument("--no-auth", action="store_true",
-                   help="on a non-loopback address, serve without an access token (anyone who can reach "
-                        "the port can run and delete runs)")
-    p.add_argument("--max-sessions", type=int, default=None, metavar="N",
-                   help="browsers the 3D web app serves at once (default: NMKANE_MAX_SESSIONS or 40)")
+    p.add_argument(
+        "--scene",
+        metavar="NAME",
+        default=None,
+        help="the system the 3D web app opens new browsers on (any registered or plugged-in system)",
+    )
+    p.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name clients may use to reach this server (Host header), besides the "
+        "loopback names and the bound address; repeatable",
+    )
+    p.add_argument(
+        "--no-auth",
+        action="store_true",
+        help="on a non-loopback address, serve without an access token (anyone who can reach "
+        "the port can run and delete runs)",
+    )
+    p.add_argument(
+        "--max-sessions",
+        type=int,
+        default=None,
+        metavar="N",
+        help="browsers the 3D web app serves at once (default: NMKANE_MAX_SESSIONS or 40)",
+    )
     add_systems_option(p)
 
 
 def _run(args: argparse.Namespace) -> int:
-    load_plugged_systems(args, strict=False)     # a bad systems file: one line, the others still load
+    load_plugged_systems(args, strict=False)  # a bad systems file: one line, the others still load
     if args.max_sessions is not None and args.max_sessions < 1:
         raise InputError("max_sessions", args.max_sessions, "an integer ≥ 1")
     if args.scene is not None:
         from nmkane_core.registry import get_system
 
-        get_system(args.scene, "--scene")        # an unknown name: one line naming the option and the choices
+        get_system(args.scene, "--scene")  # an unknown name: one line naming the option and the choices
     try:
         from .serve import serve
     except ImportError as e:
         raise NmkaneError(f"the REST service needs its extra ({e}): pip install 'nmkane[service]'") from None
-    serve(host=args.host, api_port=args.api_port, viser_port=args.viser_port, web=not args.no_web,
-          allow_hosts=tuple(args.allow_host), auth=not args.no_auth, max_sessions=args.max_sessions,
-          app_options={"scene": args.scene} if args.scene else None)
+    serve(
+        host=args.host,
+        api_port=args.api_port,
+        viser_port=args.viser_port,
+        web=not args.no_web,
+        allow_hosts=tuple(args.allow_host),
+        auth=not args.no_auth,
+        max_sessions=args.max_sessions,
+        app_options={"scene": args.scene} if args.scene else None,
+    )
     return 0
 
 
@@ -52,14 +79,23 @@ SERVE = Command("serve", "start the REST service and the 3D web app", _add_argum
 
 
 def _add_store_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--db", default=None, metavar="FILE",
-                   help="the run store (default: NMKANE_DB, or NMKANE_DATA_DIR/runs.sqlite3, or ./data/runs.sqlite3)")
+    p.add_argument(
+        "--db",
+        default=None,
+        metavar="FILE",
+        help="the run store (default: NMKANE_DB, or NMKANE_DATA_DIR/runs.sqlite3, or ./data/runs.sqlite3)",
+    )
     sub = p.add_subparsers(dest="action", required=True, metavar="ACTION")
     prune = sub.add_parser("prune", help="delete old runs: all but the newest N, or those older than DAYS")
     which = prune.add_mutually_exclusive_group(required=True)
     which.add_argument("--keep", type=int, metavar="N", help="keep the newest N runs, delete the others")
-    which.add_argument("--older-than", type=float, dest="older_than", metavar="DAYS",
-                       help="delete the runs stored more than DAYS days ago")
+    which.add_argument(
+        "--older-than",
+        type=float,
+        dest="older_than",
+        metavar="DAYS",
+        help="delete the runs stored more than DAYS days ago",
+    )
     sub.add_parser("info", help="runs stored, their size, and the store's cap")
 
 
@@ -72,27 +108,28 @@ def _store(args: argparse.Namespace) -> int:
 
     settings = Settings() if args.db is None else Settings(db_path=Path(args.db))
     if args.db is not None and not Path(args.db).exists():
-        raise InputError("db", args.db, "an existing run store (an SQLite file written by `nmkane serve`)",
-                         "no such file")
+        raise InputError(
+            "db", args.db, "an existing run store (an SQLite file written by `nmkane serve`)", "no such file"
+        )
     store = RunStore(settings.database)
     try:
         if args.action == "info":
             cap = settings.store_cap
-            print(f"{settings.database}: {store.count():,} runs, {store.size / 1e6:,.1f} MB of rows "
-                  f"(cap: {cap.max_runs:,} runs, {cap.max_bytes / 1e6:,.0f} MB; when full: {cap.policy})")
+            print(
+                f"{settings.database}: {store.count():,} runs, {store.size / 1e6:,.1f} MB of rows "
+                f"(cap: {cap.max_runs:,} runs, {cap.max_bytes / 1e6:,.0f} MB; when full: {cap.policy})"
+            )
             return 0
         if args.keep is not None and args.keep < 0:
             raise InputError("keep", args.keep, "an integer ≥ 0")
         if args.older_than is not None and not (math.isfinite(args.older_than) and args.older_than >= 0):
             raise InputError("older_than", args.older_than, "a number of days ≥ 0")
         before = store.count()
-        gone = store.prune(keep=args.keep,
-                           older_than_s=None if args.older_than is None else args.older_than * 86400.0)
+        gone = store.prune(keep=args.keep, older_than_s=None if args.older_than is None else args.older_than * 86400.0)
         print(f"{settings.database}: deleted {gone:,} of {before:,} runs; {before - gone:,} left")
         return 0
     finally:
         store.close()
 
 
-STORE = Command("store", "manage the REST service's run store (prune old runs, info)", _add_store_arguments,
-                _store)
+STORE = Command("store", "manage the REST service's run store (prune old runs, info)", _add_store_arguments, _store)

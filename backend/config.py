@@ -44,23 +44,22 @@ __all__ = ["Settings", "LIMIT_DESCRIPTIONS"]
 #: What each limit means (also served in ``GET /api/systems``).
 LIMIT_DESCRIPTIONS = {
     "max_concurrent_runs": "simulations running at once (worker threads; the compiled loops release "
-                           "the GIL, so they run in parallel)",
+    "the GIL, so they run in parallel)",
     "queue_limit": "runs admitted at once, running plus waiting; past it POST /api/runs answers 503 "
-                   "with a Retry-After header instead of queueing more",
+    "with a Retry-After header instead of queueing more",
     "max_steps": "fixed steps per run (t_final/dt); a request over it is refused with 422 before the "
-                 "run starts. Adaptive and scipy integrators are bounded by max_wall_time_s instead",
+    "run starts. Adaptive and scipy integrators are bounded by max_wall_time_s instead",
     "max_rows": "output rows per run; a fixed-step request over it is refused with 422 (raise `every`); "
-                "an adaptive run stops when its output reaches it (status 'timeout', the message says why, "
-                "results up to there kept)",
+    "an adaptive run stops when its output reaches it (status 'timeout', the message says why, "
+    "results up to there kept)",
     "max_request_bytes": "size of a request body; a larger one is refused with 413",
     "max_wall_time_s": "integration wall time per run, s; a run past it ends with status 'timeout' "
-                       "and keeps what it computed so far",
+    "and keeps what it computed so far",
     "max_stored_runs": "runs kept in the store; when full, a new run is refused with 507 (policy 'refuse', the "
-                       "default: a stored run is never deleted behind anyone's back) or the oldest runs are "
-                       "deleted to make room (policy 'evict-oldest', NMKANE_STORE_FULL); delete runs with "
-                       "DELETE /api/runs/{id} or `nmkane store prune`",
-    "max_store_bytes": "bytes of stored rows (settings, summary, compressed document), same policy as "
-                       "max_stored_runs",
+    "default: a stored run is never deleted behind anyone's back) or the oldest runs are "
+    "deleted to make room (policy 'evict-oldest', NMKANE_STORE_FULL); delete runs with "
+    "DELETE /api/runs/{id} or `nmkane store prune`",
+    "max_store_bytes": "bytes of stored rows (settings, summary, compressed document), same policy as max_stored_runs",
     "read_timeout_s": "seconds a client has to send a request's head and its body; a slower one is cut off",
 }
 
@@ -89,7 +88,8 @@ class Settings:
     db_path: Path | None = field(default_factory=lambda: _env("NMKANE_DB", None, Path))
     #: simulations running at once
     max_concurrent_runs: int = field(
-        default_factory=lambda: _env("NMKANE_MAX_CONCURRENT_RUNS", os.cpu_count() or 2, int))
+        default_factory=lambda: _env("NMKANE_MAX_CONCURRENT_RUNS", os.cpu_count() or 2, int)
+    )
     #: runs admitted at once (running + waiting); past it: 503 + Retry-After
     queue_limit: int = field(default_factory=lambda: _env("NMKANE_QUEUE_LIMIT", 64, int))
     #: fixed steps per run; more is refused with 422 before the run starts
@@ -126,9 +126,15 @@ class Settings:
         if isinstance(self.allowed_hosts, str):
             self.allowed_hosts = _origins(self.allowed_hosts)
         self.allowed_hosts = tuple(h.lower() for h in self.allowed_hosts)
-        for name, low in (("max_concurrent_runs", 1), ("queue_limit", 0), ("max_steps", 1),
-                          ("max_rows", 2), ("max_request_bytes", 1), ("max_stored_runs", 1),
-                          ("max_store_bytes", 1)):
+        for name, low in (
+            ("max_concurrent_runs", 1),
+            ("queue_limit", 0),
+            ("max_steps", 1),
+            ("max_rows", 2),
+            ("max_request_bytes", 1),
+            ("max_stored_runs", 1),
+            ("max_store_bytes", 1),
+        ):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ValueError(f"Settings.{name} = {value!r}: an integer ≥ {low} is needed")
@@ -137,8 +143,10 @@ class Settings:
         if not (isinstance(self.read_timeout_s, (int, float)) and self.read_timeout_s > 0):
             raise ValueError(f"Settings.read_timeout_s = {self.read_timeout_s!r}: a number > 0 s is needed")
         if self.store_full not in POLICIES:
-            raise ValueError(f"Settings.store_full = {self.store_full!r}: one of {', '.join(POLICIES)} "
-                             "(environment variable NMKANE_STORE_FULL)")
+            raise ValueError(
+                f"Settings.store_full = {self.store_full!r}: one of {', '.join(POLICIES)} "
+                "(environment variable NMKANE_STORE_FULL)"
+            )
         if self.token is not None and len(self.token) < 16:
             raise ValueError("Settings.token: at least 16 characters (NMKANE_TOKEN); `nmkane serve` makes one")
         if "*" in self.cors_origins:
@@ -156,4 +164,3 @@ class Settings:
     def limits(self) -> dict:
         """The limits as served in ``GET /api/systems``."""
         return {name: getattr(self, name) for name in LIMIT_DESCRIPTIONS}
-

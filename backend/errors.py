@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 import math
 import re
-from typing import Any, Optional, Union
+from typing import Any
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
@@ -39,21 +39,21 @@ log = logging.getLogger("nmkane.backend")
 
 
 class ErrorItem(BaseModel):
-    loc: list[Union[str, int]] = Field(description="where: path of the offending input, e.g. [\"body\", \"dt\"]")
+    loc: list[str | int] = Field(description='where: path of the offending input, e.g. ["body", "dt"]')
     field: str = Field(description="the same path, dotted, without the body/query/path prefix")
     msg: str = Field(description="one sentence: field, value, reason and what is allowed")
     type: str = Field(description="machine-readable error kind, e.g. greater_than, finite_number, value_error")
     value: Any = Field(None, description="the value given (JSON-safe; long values shortened)")
-    reason: Optional[str] = Field(None, description="what is wrong with the value")
-    allowed: Optional[str] = Field(None, description="what would be accepted")
+    reason: str | None = Field(None, description="what is wrong with the value")
+    allowed: str | None = Field(None, description="what would be accepted")
 
 
 class ErrorResponse(BaseModel):
     detail: list[ErrorItem]
 
 
-MAX_ECHO = 200          # characters of an offending value echoed back
-MAX_ECHO_DIGITS = 30    # digits of an integer echoed back whole
+MAX_ECHO = 200  # characters of an offending value echoed back
+MAX_ECHO_DIGITS = 30  # digits of an integer echoed back whole
 
 
 def text(value: str, limit: int | None = None) -> str:
@@ -74,16 +74,16 @@ def plain(value: Any, depth: int = 0) -> Any:
     if value is None or isinstance(value, bool):
         return value
     if isinstance(value, int):
-        if abs(value) < 10 ** MAX_ECHO_DIGITS:
+        if abs(value) < 10**MAX_ECHO_DIGITS:
             return value
-        digits = int(value.bit_length() * 0.30103) + 1      # str() of a huge int is slow or refused
+        digits = int(value.bit_length() * 0.30103) + 1  # str() of a huge int is slow or refused
         return f"{'-' if value < 0 else ''}an integer of about {digits:,} digits"
     if isinstance(value, float):
         return value if math.isfinite(value) else repr(value).replace("nan", "NaN").replace("inf", "Infinity")
     if isinstance(value, str):
         return text(value, MAX_ECHO)
     if isinstance(value, (bytes, bytearray)):
-        return text(bytes(value[:MAX_ECHO + 1]).decode("utf-8", "replace"), MAX_ECHO)
+        return text(bytes(value[: MAX_ECHO + 1]).decode("utf-8", "replace"), MAX_ECHO)
     if depth >= 3:
         return "…"
     if isinstance(value, dict):
@@ -97,7 +97,7 @@ def plain(value: Any, depth: int = 0) -> Any:
         if len(value) > 20:
             out.append(f"… {len(value) - 20} more")
         return out
-    if hasattr(value, "tolist"):                     # numpy arrays and scalars
+    if hasattr(value, "tolist"):  # numpy arrays and scalars
         return plain(value.tolist(), depth)
     return plain(repr(value), depth)
 
@@ -120,16 +120,21 @@ def _sentence(field: str, value: Any, reason: str | None, allowed: str | None) -
     return text
 
 
-def item(loc: list, type: str, value: Any = None, reason: str | None = None,
-         allowed: str | None = None, msg: str | None = None) -> dict:
+def item(
+    loc: list,
+    type: str,
+    value: Any = None,
+    reason: str | None = None,
+    allowed: str | None = None,
+    msg: str | None = None,
+) -> dict:
     loc = _loc(loc)
     field = _field(loc)
     value = plain(value)
     reason = None if reason is None else text(reason, 2 * MAX_ECHO)
     allowed = None if allowed is None else text(allowed, 2 * MAX_ECHO)
     msg = _sentence(field, value, reason, allowed) if msg is None else _short_msg(msg)
-    return {"loc": loc, "field": field, "msg": msg, "type": type, "value": value, "reason": reason,
-            "allowed": allowed}
+    return {"loc": loc, "field": field, "msg": msg, "type": type, "value": value, "reason": reason, "allowed": allowed}
 
 
 def _short_msg(msg: str) -> str:
@@ -144,12 +149,20 @@ def error_response(status: int, items: list[dict], headers: dict | None = None) 
 
 
 _TYPE_ALLOWED = {
-    "float_type": "a number", "float_parsing": "a number", "int_type": "an integer",
-    "int_parsing": "an integer", "int_from_float": "an integer", "bool_type": "true or false",
-    "bool_parsing": "true or false", "string_type": "a string", "dict_type": "a JSON object",
-    "list_type": "a JSON array", "model_attributes_type": "a JSON object with the run settings",
+    "float_type": "a number",
+    "float_parsing": "a number",
+    "int_type": "an integer",
+    "int_parsing": "an integer",
+    "int_from_float": "an integer",
+    "bool_type": "true or false",
+    "bool_parsing": "true or false",
+    "string_type": "a string",
+    "dict_type": "a JSON object",
+    "list_type": "a JSON array",
+    "model_attributes_type": "a JSON object with the run settings",
     "finite_number": "a finite number (NaN and Infinity are not JSON numbers)",
-    "json_invalid": "a JSON object with the run settings", "missing": "a value (required)",
+    "json_invalid": "a JSON object with the run settings",
+    "missing": "a value (required)",
 }
 _BOUNDS = {"gt": ">", "ge": "≥", "lt": "<", "le": "≤"}
 
@@ -175,7 +188,7 @@ def validation_items(exc: RequestValidationError) -> list[dict]:
         loc = list(err.get("loc", ()))
         kind = err.get("type", "value_error")
         reason = err.get("msg", "")
-        if kind == "json_invalid":          # FastAPI puts the character position in loc
+        if kind == "json_invalid":  # FastAPI puts the character position in loc
             where = f" at character {loc[1]}" if len(loc) > 1 and isinstance(loc[1], int) else ""
             reason = f"not valid JSON{where}: {(err.get('ctx') or {}).get('error', 'decode error')}"
             loc, value = ["body"], None
@@ -200,23 +213,42 @@ def install_error_handlers(app: FastAPI) -> None:
         if any(isinstance(e.get("input"), (bytes, bytearray)) for e in exc.errors()):
             # FastAPI hands over the raw bytes when the content type is not JSON
             kind = request.headers.get("content-type", "")
-            return error_response(415, [item(["header", "content-type"], "unsupported_media_type", kind,
-                                             "the body is not declared as JSON",
-                                             "Content-Type: application/json (a JSON object with the run "
-                                             "settings)")])
+            return error_response(
+                415,
+                [
+                    item(
+                        ["header", "content-type"],
+                        "unsupported_media_type",
+                        kind,
+                        "the body is not declared as JSON",
+                        "Content-Type: application/json (a JSON object with the run settings)",
+                    )
+                ],
+            )
         return error_response(422, validation_items(exc))
 
     @app.exception_handler(InputError)
     async def _input_error(request: Request, exc: InputError):
-        parts = getattr(exc, "errors", None) or [exc]        # several fields at once: one item each
+        parts = getattr(exc, "errors", None) or [exc]  # several fields at once: one item each
         return error_response(422, [input_error_item(e) for e in parts])
 
     @app.exception_handler(StoreFull)
     async def _store_full(request: Request, exc: StoreFull):
-        return error_response(507, [item(["store"], "store_full", None, "the run store is full",
-                                         "delete runs (DELETE /api/runs/{id}, `nmkane store prune`) or raise "
-                                         "NMKANE_MAX_STORED_RUNS / NMKANE_MAX_STORE_MB, or set "
-                                         "NMKANE_STORE_FULL=evict-oldest", msg=str(exc))])
+        return error_response(
+            507,
+            [
+                item(
+                    ["store"],
+                    "store_full",
+                    None,
+                    "the run store is full",
+                    "delete runs (DELETE /api/runs/{id}, `nmkane store prune`) or raise "
+                    "NMKANE_MAX_STORED_RUNS / NMKANE_MAX_STORE_MB, or set "
+                    "NMKANE_STORE_FULL=evict-oldest",
+                    msg=str(exc),
+                )
+            ],
+        )
 
     @app.exception_handler(StarletteHTTPException)
     async def _http_error(request: Request, exc: StarletteHTTPException):
@@ -225,25 +257,35 @@ def install_error_handlers(app: FastAPI) -> None:
         if status == 413:
             limit = request.app.state.settings.max_request_bytes
             it = item(["body"], "too_large", None, "request body too large", f"at most {limit:,} bytes")
-        elif status == 400:                     # FastAPI could not read the body (e.g. not UTF-8)
+        elif status == 400:  # FastAPI could not read the body (e.g. not UTF-8)
             cause = exc.__cause__ or exc.__context__
             reason = f"{exc.detail}: {type(cause).__name__}: {cause}" if cause else str(exc.detail)
             it = item(["body"], "invalid_body", None, reason, "a JSON object in UTF-8 with the run settings")
         elif status == 404:
-            it = item(["path"], "not_found", request.url.path, "no such resource",
-                      "the routes listed at /docs")
+            it = item(["path"], "not_found", request.url.path, "no such resource", "the routes listed at /docs")
         elif status == 405:
             # the methods of the first route whose path matches (the one documented for it:
             # /api/runs/x.csv also matches /api/runs/{run_id}, declared after it)
-            first = next((route for route in request.app.routes
-                          if getattr(route, "path_regex", None) is not None
-                          and route.path_regex.match(request.url.path)), None)
-            methods = sorted({m for route in request.app.routes
-                              if first is not None and getattr(route, "path", None) == first.path
-                              for m in (getattr(route, "methods", None) or ())})
+            first = next(
+                (
+                    route
+                    for route in request.app.routes
+                    if getattr(route, "path_regex", None) is not None and route.path_regex.match(request.url.path)
+                ),
+                None,
+            )
+            methods = sorted(
+                {
+                    m
+                    for route in request.app.routes
+                    if first is not None and getattr(route, "path", None) == first.path
+                    for m in (getattr(route, "methods", None) or ())
+                }
+            )
             headers["Allow"] = ", ".join(methods)
-            it = item(["method"], "method_not_allowed", request.method, "method not allowed on this path",
-                      ", ".join(methods))
+            it = item(
+                ["method"], "method_not_allowed", request.method, "method not allowed on this path", ", ".join(methods)
+            )
         else:
             it = item([], f"http_{status}", None, str(exc.detail), None, msg=str(exc.detail))
         return error_response(status, [it], headers=headers)
@@ -251,5 +293,15 @@ def install_error_handlers(app: FastAPI) -> None:
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception):
         log.exception("unexpected error on %s %s", request.method, request.url.path)
-        return error_response(500, [item([], "internal_error", None, type(exc).__name__,
-                                         msg="internal error: the failure was logged on the server")])
+        return error_response(
+            500,
+            [
+                item(
+                    [],
+                    "internal_error",
+                    None,
+                    type(exc).__name__,
+                    msg="internal error: the failure was logged on the server",
+                )
+            ],
+        )

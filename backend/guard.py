@@ -21,8 +21,17 @@ from collections.abc import Iterable
 
 from .errors import error_response, item
 
-__all__ = ["LOOPBACK_NAMES", "HostCheck", "TokenCheck", "allowed_host_names", "host_allowed", "host_name",
-           "is_loopback", "new_token", "read_deadline_protocol"]
+__all__ = [
+    "LOOPBACK_NAMES",
+    "HostCheck",
+    "TokenCheck",
+    "allowed_host_names",
+    "host_allowed",
+    "host_name",
+    "is_loopback",
+    "new_token",
+    "read_deadline_protocol",
+]
 
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 
@@ -47,7 +56,7 @@ def host_name(value: str) -> str:
     """The name in a ``Host`` header, without the port (``[::1]:8000`` → ``::1``), lower case."""
     value = value.strip().lower()
     if value.startswith("["):
-        return value[1:value.find("]")] if "]" in value else value
+        return value[1 : value.find("]")] if "]" in value else value
     if value.count(":") == 1:
         return value.split(":", 1)[0]
     return value
@@ -91,11 +100,19 @@ class HostCheck:
         name = host_name(raw.decode("latin-1"))
         if host_allowed(name, self.allowed):
             return await self.app(scope, receive, send)
-        response = error_response(400, [item(
-            ["header", "host"], "host_not_allowed", raw.decode("latin-1"),
-            "this server does not answer to that host name (a protection against DNS rebinding)",
-            "Host: " + ", ".join(sorted(self.allowed)) + " (add names with `nmkane serve --allow-host NAME` "
-            "or NMKANE_ALLOWED_HOSTS)")])
+        response = error_response(
+            400,
+            [
+                item(
+                    ["header", "host"],
+                    "host_not_allowed",
+                    raw.decode("latin-1"),
+                    "this server does not answer to that host name (a protection against DNS rebinding)",
+                    "Host: " + ", ".join(sorted(self.allowed)) + " (add names with `nmkane serve --allow-host NAME` "
+                    "or NMKANE_ALLOWED_HOSTS)",
+                )
+            ],
+        )
         return await response(scope, receive, send)
 
 
@@ -114,17 +131,29 @@ class TokenCheck:
         given = next((v for k, v in scope.get("headers") or () if k == b"authorization"), b"")
         if secrets.compare_digest(given, self.expected):
             return await self.app(scope, receive, send)
-        response = error_response(401, [item(
-            ["header", "authorization"], "unauthorized", None,
-            "missing or wrong access token" if given else "this service asks for an access token to change runs",
-            "Authorization: Bearer <the token printed by `nmkane serve` at start>")],
-            headers={"WWW-Authenticate": 'Bearer realm="nmkane"'})
+        response = error_response(
+            401,
+            [
+                item(
+                    ["header", "authorization"],
+                    "unauthorized",
+                    None,
+                    "missing or wrong access token"
+                    if given
+                    else "this service asks for an access token to change runs",
+                    "Authorization: Bearer <the token printed by `nmkane serve` at start>",
+                )
+            ],
+            headers={"WWW-Authenticate": 'Bearer realm="nmkane"'},
+        )
         return await response(scope, receive, send)
 
 
-_TIMEOUT_BODY = (b'{"detail":[{"loc":["body"],"field":"body","msg":"request timeout: the request was not sent '
-                 b'in time","type":"request_timeout","value":null,"reason":"the request (head and body) was not '
-                 b'received within the read timeout","allowed":null}]}')
+_TIMEOUT_BODY = (
+    b'{"detail":[{"loc":["body"],"field":"body","msg":"request timeout: the request was not sent '
+    b'in time","type":"request_timeout","value":null,"reason":"the request (head and body) was not '
+    b'received within the read timeout","allowed":null}]}'
+)
 
 
 def read_deadline_protocol(seconds: float):
@@ -166,9 +195,13 @@ def read_deadline_protocol(seconds: float):
                 return
             cycle = self.cycle
             if cycle is None or not cycle.response_started:
-                self.transport.write(b"HTTP/1.1 408 Request Timeout\r\ncontent-type: application/json\r\n"
-                                     b"connection: close\r\ncontent-length: " + str(len(_TIMEOUT_BODY)).encode()
-                                     + b"\r\n\r\n" + _TIMEOUT_BODY)
+                self.transport.write(
+                    b"HTTP/1.1 408 Request Timeout\r\ncontent-type: application/json\r\n"
+                    b"connection: close\r\ncontent-length: "
+                    + str(len(_TIMEOUT_BODY)).encode()
+                    + b"\r\n\r\n"
+                    + _TIMEOUT_BODY
+                )
             if cycle is not None:
                 cycle.disconnected = True
                 cycle.message_event.set()

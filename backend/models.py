@@ -19,6 +19,7 @@ class RunSettings(CoreRunSettings):
 
     model_config = ConfigDict(strict=True)
 
+
 STATUSES = Literal["ok", "singular", "diverged", "timeout", "failed"]
 
 
@@ -52,8 +53,10 @@ class Catalog(BaseModel):
 
     model_config = ConfigDict(extra="allow")
 
-    systems: list[dict] = Field(description="name, parameters with defaults and ranges, models or "
-                                "formulations, coordinates and speeds, constraint names, defaults")
+    systems: list[dict] = Field(
+        description="name, parameters with defaults and ranges, models or "
+        "formulations, coordinates and speeds, constraint names, defaults"
+    )
     integrators: dict[str, str] = Field(description="name: description")
     projections: list[str]
     limits: dict[str, float] = Field(description="the library's limits")

@@ -31,8 +31,9 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from importlib.metadata import entry_points
-from typing import Any, Callable
+from typing import Any
 
 import uvicorn
 
@@ -43,28 +44,35 @@ from .guard import allowed_host_names, is_loopback, new_token, read_deadline_pro
 __all__ = ["serve", "APP_GROUP", "WARM_JOIN_S"]
 
 APP_GROUP = "nmkane.apps"
-WARM_JOIN_S = 5.0           # stop: how long to wait for a background compilation before abandoning it
+WARM_JOIN_S = 5.0  # stop: how long to wait for a background compilation before abandoning it
 WARM_THREAD_PREFIX = "nmkane-warm"
 
 log = logging.getLogger("nmkane.serve")
 
 
 def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server, threading.Thread, int]:
-    config = uvicorn.Config(create_app(settings), host=host, port=port, log_level="warning",
-                            lifespan="on", server_header=False,
-                            # a client must send each request (head and body) within read_timeout_s
-                            http=read_deadline_protocol(settings.read_timeout_s),
-                            # let runs in flight finish (each is stored before its 201), within bounds
-                            timeout_graceful_shutdown=int(settings.max_wall_time_s) + 5)
+    config = uvicorn.Config(
+        create_app(settings),
+        host=host,
+        port=port,
+        log_level="warning",
+        lifespan="on",
+        server_header=False,
+        # a client must send each request (head and body) within read_timeout_s
+        http=read_deadline_protocol(settings.read_timeout_s),
+        # let runs in flight finish (each is stored before its 201), within bounds
+        timeout_graceful_shutdown=int(settings.max_wall_time_s) + 5,
+    )
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, name="nmkane-api", daemon=True)
     thread.start()
-    while not server.started and thread.is_alive():     # lifespan (kernel warm-up) runs first
+    while not server.started and thread.is_alive():  # lifespan (kernel warm-up) runs first
         time.sleep(0.05)
     if not server.started:
         thread.join(1)
-        raise SystemExit(f"nmkane serve: the REST API could not start on {host}:{port} "
-                         "(is the port in use? see the message above)")
+        raise SystemExit(
+            f"nmkane serve: the REST API could not start on {host}:{port} (is the port in use? see the message above)"
+        )
     bound = server.servers[0].sockets[0].getsockname()[1] if server.servers else port
     return server, thread, bound
 
@@ -91,8 +99,10 @@ def _abandon_compilation() -> None:
             t.join(max(0.0, deadline - time.monotonic()))
     busy = [t.name for t in threading.enumerate() if t.name.startswith(WARM_THREAD_PREFIX) and t.is_alive()]
     if busy:
-        print("nmkane: stopped (a background kernel compilation was abandoned; the next start compiles "
-              "what is missing)", flush=True)
+        print(
+            "nmkane: stopped (a background kernel compilation was abandoned; the next start compiles what is missing)",
+            flush=True,
+        )
         sys.stderr.flush()
         logging.shutdown()
         os._exit(0)
@@ -108,9 +118,17 @@ def _auth(host: str, auth: bool, settings: Settings) -> str | None:
     return new_token()
 
 
-def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080, web: bool = True,
-          settings: Settings | None = None, allow_hosts: tuple[str, ...] = (), auth: bool = True,
-          max_sessions: int | None = None, app_options: dict | None = None) -> None:
+def serve(
+    host: str = "127.0.0.1",
+    api_port: int = 8000,
+    viser_port: int = 8080,
+    web: bool = True,
+    settings: Settings | None = None,
+    allow_hosts: tuple[str, ...] = (),
+    auth: bool = True,
+    max_sessions: int | None = None,
+    app_options: dict | None = None,
+) -> None:
     """Serve until SIGINT or SIGTERM, then stop both servers. Binds to loopback by default.
 
     Port 0 picks a free port (the URLs printed show the real ones).  ``allow_hosts``: host
@@ -132,8 +150,11 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
     settings.token = _auth(host, auth, settings)
     settings.allowed_hosts = allowed_host_names(host, (*settings.allowed_hosts, *allow_hosts))
     if not is_loopback(host) and settings.token is None:
-        print(f"nmkane: WARNING: serving {host} without an access token (--no-auth): anyone who can reach "
-              "these ports can run and delete runs", flush=True)
+        print(
+            f"nmkane: WARNING: serving {host} without an access token (--no-auth): anyone who can reach "
+            "these ports can run and delete runs",
+            flush=True,
+        )
     # The handler only appends to a list: no lock.  (It used to call Event.set(); a second
     # signal arriving while the first handler held the Event's lock — Ctrl-C twice, or a
     # supervisor forwarding SIGTERM on top of its own — deadlocked the main thread for good.)
@@ -148,21 +169,22 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
     try:
         server, thread, port = _start_api(host, api_port, settings)
         url_host = f"[{host}]" if ":" in host else host
-        print(f"nmkane REST API    http://{url_host}:{port}/api   (docs: http://{url_host}:{port}/docs; "
-              f"runs stored in {settings.database})", flush=True)
+        print(
+            f"nmkane REST API    http://{url_host}:{port}/api   (docs: http://{url_host}:{port}/docs; "
+            f"runs stored in {settings.database})",
+            flush=True,
+        )
         query = f"?token={settings.token}" if settings.token else ""
         if settings.token:
-            print(f"nmkane access token {settings.token}   (REST writes: 'Authorization: Bearer <token>')",
-                  flush=True)
+            print(f"nmkane access token {settings.token}   (REST writes: 'Authorization: Bearer <token>')", flush=True)
         if web:
             try:
                 launch_app = _web_app()
-            except ImportError as e:        # the 3D web app is optional for the API
+            except ImportError as e:  # the 3D web app is optional for the API
                 log.warning("3D web app not available (%s); serving the REST API only", e)
                 print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
             else:
-                options = {**(app_options or {}), "token": settings.token,
-                           "allowed_hosts": settings.allowed_hosts}
+                options = {**(app_options or {}), "token": settings.token, "allowed_hosts": settings.allowed_hosts}
                 if max_sessions is not None:
                     options["max_sessions"] = max_sessions
                 handle = launch_app(host, viser_port, **options)
@@ -170,7 +192,7 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
                 print(f"nmkane 3D web app  {web_url}", flush=True)
         print("press Ctrl-C to stop", flush=True)
         while not stopping:
-            time.sleep(0.2)                  # a signal interrupts the sleep; its handler runs here
+            time.sleep(0.2)  # a signal interrupts the sleep; its handler runs here
             if not thread.is_alive():
                 log.error("the REST API stopped unexpectedly")
                 break
@@ -178,11 +200,11 @@ def serve(host: str = "127.0.0.1", api_port: int = 8000, viser_port: int = 8080,
         if handle is not None:
             try:
                 handle.stop()
-            except Exception:                       # keep stopping the API
+            except Exception:  # keep stopping the API
                 log.exception("stopping the 3D web app failed")
         if server is not None:
             _stop_api(server, thread)
-        for sig, h in previous.items():   # see the docstring: after a signal stop, repeats are ignored
+        for sig, h in previous.items():  # see the docstring: after a signal stop, repeats are ignored
             signal.signal(sig, signal.SIG_IGN if stopping else h)
         if server is not None:
             _abandon_compilation()

@@ -23,9 +23,9 @@ from nmkane_core.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK, k
 from nmkane_core.errors import InputError
 from nmkane_core.integrators import ScipyMethod
 from nmkane_core.plan import Plan, min_every, output_rows, raise_all, resolve, round_up
+from nmkane_core.registry import get_system, system_names
 from nmkane_core.run import Run
 from nmkane_core.schema import RunSettings, RunSummary
-from nmkane_core.registry import get_system, system_names
 from nmkane_core.simulate import simulate
 
 from .config import Settings
@@ -63,20 +63,25 @@ def make_finite(run: Run) -> None:
     fixed: list[str] = []
     run.summary = _finite_copy(run.summary, "", fixed)
     if fixed:
-        run.summary["warnings"] = [*run.summary.get("warnings", []),
-                                   "overflowed to infinity, reported as ±1.8e308: " + ", ".join(fixed)]
+        run.summary["warnings"] = [
+            *run.summary.get("warnings", []),
+            "overflowed to infinity, reported as ±1.8e308: " + ", ".join(fixed),
+        ]
     cols = [run.t, *run.state.values(), *run.violation.values()] + ([run.energy] if run.energy is not None else [])
     good = np.logical_and.reduce([np.isfinite(c) for c in cols])
     if not good.all():
         keep = max(1, int(np.argmin(good)))
         run.t = run.t[:keep]
         run.state = {k: np.nan_to_num(v[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX) for k, v in run.state.items()}
-        run.violation = {k: np.nan_to_num(v[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX)
-                         for k, v in run.violation.items()}
+        run.violation = {
+            k: np.nan_to_num(v[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX) for k, v in run.violation.items()
+        }
         if run.energy is not None:
             run.energy = np.nan_to_num(run.energy[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX)
-        run.summary["warnings"] = [*run.summary.get("warnings", []),
-                                   f"output rows from t = {run.t[-1]:.6g} s on were not finite and are left out"]
+        run.summary["warnings"] = [
+            *run.summary.get("warnings", []),
+            f"output rows from t = {run.t[-1]:.6g} s on were not finite and are left out",
+        ]
 
 
 def checked_summary(run: Run) -> dict:
@@ -93,8 +98,16 @@ def encode_document(run: Run, run_id: str, summary: dict | None = None) -> bytes
     """
     if summary is None:
         summary = checked_summary(run)
-    doc = {"id": run_id, "system": run.system, "settings": run.settings, "t": run.t, "state": run.state,
-           "energy": run.energy, "violation": run.violation, "summary": summary}
+    doc = {
+        "id": run_id,
+        "system": run.system,
+        "settings": run.settings,
+        "t": run.t,
+        "state": run.state,
+        "energy": run.energy,
+        "violation": run.violation,
+        "summary": summary,
+    }
     return orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)
 
 
@@ -109,9 +122,11 @@ def thin(run: Run, max_rows: int) -> None:
     run.state = {name: v[idx] for name, v in run.state.items()}
     run.energy = None if run.energy is None else run.energy[idx]
     run.violation = {name: v[idx] for name, v in run.violation.items()}
-    run.summary["warnings"] = [*run.summary.get("warnings", []),
-                               f"output thinned from {n:,} to {idx.size:,} rows (service limit max_rows = "
-                               f"{max_rows:,}); the summary covers every step"]
+    run.summary["warnings"] = [
+        *run.summary.get("warnings", []),
+        f"output thinned from {n:,} to {idx.size:,} rows (service limit max_rows = "
+        f"{max_rows:,}); the summary covers every step",
+    ]
 
 
 class OutputGuard:
@@ -128,8 +143,8 @@ class OutputGuard:
     exact (see the notes to the core).  Fixed-step runs are checked before they start.
     """
 
-    ADAPTIVE_ROWS_PER_CALL = ADAPTIVE_ROWS_PER_CALL    # the core's adaptive driver: output buffer per call
-    SCIPY_STEPS_PER_CALL = SCIPY_STEPS_PER_CHECK       # the core's scipy driver: steps between checks
+    ADAPTIVE_ROWS_PER_CALL = ADAPTIVE_ROWS_PER_CALL  # the core's adaptive driver: output buffer per call
+    SCIPY_STEPS_PER_CALL = SCIPY_STEPS_PER_CHECK  # the core's scipy driver: steps between checks
     MIN_CALLS = 100
 
     def __init__(self, plan: Plan, max_rows: int, stopping: threading.Event):
@@ -161,7 +176,8 @@ class OutputGuard:
             run.summary["message"] = (
                 f"stopped at t = {run.summary['t_end']:.6g} s by this service's bound on the output of an "
                 f"adaptive run (max_rows = {self.max_rows:,}); results up to there are kept — raise `every` "
-                "or shorten t_final")
+                "or shorten t_final"
+            )
 
 
 class RunService:
@@ -174,12 +190,12 @@ class RunService:
         #: set once the background warm-up (if any) has finished
         self.warmed = threading.Event()
         self.warmed.set()
-        self.admitted = 0            # running + waiting
+        self.admitted = 0  # running + waiting
         self.running = 0
-        self._mean_run_s = 0.05      # moving average of a run's time in a worker (for Retry-After)
+        self._mean_run_s = 0.05  # moving average of a run's time in a worker (for Retry-After)
         self.store: RunStore | None = None
-        self.pool: ThreadPoolExecutor | None = None     # simulations (CPU)
-        self.writer: ThreadPoolExecutor | None = None   # commits (disk), one at a time
+        self.pool: ThreadPoolExecutor | None = None  # simulations (CPU)
+        self.writer: ThreadPoolExecutor | None = None  # commits (disk), one at a time
 
     # -- life ---------------------------------------------------------------------------
     def start(self) -> None:
@@ -189,8 +205,9 @@ class RunService:
             if self.store is None:
                 self.store = RunStore(self.settings.database, self.settings.store_cap)
             if self.pool is None:
-                self.pool = ThreadPoolExecutor(max_workers=self.settings.max_concurrent_runs,
-                                               thread_name_prefix="nmkane-run")
+                self.pool = ThreadPoolExecutor(
+                    max_workers=self.settings.max_concurrent_runs, thread_name_prefix="nmkane-run"
+                )
             if self.writer is None:
                 self.writer = ThreadPoolExecutor(max_workers=1, thread_name_prefix="nmkane-store")
 
@@ -252,8 +269,10 @@ class RunService:
             if report is not None:
                 report(f"nmkane: {title} [{i}/{len(steps)}] {label}: {time.perf_counter() - t0:.1f} s")
         if report is not None:
-            report(f"nmkane: {title} ready in {time.perf_counter() - start:.1f} s (compiled code is cached "
-                   "on disk: later starts load it)")
+            report(
+                f"nmkane: {title} ready in {time.perf_counter() - start:.1f} s (compiled code is cached "
+                "on disk: later starts load it)"
+            )
 
     def warm_in_background(self, steps, report=None, title: str = "projection loops") -> threading.Thread:
         """Warm ``steps`` in a daemon thread (requests are served meanwhile; one that needs a
@@ -304,19 +323,30 @@ class RunService:
         """The service's own limits (the library's are checked by ``resolve``)."""
         s = self.settings
         if plan.integrator.adaptive:
-            return                      # bounded while running: OutputGuard and max_wall_time_s
+            return  # bounded while running: OutputGuard and max_wall_time_s
         steps = math.ceil(plan.t_final / plan.dt - 1e-9)
         errors = []
         if steps > s.max_steps:
-            errors.append(InputError("dt", plan.dt,
-                                     f"t_final/dt ≤ {s.max_steps:,} steps on this service "
-                                     f"(dt ≥ {round_up(plan.t_final / s.max_steps):.3g} s for t_final = "
-                                     f"{plan.t_final:g} s)", f"{steps:,} steps"))
+            errors.append(
+                InputError(
+                    "dt",
+                    plan.dt,
+                    f"t_final/dt ≤ {s.max_steps:,} steps on this service "
+                    f"(dt ≥ {round_up(plan.t_final / s.max_steps):.3g} s for t_final = "
+                    f"{plan.t_final:g} s)",
+                    f"{steps:,} steps",
+                )
+            )
         rows = output_rows(steps, plan.every)
         if rows > s.max_rows:
-            errors.append(InputError("every", plan.every,
-                                     f"an integer ≥ {min_every(steps, s.max_rows)} "
-                                     f"(at most {s.max_rows:,} output rows on this service)", f"{rows:,} rows"))
+            errors.append(
+                InputError(
+                    "every",
+                    plan.every,
+                    f"an integer ≥ {min_every(steps, s.max_rows)} (at most {s.max_rows:,} output rows on this service)",
+                    f"{rows:,} rows",
+                )
+            )
         raise_all(errors)
 
     def execute(self, settings: RunSettings) -> tuple[str, bytes, tuple]:

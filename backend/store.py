@@ -40,10 +40,12 @@ class StoreFull(Exception):
 
     def __init__(self, cap: StoreCap, count: int, size: int, need: int = 0):
         self.cap, self.count, self.size, self.need = cap, count, size, need
-        super().__init__(f"the run store is full ({count:,} of at most {cap.max_runs:,} runs, "
-                         f"{size / 1e6:,.1f} of at most {cap.max_bytes / 1e6:,.1f} MB); it keeps every stored run "
-                         f"(policy {cap.policy!r}): delete runs (DELETE /api/runs/{{id}}, `nmkane store prune`) "
-                         "or raise the cap")
+        super().__init__(
+            f"the run store is full ({count:,} of at most {cap.max_runs:,} runs, "
+            f"{size / 1e6:,.1f} of at most {cap.max_bytes / 1e6:,.1f} MB); it keeps every stored run "
+            f"(policy {cap.policy!r}): delete runs (DELETE /api/runs/{{id}}, `nmkane store prune`) "
+            "or raise the cap"
+        )
 
 
 class StoreCap:
@@ -56,7 +58,7 @@ class StoreCap:
         self.max_runs, self.max_bytes, self.policy = int(max_runs), int(max_bytes), policy
 
 
-UNCAPPED = StoreCap(2 ** 62, 2 ** 62)
+UNCAPPED = StoreCap(2**62, 2**62)
 _ROW_BYTES = "length(settings) + length(summary) + length(document)"
 
 SCHEMA = """
@@ -73,7 +75,7 @@ CREATE INDEX IF NOT EXISTS runs_created ON runs(created DESC);
 """
 
 _ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
-_ZSTD_LEVEL = 1        # 570 kB of JSON -> 210 kB in ~1 ms (zlib level 1: 226 kB in ~6 ms)
+_ZSTD_LEVEL = 1  # 570 kB of JSON -> 210 kB in ~1 ms (zlib level 1: 226 kB in ~6 ms)
 
 
 class RunStore:
@@ -95,7 +97,8 @@ class RunStore:
         self._readers_lock = threading.Lock()
         self._closed = False
         self._count, self._bytes = self._db.execute(
-            f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs").fetchone()
+            f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs"
+        ).fetchone()
 
     # -- the cap --------------------------------------------------------------------
     @property
@@ -135,7 +138,7 @@ class RunStore:
     def _decode(self, blob: bytes) -> bytes:
         if blob[:4] == _ZSTD_MAGIC:
             return self._codec()[1].decompress(blob)
-        return zlib.decompress(blob)              # rows written before zstd was used
+        return zlib.decompress(blob)  # rows written before zstd was used
 
     # -- connections ----------------------------------------------------------------
     def _reader(self) -> sqlite3.Connection:
@@ -151,14 +154,18 @@ class RunStore:
         return con
 
     # -- writing --------------------------------------------------------------------
-    def record(self, run_id: str, system: str, status: str, settings: dict, summary: dict,
-               document: bytes) -> tuple:
+    def record(self, run_id: str, system: str, status: str, settings: dict, summary: dict, document: bytes) -> tuple:
         """A run as a row, ready for :meth:`insert` (the CPU work: encoding, compression)."""
-        return (run_id, system, status, orjson.dumps(settings), orjson.dumps(summary),
-                self._codec()[0].compress(document))
+        return (
+            run_id,
+            system,
+            status,
+            orjson.dumps(settings),
+            orjson.dumps(summary),
+            self._codec()[0].compress(document),
+        )
 
-    def add(self, run_id: str, system: str, status: str, settings: dict, summary: dict,
-            document: bytes) -> float:
+    def add(self, run_id: str, system: str, status: str, settings: dict, summary: dict, document: bytes) -> float:
         """Store one run in one transaction; returns its creation time (Unix s)."""
         return self.insert(self.record(run_id, system, status, settings, summary, document))
 
@@ -173,10 +180,13 @@ class RunStore:
                 raise RuntimeError("the run store is closed")
             self._db.execute("BEGIN IMMEDIATE")
             try:
-                self._refresh_totals()           # another process (`nmkane store prune`) may have deleted
+                self._refresh_totals()  # another process (`nmkane store prune`) may have deleted
                 self._make_room(need)
-                self._db.execute("INSERT INTO runs (id, created, system, status, settings, summary, document) "
-                                 "VALUES (?, ?, ?, ?, ?, ?, ?)", row)
+                self._db.execute(
+                    "INSERT INTO runs (id, created, system, status, settings, summary, document) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                    row,
+                )
                 self._db.execute("COMMIT")
             except BaseException:
                 self._db.execute("ROLLBACK")
@@ -187,7 +197,8 @@ class RunStore:
 
     def _refresh_totals(self) -> None:
         self._count, self._bytes = self._db.execute(
-            f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs").fetchone()
+            f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs"
+        ).fetchone()
 
     # -- deleting -------------------------------------------------------------------
     def delete(self, run_id: str) -> bool:
@@ -227,11 +238,26 @@ class RunStore:
     def list(self, limit: int, offset: int, system: str | None = None, status: str | None = None) -> list[dict]:
         """Newest first: id, created, system, status, settings, summary."""
         where, args = self._where(system, status)
-        rows = self._reader().execute(
-            f"SELECT id, created, system, status, settings, summary FROM runs{where} "
-            "ORDER BY created DESC, rowid DESC LIMIT ? OFFSET ?", (*args, limit, offset)).fetchall()
-        return [{"id": r[0], "created": r[1], "system": r[2], "status": r[3],
-                 "settings": orjson.loads(r[4]), "summary": orjson.loads(r[5])} for r in rows]
+        rows = (
+            self._reader()
+            .execute(
+                f"SELECT id, created, system, status, settings, summary FROM runs{where} "
+                "ORDER BY created DESC, rowid DESC LIMIT ? OFFSET ?",
+                (*args, limit, offset),
+            )
+            .fetchall()
+        )
+        return [
+            {
+                "id": r[0],
+                "created": r[1],
+                "system": r[2],
+                "status": r[3],
+                "settings": orjson.loads(r[4]),
+                "summary": orjson.loads(r[5]),
+            }
+            for r in rows
+        ]
 
     def count(self, system: str | None = None, status: str | None = None) -> int:
         where, args = self._where(system, status)

@@ -58,13 +58,23 @@ def max_sweep_runs() -> int:
 class SweepRequest(BaseModel):
     """A sweep: base run settings and what varies (the texts of ``nmkane sweep``'s options)."""
 
-    model_config = ConfigDict(extra="forbid", json_schema_extra={"examples": [
-        {"settings": {"system": "sliding-particle", "t_final": 2}, "grid": ["gamma1=-40:-10:4"],
-         "log_grid": ["gamma2=-10:-1000:3"]}]})
+    model_config = ConfigDict(
+        extra="forbid",
+        json_schema_extra={
+            "examples": [
+                {
+                    "settings": {"system": "sliding-particle", "t_final": 2},
+                    "grid": ["gamma1=-40:-10:4"],
+                    "log_grid": ["gamma2=-10:-1000:3"],
+                }
+            ]
+        },
+    )
 
     settings: RunSettings = Field(default_factory=lambda: RunSettings(), description="the base run settings")
-    grid: list[str] = Field(default_factory=list, max_length=8,
-                            description="NAME=START:STOP:NUM (both ends included) or NAME=V1,V2,...")
+    grid: list[str] = Field(
+        default_factory=list, max_length=8, description="NAME=START:STOP:NUM (both ends included) or NAME=V1,V2,..."
+    )
     log_grid: list[str] = Field(default_factory=list, max_length=8, description="NAME=START:STOP:NUM, log-spaced")
     sample: list[str] = Field(default_factory=list, max_length=8, description="NAME=LOW:HIGH (Latin hypercube)")
     samples: int | None = Field(None, ge=1, description="Latin-hypercube points")
@@ -136,9 +146,15 @@ class SweepStore:
 
     def create(self, sweep_id, system, total, request: dict, columns: list[str]) -> float:
         created = time.time()
-        self._tx([("INSERT INTO sweeps (id, created, system, status, total, done, request, columns) "
-                   "VALUES (?, ?, ?, 'queued', ?, 0, ?, ?)",
-                   (sweep_id, created, system, total, orjson.dumps(request), orjson.dumps(columns)))])
+        self._tx(
+            [
+                (
+                    "INSERT INTO sweeps (id, created, system, status, total, done, request, columns) "
+                    "VALUES (?, ?, ?, 'queued', ?, 0, ?, ?)",
+                    (sweep_id, created, system, total, orjson.dumps(request), orjson.dumps(columns)),
+                )
+            ]
+        )
         return created
 
     def set_status(self, sweep_id, status, message=""):
@@ -147,22 +163,37 @@ class SweepStore:
     def add_rows(self, sweep_id, start: int, rows: list[dict]) -> None:
         """Rows ``start``, ``start + 1``, ... of a sweep, and its progress, in one transaction."""
         data = [(sweep_id, start + i, orjson.dumps(r)) for i, r in enumerate(rows)]
-        self._tx([("INSERT INTO sweep_rows (sweep_id, seq, row) VALUES (?, ?, ?)", data),
-                  ("UPDATE sweeps SET done = ? WHERE id = ?", (start + len(rows), sweep_id))])
+        self._tx(
+            [
+                ("INSERT INTO sweep_rows (sweep_id, seq, row) VALUES (?, ?, ?)", data),
+                ("UPDATE sweeps SET done = ? WHERE id = ?", (start + len(rows), sweep_id)),
+            ]
+        )
 
     def get(self, sweep_id) -> dict | None:
         with self._lock:
-            r = self._db.execute("SELECT id, created, system, status, total, done, columns, message FROM sweeps "
-                                 "WHERE id = ?", (sweep_id,)).fetchone()
+            r = self._db.execute(
+                "SELECT id, created, system, status, total, done, columns, message FROM sweeps WHERE id = ?",
+                (sweep_id,),
+            ).fetchone()
         if r is None:
             return None
-        return {"id": r[0], "created": r[1], "system": r[2], "status": r[3], "total": r[4], "done": r[5],
-                "columns": orjson.loads(r[6]), "message": r[7]}
+        return {
+            "id": r[0],
+            "created": r[1],
+            "system": r[2],
+            "status": r[3],
+            "total": r[4],
+            "done": r[5],
+            "columns": orjson.loads(r[6]),
+            "message": r[7],
+        }
 
     def rows(self, sweep_id, offset=0, limit=-1) -> list[dict]:
         with self._lock:
-            got = self._db.execute("SELECT row FROM sweep_rows WHERE sweep_id = ? ORDER BY seq LIMIT ? OFFSET ?",
-                                   (sweep_id, limit, offset)).fetchall()
+            got = self._db.execute(
+                "SELECT row FROM sweep_rows WHERE sweep_id = ? ORDER BY seq LIMIT ? OFFSET ?", (sweep_id, limit, offset)
+            ).fetchall()
         return [orjson.loads(r[0]) for r in got]
 
 
@@ -173,8 +204,9 @@ class _Sink:
         self.store, self.id, self.done, self.n = store, sweep_id, set(), 0
 
     def write(self, rows):
-        clean = [{k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()}
-                 for r in rows]
+        clean = [
+            {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()} for r in rows
+        ]
         self.store.add_rows(self.id, self.n, clean)
         self.n += len(rows)
 
@@ -236,7 +268,7 @@ class SweepManager:
                 res = run_sweep(base, spec, _Sink(self.store, sweep_id), executor=ex, progress=False)
             counts = ", ".join(f"{k} {v}" for k, v in sorted(res.statuses.items()))
             self.store.set_status(sweep_id, "done", f"{res.ran} runs in {res.wall_s:.2f} s: {counts}")
-        except Exception as e:                      # the service stopping, a lost scheduler
+        except Exception as e:  # the service stopping, a lost scheduler
             self.store.set_status(sweep_id, "failed", f"{type(e).__name__}: {e}")
 
 
@@ -257,8 +289,11 @@ def _unprocessable(e: InputError):
     head, _, rest = str(e.field).partition(" ")
     loc = ["body", _FIELDS[head]] if head in _FIELDS else ["body", "settings", *str(e.field).split(".")]
     field = f"{_FIELDS.get(head, head)} {rest}".strip() if head in _FIELDS else None
-    msg = f"{field or '.'.join(map(str, loc[1:]))}: got {e.value!r}" + (f" ({e.reason})" if e.reason else "") + \
-        f"; allowed: {e.allowed}"
+    msg = (
+        f"{field or '.'.join(map(str, loc[1:]))}: got {e.value!r}"
+        + (f" ({e.reason})" if e.reason else "")
+        + f"; allowed: {e.allowed}"
+    )
     return error_response(422, [item(loc, "value_error", e.value, e.reason, e.allowed, msg=msg)])
 
 
@@ -269,8 +304,12 @@ def _check_limits(base: dict, spec: SweepSpec, max_steps: int) -> None:
 
     limit = max_sweep_runs()
     if len(spec) > limit:
-        raise InputError("--grid", f"{len(spec):,} runs", f"at most {limit:,} runs per sweep "
-                         "(NMKANE_MAX_SWEEP_RUNS)", "too many runs")
+        raise InputError(
+            "--grid",
+            f"{len(spec):,} runs",
+            f"at most {limit:,} runs per sweep (NMKANE_MAX_SWEEP_RUNS)",
+            "too many runs",
+        )
     plan = resolve(base)
     dts, tfs = [plan.dt], [plan.t_final]
     for name, values in _axis_values(spec):
@@ -280,20 +319,28 @@ def _check_limits(base: dict, spec: SweepSpec, max_steps: int) -> None:
             tfs.append(p.t_final)
     steps = math.ceil(max(tfs) / min(dts) - 1e-9)
     if steps > max_steps:
-        raise InputError("--grid", f"{steps:,} steps", f"runs of at most {max_steps:,} steps (the service's "
-                         "max_steps)", "the sweep's longest run is too long")
+        raise InputError(
+            "--grid",
+            f"{steps:,} steps",
+            f"runs of at most {max_steps:,} steps (the service's max_steps)",
+            "the sweep's longest run is too long",
+        )
 
 
-@router.post("/api/sweeps", status_code=202, response_model=SweepCreated, operation_id="create_sweep",
-             responses={422: {**_ERR, "description": "a bad specification, or a sweep over this service's limits"}})
+@router.post(
+    "/api/sweeps",
+    status_code=202,
+    response_model=SweepCreated,
+    operation_id="create_sweep",
+    responses={422: {**_ERR, "description": "a bad specification, or a sweep over this service's limits"}},
+)
 def create_sweep(body: SweepRequest, request: Request):
     """Start a sweep; answers 202 with its id (fetch progress and rows with GET /api/sweeps/{id})."""
     from nmkane_core.sweep.runner import check_spec
 
     base = body.settings.model_dump(exclude_none=True)
     try:
-        spec = sweep_spec(body.grid, body.log_grid, body.sample, body.samples, body.seed,
-                          max_points=max_sweep_runs())
+        spec = sweep_spec(body.grid, body.log_grid, body.sample, body.samples, body.seed, max_points=max_sweep_runs())
         check_spec(base, spec)
         _check_limits(base, spec, request.app.state.settings.max_steps)
         columns = output_columns(spec.names, constraint_columns(base, spec))
@@ -303,17 +350,33 @@ def create_sweep(body: SweepRequest, request: Request):
     sweep_id = secrets.token_urlsafe(12)
     m.store.create(sweep_id, base["system"], len(spec), body.model_dump(mode="json"), columns)
     m.queue.submit(m.run, sweep_id, base, spec)
-    return JSONResponse({"id": sweep_id, "status": "queued", "total": len(spec)}, status_code=202,
-                        headers={"Location": f"/api/sweeps/{sweep_id}"})
+    return JSONResponse(
+        {"id": sweep_id, "status": "queued", "total": len(spec)},
+        status_code=202,
+        headers={"Location": f"/api/sweeps/{sweep_id}"},
+    )
 
 
 def _not_found(sweep_id):
-    return error_response(404, [item(["path", "sweep_id"], "not_found", sweep_id, "no sweep with this id",
-                                     "an id returned by POST /api/sweeps")])
+    return error_response(
+        404,
+        [
+            item(
+                ["path", "sweep_id"],
+                "not_found",
+                sweep_id,
+                "no sweep with this id",
+                "an id returned by POST /api/sweeps",
+            )
+        ],
+    )
 
 
-@router.get("/api/sweeps/{sweep_id}.csv", operation_id="get_sweep_csv",
-            responses={404: {"description": "no sweep with this id"}})
+@router.get(
+    "/api/sweeps/{sweep_id}.csv",
+    operation_id="get_sweep_csv",
+    responses={404: {"description": "no sweep with this id"}},
+)
 def get_sweep_csv(request: Request, sweep_id: str = SWEEP_ID):
     """The rows so far as CSV (the columns of ``nmkane sweep --out FILE.csv``)."""
     m = _manager(request)
@@ -324,21 +387,29 @@ def get_sweep_csv(request: Request, sweep_id: str = SWEEP_ID):
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(state["columns"])
     for r in m.store.rows(sweep_id):
-        w.writerow(["" if r.get(c) is None else repr(r[c]) if isinstance(r.get(c), float) else r[c]
-                    for c in state["columns"]])
-    return Response(buf.getvalue(), media_type="text/csv",
-                    headers={"Content-Disposition": f'attachment; filename="{sweep_id}.csv"'})
+        w.writerow(
+            ["" if r.get(c) is None else repr(r[c]) if isinstance(r.get(c), float) else r[c] for c in state["columns"]]
+        )
+    return Response(
+        buf.getvalue(), media_type="text/csv", headers={"Content-Disposition": f'attachment; filename="{sweep_id}.csv"'}
+    )
 
 
-@router.get("/api/sweeps/{sweep_id}", response_model=SweepState, operation_id="get_sweep",
-            responses={404: {**_ERR, "description": "no sweep with this id"}})
-def get_sweep(request: Request, sweep_id: str = SWEEP_ID,
-              offset: int = Query(0, ge=0, description="rows to skip"),
-              limit: int = Query(1000, ge=1, le=10_000, description="rows to return")):
+@router.get(
+    "/api/sweeps/{sweep_id}",
+    response_model=SweepState,
+    operation_id="get_sweep",
+    responses={404: {**_ERR, "description": "no sweep with this id"}},
+)
+def get_sweep(
+    request: Request,
+    sweep_id: str = SWEEP_ID,
+    offset: int = Query(0, ge=0, description="rows to skip"),
+    limit: int = Query(1000, ge=1, le=10_000, description="rows to return"),
+):
     """Status, progress (``done`` of ``total``) and the rows so far, in completion order."""
     m = _manager(request)
     state = m.store.get(sweep_id)
     if state is None:
         return _not_found(sweep_id)
     return {**state, "rows": m.store.rows(sweep_id, offset, limit), "offset": offset}
-

@@ -19,7 +19,7 @@ from nmkane_core import Parameter, System, register
 
 
 def bowl_model():
-    import sympy as sp   # inside the function: a cached run of this system never imports sympy
+    import sympy as sp  # inside the function: a cached run of this system never imports sympy
 
     from nmkane_core import MechanicalModel, plain_symbols
 
@@ -27,28 +27,36 @@ def bowl_model():
     u1, u2, u3 = plain_symbols("u1 u2 u3")
     m, g, R, v0 = sp.symbols("m g R v0", positive=True)
     return MechanicalModel(
-        q=(x, y, z), u=(u1, u2, u3), params=(m, g, R, v0),
-        C=sp.eye(3), D=sp.zeros(3, 1),                       # q̇ = u
-        Q=m * sp.eye(3), P=sp.Matrix([0, 0, -m * g]),        # free particle under gravity
+        q=(x, y, z),
+        u=(u1, u2, u3),
+        params=(m, g, R, v0),
+        C=sp.eye(3),
+        D=sp.zeros(3, 1),  # q̇ = u
+        Q=m * sp.eye(3),
+        P=sp.Matrix([0, 0, -m * g]),  # free particle under gravity
         holonomic={"bowl": z - (x**2 + y**2) / (2 * R)},
         nonholonomic={"speed": sp.sqrt(u1**2 + u2**2 + u3**2) - v0},
         u_independent=(u1,),
-        energy=m / 2 * (u1**2 + u2**2 + u3**2),               # kinetic energy: constant
-        q_dependent=(z,))
+        energy=m / 2 * (u1**2 + u2**2 + u3**2),  # kinetic energy: constant
+        q_dependent=(z,),
+    )
 
 
-register(System(
-    name="isokinetic-bowl",
-    title="Particle driven at constant speed in a bowl",
-    variants=bowl_model,
-    parameters={
-        "m": Parameter(1.0, 0.0, 1e3, "kg", "mass of the particle"),
-        "g": Parameter(9.81, 0.0, 100.0, "m/s²", "gravitational acceleration", min_inclusive=True),
-        "R": Parameter(2.0, 0.0, 1e3, "m", "radius of curvature of the bowl at its bottom"),
-        "v0": Parameter(1.5, 0.0, 100.0, "m/s", "the driven speed"),
-    },
-    # z, u2, u3 are completed from the constraints; u2 = 1 is the guess that picks the branch ẏ > 0
-    default_initial={"x": 1.0, "y": 0.5, "u1": 0.3, "u2": 1.0},
-    default_dt=0.001, default_t_final=10.0,
-    description="A holonomic surface and a speed constraint √(ẋ²+ẏ²+ż²) = v0, non-polynomial in the speeds.",
-))
+register(
+    System(
+        name="isokinetic-bowl",
+        title="Particle driven at constant speed in a bowl",
+        variants=bowl_model,
+        parameters={
+            "m": Parameter(1.0, 0.0, 1e3, "kg", "mass of the particle"),
+            "g": Parameter(9.81, 0.0, 100.0, "m/s²", "gravitational acceleration", min_inclusive=True),
+            "R": Parameter(2.0, 0.0, 1e3, "m", "radius of curvature of the bowl at its bottom"),
+            "v0": Parameter(1.5, 0.0, 100.0, "m/s", "the driven speed"),
+        },
+        # z, u2, u3 are completed from the constraints; u2 = 1 is the guess that picks the branch ẏ > 0
+        default_initial={"x": 1.0, "y": 0.5, "u1": 0.3, "u2": 1.0},
+        default_dt=0.001,
+        default_t_final=10.0,
+        description="A holonomic surface and a speed constraint √(ẋ²+ẏ²+ż²) = v0, non-polynomial in the speeds.",
+    )
+)

@@ -22,7 +22,7 @@ from nmkane_core import Parameter, System, register
 
 def skate_model(solve_for: str):
     """The skate with the constraint solved for ``solve_for`` ("u1" = ẋ or "u2" = ẏ)."""
-    import sympy as sp   # inside the function: a cached run of this system never imports sympy
+    import sympy as sp  # inside the function: a cached run of this system never imports sympy
 
     from nmkane_core import MechanicalModel, plain_symbols
 
@@ -30,26 +30,34 @@ def skate_model(solve_for: str):
     u1, u2, u3 = plain_symbols("u1 u2 u3")
     m, I, g, alpha = sp.symbols("m I g alpha", positive=True)
     return MechanicalModel(
-        q=(x, y, th), u=(u1, u2, u3), params=(m, I, g, alpha),
-        C=sp.eye(3), D=sp.zeros(3, 1),
-        Q=sp.diag(m, m, I), P=sp.Matrix([m * g * sp.sin(alpha), 0, 0]),
+        q=(x, y, th),
+        u=(u1, u2, u3),
+        params=(m, I, g, alpha),
+        C=sp.eye(3),
+        D=sp.zeros(3, 1),
+        Q=sp.diag(m, m, I),
+        P=sp.Matrix([m * g * sp.sin(alpha), 0, 0]),
         nonholonomic={"no_side_slip": -sp.sin(th) * u1 + sp.cos(th) * u2},
         u_independent=(u1, u3) if solve_for == "u2" else (u2, u3),
-        energy=m / 2 * (u1**2 + u2**2) + I / 2 * u3**2 - m * g * sp.sin(alpha) * x)
+        energy=m / 2 * (u1**2 + u2**2) + I / 2 * u3**2 - m * g * sp.sin(alpha) * x,
+    )
 
 
-register(System(
-    name="skate-on-incline",
-    title="Skate on an inclined plane",
-    variants={"solve-u2": lambda: skate_model("u2"), "solve-u1": lambda: skate_model("u1")},
-    equivalents={"solve-u2": ("solve-u1",), "solve-u1": ("solve-u2",)},
-    parameters={
-        "m": Parameter(1.0, 0.0, 1e3, "kg", "mass of the skate"),
-        "I": Parameter(0.1, 0.0, 1e3, "kg·m²", "moment of inertia about the contact point"),
-        "g": Parameter(9.81, 0.0, 100.0, "m/s²", "gravitational acceleration", min_inclusive=True),
-        "alpha": Parameter(0.2, 0.0, 1.5, "rad", "inclination of the plane"),
-    },
-    default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 0.0, "u3": 2.0},
-    default_dt=0.001, default_t_final=10.0,
-    description="A knife edge on a slope: a linear nonholonomic constraint; it does not run away downhill.",
-))
+register(
+    System(
+        name="skate-on-incline",
+        title="Skate on an inclined plane",
+        variants={"solve-u2": lambda: skate_model("u2"), "solve-u1": lambda: skate_model("u1")},
+        equivalents={"solve-u2": ("solve-u1",), "solve-u1": ("solve-u2",)},
+        parameters={
+            "m": Parameter(1.0, 0.0, 1e3, "kg", "mass of the skate"),
+            "I": Parameter(0.1, 0.0, 1e3, "kg·m²", "moment of inertia about the contact point"),
+            "g": Parameter(9.81, 0.0, 100.0, "m/s²", "gravitational acceleration", min_inclusive=True),
+            "alpha": Parameter(0.2, 0.0, 1.5, "rad", "inclination of the plane"),
+        },
+        default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 0.0, "u3": 2.0},
+        default_dt=0.001,
+        default_t_final=10.0,
+        description="A knife edge on a slope: a linear nonholonomic constraint; it does not run away downhill.",
+    )
+)

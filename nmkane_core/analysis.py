@@ -34,12 +34,20 @@ def _setup(system: System | str, state: Mapping[str, float], params, variant):
     names = info.state_names
     unknown = sorted(set(state) - set(names))
     if unknown:
-        raise InputError(f"state.{unknown[0]}", state[unknown[0]], f"state names of {system.name}: "
-                         f"{', '.join(names)}", "unknown state name")
+        raise InputError(
+            f"state.{unknown[0]}",
+            state[unknown[0]],
+            f"state names of {system.name}: {', '.join(names)}",
+            "unknown state name",
+        )
     missing = [k for k in names if k not in state]
     if missing:
-        raise InputError("state", dict(state), f"every coordinate and speed of {system.name} "
-                         f"({', '.join(names)})", f"missing {', '.join(missing)}")
+        raise InputError(
+            "state",
+            dict(state),
+            f"every coordinate and speed of {system.name} ({', '.join(names)})",
+            f"missing {', '.join(missing)}",
+        )
     x = np.array([float(state[k]) for k in names])
     if not np.all(np.isfinite(x)):
         raise InputError("state", dict(state), "finite numbers", "not finite")
@@ -52,15 +60,24 @@ def _zero_gains(info):
 
 
 def _check_consistent(system, module, info, x, p, tol):
-    viol = module.state_terms(0.0, x, p)[4][:info.m]
+    viol = module.state_terms(0.0, x, p)[4][: info.m]
     bad = {k: float(v) for k, v in zip(info.constraint_names, viol, strict=True) if abs(v) > tol}
     if bad:
-        raise InconsistentStateError("state", None, f"a state satisfying the constraints of {system.name} "
-                                     f"within {tol:g}", ", ".join(f"{k} = {v:.3g}" for k, v in bad.items()))
+        raise InconsistentStateError(
+            "state",
+            None,
+            f"a state satisfying the constraints of {system.name} within {tol:g}",
+            ", ".join(f"{k} = {v:.3g}" for k, v in bad.items()),
+        )
 
 
-def accelerations(system: System | str, state: Mapping[str, float], params: Mapping[str, float] | None = None,
-                  variant: str | None = None, t: float = 0.0) -> dict[str, float]:
+def accelerations(
+    system: System | str,
+    state: Mapping[str, float],
+    params: Mapping[str, float] | None = None,
+    variant: str | None = None,
+    t: float = 0.0,
+) -> dict[str, float]:
     """du/dt of every speed at a full consistent state (all q and u), no stabilization terms.
 
     ``system`` is a :class:`System` or a registered name; ``state`` maps every coordinate and
@@ -72,7 +89,7 @@ def accelerations(system: System | str, state: Mapping[str, float], params: Mapp
     xdot, _, _ = module.rhs(t, x, p, *_zero_gains(info))
     if not np.all(np.isfinite(xdot)):
         raise InputError("state", dict(state), "a state where J2 and T are invertible", "singular there")
-    return {name: float(v) for name, v in zip(info.u, xdot[info.n:], strict=True)}
+    return {name: float(v) for name, v in zip(info.u, xdot[info.n :], strict=True)}
 
 
 @dataclass(frozen=True)
@@ -84,12 +101,21 @@ class Linearization:
     eigenvalues: np.ndarray
 
     def as_dict(self) -> dict:
-        return {"names": list(self.names), "A": self.A.tolist(),
-                "eigenvalues": [[float(v.real), float(v.imag)] for v in self.eigenvalues]}
+        return {
+            "names": list(self.names),
+            "A": self.A.tolist(),
+            "eigenvalues": [[float(v.real), float(v.imag)] for v in self.eigenvalues],
+        }
 
 
-def linearize(system: System | str, state: Mapping[str, float], params: Mapping[str, float] | None = None,
-              variant: str | None = None, keep: Sequence[str] | None = None, step: float = 1e-3) -> Linearization:
+def linearize(
+    system: System | str,
+    state: Mapping[str, float],
+    params: Mapping[str, float] | None = None,
+    variant: str | None = None,
+    keep: Sequence[str] | None = None,
+    step: float = 1e-3,
+) -> Linearization:
     """The state matrix of the independent coordinates and speeds about ``state``, and its eigenvalues.
 
     ``keep`` selects which independent coordinates and speeds form the linearized state
@@ -99,22 +125,25 @@ def linearize(system: System | str, state: Mapping[str, float], params: Mapping[
     each value's magnitude)."""
     system, variant, module, info, p, x0 = _setup(system, state, params, variant)
     _check_consistent(system, module, info, x0, p, CHECK_TOL)
-    n = info.n
     q_ind = [q for q in info.q if q not in info.q_dependent]
     u_ind = list(info.u_independent) if info.m else list(info.u)
     independent = q_ind + u_ind
     names = list(keep) if keep is not None else independent
     bad = [k for k in names if k not in independent]
     if bad:
-        raise InputError(f"keep.{bad[0]}", bad[0], f"independent coordinates and speeds of {system.name}: "
-                         f"{', '.join(independent)}", "not independent")
+        raise InputError(
+            f"keep.{bad[0]}",
+            bad[0],
+            f"independent coordinates and speeds of {system.name}: {', '.join(independent)}",
+            "not independent",
+        )
     index = [info.state_names.index(k) for k in names]
     gains = _zero_gains(info)
 
     def f(z: np.ndarray) -> np.ndarray:
         x = x0.copy()
         x[index] = z
-        x = complete_state(module, info, x, p)       # back onto the constraint manifold
+        x = complete_state(module, info, x, p)  # back onto the constraint manifold
         xdot, _, _ = module.rhs(0.0, x, p, *gains)
         return xdot[index]
 
@@ -128,7 +157,7 @@ def linearize(system: System | str, state: Mapping[str, float], params: Mapping[
             e[j] = hh
             return (f(z0 + e) - f(z0 - e)) / (2 * hh)
 
-        A[:, j] = (4 * d(h / 2) - d(h)) / 3            # Richardson: O(h⁴)
+        A[:, j] = (4 * d(h / 2) - d(h)) / 3  # Richardson: O(h⁴)
     if not np.all(np.isfinite(A)):
         raise InputError("state", dict(state), "a state where J2 and T are invertible", "singular there")
     return Linearization(tuple(names), A, np.linalg.eigvals(A))

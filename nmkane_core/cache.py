@@ -38,7 +38,7 @@ def write_kernel(folder: Path, key: str, source: str) -> bool:
     folder.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".tmp{os.getpid()}")
     tmp.write_text(source)
-    os.replace(tmp, path)               # atomic: a parallel process never sees half a file
+    os.replace(tmp, path)  # atomic: a parallel process never sees half a file
     return True
 
 
@@ -74,9 +74,16 @@ def _entries() -> list[dict]:
             entry = json.loads(f.read_text())
         except (OSError, ValueError):
             entry = {}
-        out.append({"path": f, "fingerprint": f.stem, "key": entry.get("key"),
-                    "system": entry.get("system"), "variant": entry.get("variant"),
-                    "last_used": f.stat().st_mtime})
+        out.append(
+            {
+                "path": f,
+                "fingerprint": f.stem,
+                "key": entry.get("key"),
+                "system": entry.get("system"),
+                "variant": entry.get("variant"),
+                "last_used": f.stat().st_mtime,
+            }
+        )
     return out
 
 
@@ -89,11 +96,15 @@ def info() -> dict:
     root = cache_root()
     entries = _entries()
     folders = _kernel_folders()
-    return {"root": str(root), "bytes": _size(root) if root.exists() else 0,
-            "kernels": [{"key": p.name, "bytes": _size(p)} for p in folders],
-            "entries": [{k: (str(v) if k == "path" else v) for k, v in e.items()} for e in entries],
-            "other": {p.name: _size(p) for p in sorted(root.glob("*")) if p.is_dir() and p.name != "kernels"}
-            if root.exists() else {}}
+    return {
+        "root": str(root),
+        "bytes": _size(root) if root.exists() else 0,
+        "kernels": [{"key": p.name, "bytes": _size(p)} for p in folders],
+        "entries": [{k: (str(v) if k == "path" else v) for k, v in e.items()} for e in entries],
+        "other": {p.name: _size(p) for p in sorted(root.glob("*")) if p.is_dir() and p.name != "kernels"}
+        if root.exists()
+        else {},
+    }
 
 
 def clear() -> int:
@@ -108,7 +119,7 @@ def clear() -> int:
     return freed
 
 
-def prune(current: "dict[tuple[str, str], str | None]", unused_days: float | None = None) -> dict:
+def prune(current: dict[tuple[str, str], str | None], unused_days: float | None = None) -> dict:
     """Remove what can no longer be used, and return what was removed.
 
     ``current`` maps (system, variant) of every system known here to its fingerprint now:
@@ -128,8 +139,13 @@ def prune(current: "dict[tuple[str, str], str | None]", unused_days: float | Non
         if stale or old or e["key"] is None:
             freed += _size(e["path"])
             e["path"].unlink(missing_ok=True)
-            removed_entries.append({"system": e["system"], "variant": e["variant"],
-                                    "reason": "stale" if stale else ("unused" if old else "damaged")})
+            removed_entries.append(
+                {
+                    "system": e["system"],
+                    "variant": e["variant"],
+                    "reason": "stale" if stale else ("unused" if old else "damaged"),
+                }
+            )
         else:
             keep_keys.add(e["key"])
     for folder in _kernel_folders():

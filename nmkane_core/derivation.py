@@ -30,10 +30,10 @@ from .model import MechanicalModel
 __all__ = ["Derivation", "derive"]
 
 
-
 def _column(exprs) -> sp.Matrix:
     exprs = [sp.sympify(e) for e in exprs]
     return sp.Matrix(len(exprs), 1, exprs)
+
 
 class Derivation:
     """Symbolic results of the procedure for one model (all ``sympy.Matrix``).
@@ -95,16 +95,15 @@ class Derivation:
             self.b = sp.zeros(0, 1)
 
         # Baumgarte gains as symbols (the numeric kernels take them as runtime matrices)
-        self.Gamma = sp.Matrix(self.m_nh, self.m_nh,
-                               lambda i, j: sp.Symbol(f"Gamma_{i + 1}{j + 1}", real=True))
-        self.Gamma1 = sp.Matrix(self.m_h, self.m_h,
-                                lambda i, j: sp.Symbol(f"Gamma1_{i + 1}{j + 1}", real=True))
-        self.Gamma2 = sp.Matrix(self.m_h, self.m_h,
-                                lambda i, j: sp.Symbol(f"Gamma2_{i + 1}{j + 1}", real=True))
+        self.Gamma = sp.Matrix(self.m_nh, self.m_nh, lambda i, j: sp.Symbol(f"Gamma_{i + 1}{j + 1}", real=True))
+        self.Gamma1 = sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma1_{i + 1}{j + 1}", real=True))
+        self.Gamma2 = sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma2_{i + 1}{j + 1}", real=True))
         # stabilization vector s: (104) Γ φ for nonholonomic rows, (112) Γ1 ψ̇ + Γ2 ψ for holonomic
-        self.s = sp.Matrix.vstack(self.Gamma * self.phi_nh,
-                                  self.Gamma1 * self.psi_dot + self.Gamma2 * self.psi) \
-            if self.m else sp.zeros(0, 1)
+        self.s = (
+            sp.Matrix.vstack(self.Gamma * self.phi_nh, self.Gamma1 * self.psi_dot + self.Gamma2 * self.psi)
+            if self.m
+            else sp.zeros(0, 1)
+        )
 
         # the holonomic system (42), speeds in the order [u_I, u_D]
         self.Q = md.Q.extract(self.perm, self.perm)
@@ -122,7 +121,7 @@ class Derivation:
         """(20) A = −J2⁻¹ J1."""
         if not self.m:
             return sp.zeros(0, self.p)
-        return -self._J2_inv_rhs[:, :self.p]
+        return -self._J2_inv_rhs[:, : self.p]
 
     @cached_property
     def B(self) -> sp.Matrix:
@@ -176,8 +175,16 @@ class Derivation:
         mat = self.matrix(name)
         if simplify:
             mat = mat.applyfunc(lambda e: sp.simplify(e) if sp.count_ops(e) < 400 else e)
-        sym = {"B_hat": r"\hat{B}", "V_hat": r"\hat{V}", "A1": "A_1", "A2": "A_2",
-               "J1": "J_1", "J2": "J_2", "B1": "B_1", "B2": "B_2"}.get(name, name)
+        sym = {
+            "B_hat": r"\hat{B}",
+            "V_hat": r"\hat{V}",
+            "A1": "A_1",
+            "A2": "A_2",
+            "J1": "J_1",
+            "J2": "J_2",
+            "B1": "B_1",
+            "B2": "B_2",
+        }.get(name, name)
         return f"{sym} = {sp.latex(mat)}"
 
 

@@ -39,5 +39,6 @@ class SingularMatrix(ArithmeticError):
 
     def __init__(self, matrix: str, rcond: float, t: float):
         self.matrix, self.rcond, self.t = matrix, rcond, t
-        super().__init__(f"{matrix} is singular or ill-conditioned at t = {t:.6g} s "
-                         f"(pivot-ratio reciprocal condition {rcond:.3g})")
+        super().__init__(
+            f"{matrix} is singular or ill-conditioned at t = {t:.6g} s (pivot-ratio reciprocal condition {rcond:.3g})"
+        )

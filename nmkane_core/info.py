@@ -21,7 +21,7 @@ class ModelInfo:
     params: tuple[str, ...]
     nonholonomic: tuple[str, ...]
     holonomic: tuple[str, ...]
-    monitors: tuple[str, ...]          # reported beside the constraints (not constraints)
+    monitors: tuple[str, ...]  # reported beside the constraints (not constraints)
     outputs: tuple[str, ...]
     u_independent: tuple[str, ...]
     q_dependent: tuple[str, ...]
@@ -52,22 +52,28 @@ class ModelInfo:
         return json.dumps(asdict(self))
 
     @classmethod
-    def from_json(cls, text: str) -> "ModelInfo":
+    def from_json(cls, text: str) -> ModelInfo:
         data = json.loads(text)
         fields: dict = {k: tuple(v) if isinstance(v, list) else v for k, v in data.items()}
         return cls(**fields)
 
     @classmethod
-    def from_derivation(cls, d) -> "ModelInfo":
+    def from_derivation(cls, d) -> ModelInfo:
         md = d.model
         q_dep = md.q_dependent or _pick_q_dependent(d)
         return cls(
-            name=md.name, q=tuple(map(str, md.q)), u=tuple(map(str, md.u)),
-            params=tuple(map(str, md.params)), nonholonomic=tuple(md.nonholonomic),
+            name=md.name,
+            q=tuple(map(str, md.q)),
+            u=tuple(map(str, md.u)),
+            params=tuple(map(str, md.params)),
+            nonholonomic=tuple(md.nonholonomic),
             holonomic=tuple(md.holonomic),
             monitors=tuple(k for k in md.monitors if k not in md.constraint_names),
-            outputs=tuple(md.outputs), u_independent=tuple(map(str, md.u_independent)),
-            q_dependent=tuple(map(str, q_dep)), has_energy=md.energy is not None)
+            outputs=tuple(md.outputs),
+            u_independent=tuple(map(str, md.u_independent)),
+            q_dependent=tuple(map(str, q_dep)),
+            has_energy=md.energy is not None,
+        )
 
 
 def _pick_q_dependent(d):

@@ -37,7 +37,7 @@ class Tableau:
     b: np.ndarray
     c: np.ndarray
     order: int
-    E: np.ndarray | None = None     # error weights: err = h Σ E_i k_i
+    E: np.ndarray | None = None  # error weights: err = h Σ E_i k_i
     error_order: int | None = None  # order of the embedded estimate (step exponent 1/(q+1))
     adaptive: bool = False
     description: str = ""
@@ -47,11 +47,10 @@ class Tableau:
     def stages(self) -> int:
         return len(self.c)
 
-    def as_adaptive(self, name: str, description: str) -> "Tableau":
+    def as_adaptive(self, name: str, description: str) -> Tableau:
         if self.E is None:
             raise ValueError(f"{self.name} has no embedded error estimate")
-        return Tableau(name, self.A, self.b, self.c, self.order, self.E, self.error_order, True,
-                       description)
+        return Tableau(name, self.A, self.b, self.c, self.order, self.E, self.error_order, True, description)
 
 
 def _arr(rows) -> np.ndarray:
@@ -70,11 +69,15 @@ RK4 = Tableau(
 # Kutta–Merson: Hairer, Nørsett & Wanner, Solving ODEs I, Table 4.1 (Merson 1957)
 KUTTA_MERSON = Tableau(
     "kutta-merson",
-    A=_arr([[0, 0, 0, 0, 0],
+    A=_arr(
+        [
+            [0, 0, 0, 0, 0],
             [1 / 3, 0, 0, 0, 0],
             [1 / 6, 1 / 6, 0, 0, 0],
             [1 / 8, 0, 3 / 8, 0, 0],
-            [1 / 2, 0, -3 / 2, 2, 0]]),
+            [1 / 2, 0, -3 / 2, 2, 0],
+        ]
+    ),
     b=_arr([1 / 6, 0, 0, 2 / 3, 1 / 6]),
     c=_arr([0, 1 / 3, 1 / 3, 1 / 2, 1]),
     order=4,
@@ -84,7 +87,8 @@ KUTTA_MERSON = Tableau(
 )
 
 KUTTA_MERSON_ADAPTIVE = KUTTA_MERSON.as_adaptive(
-    "kutta-merson-adaptive", "Kutta–Merson with its embedded error estimate controlling the step")
+    "kutta-merson-adaptive", "Kutta–Merson with its embedded error estimate controlling the step"
+)
 
 
 @dataclass(frozen=True)
@@ -92,7 +96,7 @@ class ScipyMethod:
     """A ``scipy.integrate`` OdeSolver class used step by step (partial results kept)."""
 
     name: str
-    solver: str          # scipy class name: RK45, DOP853, Radau
+    solver: str  # scipy class name: RK45, DOP853, Radau
     order: int
     description: str
     adaptive: bool = True
@@ -100,7 +104,8 @@ class ScipyMethod:
 
 
 INTEGRATORS = {
-    m.name: m for m in (
+    m.name: m
+    for m in (
         RK4,
         KUTTA_MERSON,
         KUTTA_MERSON_ADAPTIVE,

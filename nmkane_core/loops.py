@@ -19,15 +19,28 @@ from __future__ import annotations
 import ast
 import typing
 from pathlib import Path
-from typing import Any, Annotated, NamedTuple
+from typing import Annotated, Any, NamedTuple
 
 import numpy as np
 
 __all__ = [
-    "FixedArgs", "AdaptiveArgs", "fixed_loop_signature", "loop_signature",
-    "STATUS_OK", "STATUS_J2_SINGULAR", "STATUS_T_SINGULAR", "STATUS_DIVERGED", "STATUS_FAILED",
-    "STATUS_BUDGET", "STATUS_PROJECTION_FAILED", "STATS_E0", "STATS_MAX_DRIFT", "STATS_FINAL_DRIFT",
-    "STATS_RCOND_J2", "STATS_RCOND_T", "STATS_VIOL",
+    "FixedArgs",
+    "AdaptiveArgs",
+    "fixed_loop_signature",
+    "loop_signature",
+    "STATUS_OK",
+    "STATUS_J2_SINGULAR",
+    "STATUS_T_SINGULAR",
+    "STATUS_DIVERGED",
+    "STATUS_FAILED",
+    "STATUS_BUDGET",
+    "STATUS_PROJECTION_FAILED",
+    "STATS_E0",
+    "STATS_MAX_DRIFT",
+    "STATS_FINAL_DRIFT",
+    "STATS_RCOND_J2",
+    "STATS_RCOND_T",
+    "STATS_VIOL",
 ]
 
 _SOURCE = Path(__file__).with_name("_kernel_loops.py")
@@ -37,8 +50,12 @@ _TREE = ast.parse(_SOURCE.read_text())
 def _literals(tree: ast.Module) -> dict[str, int | float]:
     out = {}
     for node in tree.body:
-        if (isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
-                and node.targets[0].id.startswith(("STATUS_", "STATS_", "STEP_"))):
+        if (
+            isinstance(node, ast.Assign)
+            and len(node.targets) == 1
+            and isinstance(node.targets[0], ast.Name)
+            and node.targets[0].id.startswith(("STATUS_", "STATS_", "STEP_"))
+        ):
             out[node.targets[0].id] = ast.literal_eval(node.value)
     return out
 
@@ -64,64 +81,64 @@ VEC = "float64[::1]"
 MAT = "float64[:, ::1]"
 FLOAT = "float64"
 INT = "int64"
-PROJ = "proj"                     # int64[::1] with a projection, None without (see ProjectionOptions)
+PROJ = "proj"  # int64[::1] with a projection, None without (see ProjectionOptions)
 
 
 class FixedArgs(NamedTuple):
     """``integrate_fixed``'s arguments, in order: steps k0 … k1−1 of a run of ``nsteps`` steps."""
 
-    x: Annotated[np.ndarray, VEC]               # state, advanced in place
+    x: Annotated[np.ndarray, VEC]  # state, advanced in place
     t0: Annotated[float, FLOAT]
     dt: Annotated[float, FLOAT]
     t_final: Annotated[float, FLOAT]
     k0: Annotated[int, INT]
     k1: Annotated[int, INT]
     nsteps: Annotated[int, INT]
-    every: Annotated[int, INT]                  # keep every ``every``-th state
-    p: Annotated[np.ndarray, VEC]               # parameters
-    G: Annotated[np.ndarray, MAT]               # Γ
-    G1: Annotated[np.ndarray, MAT]              # Γ1
-    G2: Annotated[np.ndarray, MAT]              # Γ2
-    TA: Annotated[np.ndarray, MAT]              # tableau A, b, c
+    every: Annotated[int, INT]  # keep every ``every``-th state
+    p: Annotated[np.ndarray, VEC]  # parameters
+    G: Annotated[np.ndarray, MAT]  # Γ
+    G1: Annotated[np.ndarray, MAT]  # Γ1
+    G2: Annotated[np.ndarray, MAT]  # Γ2
+    TA: Annotated[np.ndarray, MAT]  # tableau A, b, c
     TB: Annotated[np.ndarray, VEC]
     TC: Annotated[np.ndarray, VEC]
-    rcond_min: Annotated[float, FLOAT]          # stop threshold of the rcond estimates
+    rcond_min: Annotated[float, FLOAT]  # stop threshold of the rcond estimates
     proj: Annotated[np.ndarray | None, PROJ]
-    out_t: Annotated[np.ndarray, VEC]           # output rows
+    out_t: Annotated[np.ndarray, VEC]  # output rows
     out_x: Annotated[np.ndarray, MAT]
     out_E: Annotated[np.ndarray, VEC]
     out_V: Annotated[np.ndarray, MAT]
-    row: Annotated[int, INT]                    # next free output row
-    stats: Annotated[np.ndarray, VEC]           # running statistics (STATS_*), updated in place
+    row: Annotated[int, INT]  # next free output row
+    stats: Annotated[np.ndarray, VEC]  # running statistics (STATS_*), updated in place
 
 
 class AdaptiveArgs(NamedTuple):
     """``integrate_adaptive``'s arguments, in order: from t until t_final, a full output
     buffer, or ``max_steps`` attempts."""
 
-    x: Annotated[np.ndarray, VEC]               # state, advanced in place
+    x: Annotated[np.ndarray, VEC]  # state, advanced in place
     t: Annotated[float, FLOAT]
     t_final: Annotated[float, FLOAT]
-    h: Annotated[float, FLOAT]                  # first step to try
+    h: Annotated[float, FLOAT]  # first step to try
     rtol: Annotated[float, FLOAT]
     atol: Annotated[float, FLOAT]
     hmin: Annotated[float, FLOAT]
     hmax: Annotated[float, FLOAT]
-    max_steps: Annotated[int, INT]              # attempts allowed in this call
+    max_steps: Annotated[int, INT]  # attempts allowed in this call
     every: Annotated[int, INT]
-    accepted: Annotated[int, INT]               # accepted steps so far (for ``every``)
+    accepted: Annotated[int, INT]  # accepted steps so far (for ``every``)
     p: Annotated[np.ndarray, VEC]
     G: Annotated[np.ndarray, MAT]
     G1: Annotated[np.ndarray, MAT]
     G2: Annotated[np.ndarray, MAT]
-    TA: Annotated[np.ndarray, MAT]              # tableau A, b, E = b − b̂, c
+    TA: Annotated[np.ndarray, MAT]  # tableau A, b, E = b − b̂, c
     TB: Annotated[np.ndarray, VEC]
     TE: Annotated[np.ndarray, VEC]
     TC: Annotated[np.ndarray, VEC]
-    err_exp: Annotated[float, FLOAT]            # step-control exponent 1/(q+1)
+    err_exp: Annotated[float, FLOAT]  # step-control exponent 1/(q+1)
     rcond_min: Annotated[float, FLOAT]
     proj: Annotated[np.ndarray | None, PROJ]
-    out_t: Annotated[np.ndarray, VEC]           # output buffer (its length caps the rows of a call)
+    out_t: Annotated[np.ndarray, VEC]  # output buffer (its length caps the rows of a call)
     out_x: Annotated[np.ndarray, MAT]
     out_E: Annotated[np.ndarray, VEC]
     out_V: Annotated[np.ndarray, MAT]
@@ -135,8 +152,13 @@ def loop_signature(args: type[NamedTuple], projected: bool = False) -> tuple:
     """numba types of a loop's arguments (``proj`` an int64 array when ``projected``, else None)."""
     from numba import types
 
-    names = {VEC: types.float64[::1], MAT: types.float64[:, ::1], FLOAT: types.float64, INT: types.int64,
-             PROJ: types.int64[::1] if projected else types.none}
+    names = {
+        VEC: types.float64[::1],
+        MAT: types.float64[:, ::1],
+        FLOAT: types.float64,
+        INT: types.int64,
+        PROJ: types.int64[::1] if projected else types.none,
+    }
     hints = typing.get_type_hints(args, include_extras=True)
     return tuple(names[hints[f].__metadata__[0]] for f in args._fields)
 
@@ -150,8 +172,10 @@ def _check(tree: ast.Module) -> None:
     defs = {n.name: [a.arg for a in n.args.args] for n in tree.body if isinstance(n, ast.FunctionDef)}
     for name, args in LOOPS.items():
         if defs.get(name) != list(args._fields):
-            raise RuntimeError(f"nmkane_core.loops.{args.__name__} lists {args._fields}, but "
-                               f"_kernel_loops.{name} takes {defs.get(name)}")
+            raise RuntimeError(
+                f"nmkane_core.loops.{args.__name__} lists {args._fields}, but "
+                f"_kernel_loops.{name} takes {defs.get(name)}"
+            )
 
 
 _check(_TREE)

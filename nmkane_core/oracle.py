@@ -9,7 +9,7 @@ speeds u3, u4, u5 — built from bodies and loads only, sharing nothing with
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import sympy as sp
@@ -18,7 +18,7 @@ from sympy.physics import mechanics as me
 DEFAULTS = dict(a=1.0, b=0.5, rho=5.0, m=1.0, M=5.0, I=2.5, g=9.81)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _kane():
     th, ph, x, y, z = q = me.dynamicsymbols("th ph x y z")
     u = me.dynamicsymbols("w1:6")
@@ -36,10 +36,12 @@ def _kane():
     wheel = me.RigidBody("W", centre, W, M, (me.inertia(W, I, I, I), centre))
     bob = me.Particle("B", load, m)
     t = me.dynamicsymbols._t
-    kd = [qi.diff(t) - ui for qi, ui in zip(q, u)]
-    vc = [a * u[1] * sp.cos(th) - u[2] - rho * u[0] * sp.sin(th),
-          a * u[1] * sp.sin(th) - u[3] + rho * u[0] * sp.cos(th),
-          u[4] + b * u[1]]
+    kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
+    vc = [
+        a * u[1] * sp.cos(th) - u[2] - rho * u[0] * sp.sin(th),
+        a * u[1] * sp.sin(th) - u[3] + rho * u[0] * sp.cos(th),
+        u[4] + b * u[1],
+    ]
     kane = me.KanesMethod(N, q_ind=q, u_ind=u[:2], u_dependent=u[2:], kd_eqs=kd, velocity_constraints=vc)
     kane.kanes_equations([wheel, bob], [(load, -m * g * N.z), (centre, -M * g * N.z)])
     return kane, list(q) + list(u), (a, b, rho, m, M, I, g)

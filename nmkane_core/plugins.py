@@ -99,8 +99,12 @@ def load_systems(specs, *, strict: bool = False) -> list[PluginError]:
             except Exception as e:
                 err = PluginError(str(spec), _one_line(e))
                 if strict:
-                    raise InputError("systems", str(spec), "a systems file or module that imports and registers "
-                                     "its systems", err.error) from None
+                    raise InputError(
+                        "systems",
+                        str(spec),
+                        "a systems file or module that imports and registers its systems",
+                        err.error,
+                    ) from None
                 errors.append(err)
     return errors
 

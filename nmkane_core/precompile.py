@@ -15,13 +15,14 @@ Set ``NMKANE_PRECOMPILE=0`` to turn it off.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import subprocess
 import sys
 import threading
 from pathlib import Path
 
-from .loops import fixed_loop_signature   # the one definition of the loop's arguments (FixedArgs)
+from .loops import fixed_loop_signature  # the one definition of the loop's arguments (FixedArgs)
 
 _CHILDREN: dict[str, subprocess.Popen] = {}
 _LOCK = threading.Lock()
@@ -34,12 +35,13 @@ def start(folder: Path, key: str) -> None:
     with _LOCK:
         if key in _CHILDREN:
             return
-        try:
+        with contextlib.suppress(OSError):  # no second process: compile in this one
             _CHILDREN[key] = subprocess.Popen(
                 [sys.executable, "-m", "nmkane_core.precompile", str(folder), key],
-                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-        except OSError:
-            pass                                   # no second process: compile in this one
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL,
+            )
 
 
 def wait(module, timeout: float = 300.0) -> None:
@@ -52,7 +54,7 @@ def wait(module, timeout: float = 300.0) -> None:
     try:
         proc.wait(timeout)
     except subprocess.TimeoutExpired:
-        proc.kill()                                # this process compiles instead
+        proc.kill()  # this process compiles instead
 
 
 def main(argv=None) -> int:

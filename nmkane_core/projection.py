@@ -49,9 +49,9 @@ __all__ = ["ProjectionOptions", "PRESETS", "projection_options"]
 @dataclass(frozen=True)
 class ProjectionOptions:
     name: str
-    weight: str = "identity"        # identity | mass
+    weight: str = "identity"  # identity | mass
     iterations: int = 3
-    jacobian: str = "updated"       # updated | frozen
+    jacobian: str = "updated"  # updated | frozen
     energy: bool = False
 
     def as_array(self, info) -> np.ndarray | None:
@@ -59,9 +59,19 @@ class ProjectionOptions:
         no projection, which lets numba prune the projection code from that loop's compile."""
         if self.name == "none":
             return None
-        return np.array([1 if self.weight == "mass" else 0, self.iterations,
-                         1 if self.jacobian == "updated" else 0, 1 if self.energy else 0,
-                         info.n, info.m, len(info.nonholonomic), len(info.holonomic)], dtype=np.int64)
+        return np.array(
+            [
+                1 if self.weight == "mass" else 0,
+                self.iterations,
+                1 if self.jacobian == "updated" else 0,
+                1 if self.energy else 0,
+                info.n,
+                info.m,
+                len(info.nonholonomic),
+                len(info.holonomic),
+            ],
+            dtype=np.int64,
+        )
 
 
 PRESETS = {

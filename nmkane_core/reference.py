@@ -61,8 +61,12 @@ class ReferenceKernel:
         if M:
             J = np.asarray(self._J(t, x, p), float).reshape(M, N)
             b = self._vec(self._b(t, x, p), M)
-            s = np.concatenate([G @ self._vec(self._phin(t, x, p), MNH),
-                                G1 @ self._vec(self._psid(t, x, p), MH) + G2 @ self._vec(self._psi(t, x, p), MH)])
+            s = np.concatenate(
+                [
+                    G @ self._vec(self._phin(t, x, p), MNH),
+                    G1 @ self._vec(self._psid(t, x, p), MH) + G2 @ self._vec(self._psi(t, x, p), MH),
+                ]
+            )
             J1, J2 = J[:, :PI], J[:, PI:]
             # the compiled kernel's row scaling for the condition estimate (kernel_terms.row_degrees)
             unorm = max(1.0, np.abs(np.asarray(x)[N:]).max(initial=0.0))
@@ -72,12 +76,12 @@ class ReferenceKernel:
             out.update(J1=J1, J2=J2, b=b, s=s, rcond_J2=rc_j2)
             if rc_j2 == 0.0:
                 return out
-            A = -sla.lu_solve(lu, sc[:, None] * J1)               # (20)
-            B_hat = sla.lu_solve(lu, sc * (-b + s))               # (20), (108), (113)
-            A1 = np.hstack([-A, np.eye(M)])                       # (22)
-            A2 = np.hstack([np.eye(PI), A.T])                     # (40)
-            T = np.vstack([A1, A2 @ Q])                           # (44)
-            V = np.concatenate([B_hat, A2 @ P])                   # (110)
+            A = -sla.lu_solve(lu, sc[:, None] * J1)  # (20)
+            B_hat = sla.lu_solve(lu, sc * (-b + s))  # (20), (108), (113)
+            A1 = np.hstack([-A, np.eye(M)])  # (22)
+            A2 = np.hstack([np.eye(PI), A.T])  # (40)
+            T = np.vstack([A1, A2 @ Q])  # (44)
+            V = np.concatenate([B_hat, A2 @ P])  # (110)
             out.update(A=A, B_hat=B_hat, A1=A1, A2=A2, T=T, V_hat=V)
         else:
             out.update(T=Q, V_hat=P, rcond_J2=1.0)
@@ -97,7 +101,7 @@ class ReferenceKernel:
         rc_t = pivot_rcond(lu[0])
         if rc_t <= rcond_min:
             raise SingularMatrix("T", rc_t, t)
-        udot_perm = sla.lu_solve(lu, V)                           # (111)
+        udot_perm = sla.lu_solve(lu, V)  # (111)
         xdot = np.empty(2 * N)
         xdot[:N] = self._vec(self._qdot(t, x, p), N)
         xdot[N + self.perm] = udot_perm
@@ -115,13 +119,16 @@ class ReferenceKernel:
     def constraint_residuals(self, t, x, p) -> dict:
         """φ, ψ̇, ψ at a state (used to check and complete initial states)."""
         d = self.dims
-        return {"phin": self._vec(self._phin(t, x, p), d["MNH"]),
-                "psid": self._vec(self._psid(t, x, p), d["MH"]),
-                "psi": self._vec(self._psi(t, x, p), d["MH"])}
+        return {
+            "phin": self._vec(self._phin(t, x, p), d["MNH"]),
+            "psid": self._vec(self._psid(t, x, p), d["MH"]),
+            "psi": self._vec(self._psi(t, x, p), d["MH"]),
+        }
 
 
-def integrate_reference(kernel: ReferenceKernel, x0, p, dt: float, nsteps: int, tableau,
-                        G=None, G1=None, G2=None) -> tuple[np.ndarray, np.ndarray]:
+def integrate_reference(
+    kernel: ReferenceKernel, x0, p, dt: float, nsteps: int, tableau, G=None, G1=None, G2=None
+) -> tuple[np.ndarray, np.ndarray]:
     """A plain-Python fixed-step Runge–Kutta run with the reference right-hand side.
 
     The same tableau data as the compiled loop; used by the tests to check that compiled
@@ -136,7 +143,7 @@ def integrate_reference(kernel: ReferenceKernel, x0, p, dt: float, nsteps: int, 
         for i in range(len(c)):
             xi = x + dt * sum((A[i, j] * K[j] for j in range(i)), np.zeros_like(x))
             K.append(kernel.rhs(t + c[i] * dt, xi, p, G, G1, G2))
-        x = x + dt * sum(bi * ki for bi, ki in zip(b, K))
+        x = x + dt * sum(bi * ki for bi, ki in zip(b, K, strict=True))
         ts.append((k + 1) * dt)
         xs.append(x.copy())
     return np.array(ts), np.array(xs)

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 import threading
 import warnings
-from typing import Callable, overload
+from collections.abc import Callable
+from typing import overload
 
 from .errors import InputError
 from .system import System
@@ -30,14 +31,17 @@ _builtin_loaded = False
 def _add(system: System, check: bool) -> System:
     if not isinstance(system, System):
         raise InputError("register", type(system).__name__, "a System (or a function returning one)", "not a System")
-    _load_builtin()                     # built-in systems first (listing order; a user's may replace one)
+    _load_builtin()  # built-in systems first (listing order; a user's may replace one)
     if check:
         system.check()
     with _LOCK:
         name = system.name
         if name in _USED:
-            warnings.warn(f"nmkane: system {name!r} registered again; the new definition replaces the one "
-                          "already used in this process", stacklevel=3)
+            warnings.warn(
+                f"nmkane: system {name!r} registered again; the new definition replaces the one "
+                "already used in this process",
+                stacklevel=3,
+            )
         _FACTORIES[name] = lambda: system
         _BUILT[name] = system
         _USED.discard(name)
@@ -67,10 +71,12 @@ def register(system, *, check: bool = True):
         def deco(factory):
             built = factory()
             if isinstance(built, System) and built.name != expected:
-                raise InputError("register", expected, f"the system's own name ({built.name!r})",
-                                 "two names for one system")
+                raise InputError(
+                    "register", expected, f"the system's own name ({built.name!r})", "two names for one system"
+                )
             _add(built, check)
             return factory
+
         return deco
     if callable(system):
         _add(system(), check)

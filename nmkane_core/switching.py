@@ -23,7 +23,7 @@ class Switcher:
     """
 
     SWITCH_BACK = 10.0
-    SWITCHED_CHUNK = 25          # steps per call while switched, to return promptly
+    SWITCHED_CHUNK = 25  # steps per call while switched, to return promptly
 
     def __init__(self, plan: Plan, home):
         self.plan = plan
@@ -33,9 +33,9 @@ class Switcher:
         self.alts = list(plan.system.equivalents.get(plan.variant, ())) if plan.switching else []
         self.no_cure = False
         self.switches: list[dict] = []
-        self.segments: list[tuple[int, int]] = []   # output rows computed with another model
+        self.segments: list[tuple[int, int]] = []  # output rows computed with another model
         self.seg_start = 0
-        self._p = {id(home): plan.p}            # each variant's parameter vector, bound by name
+        self._p = {id(home): plan.p}  # each variant's parameter vector, bound by name
 
     @property
     def p(self):
@@ -86,8 +86,9 @@ class Switcher:
             return False
         rc_home = self._rcond(self.home, t, x)
         if rc_home > self.SWITCH_BACK * self.plan.rcond_switch:
-            self.switches.append({"t": float(t), "from": self.cur_name, "to": self.plan.variant,
-                                  "rcond": float(rc_home)})
+            self.switches.append(
+                {"t": float(t), "from": self.cur_name, "to": self.plan.variant, "rcond": float(rc_home)}
+            )
             self.segments.append((self.seg_start, row))
             self.cur, self.cur_name = self.home, self.plan.variant
             return True

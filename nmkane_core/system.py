@@ -21,8 +21,9 @@ from __future__ import annotations
 import inspect
 import math
 import threading
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any, Callable, Mapping
+from typing import TYPE_CHECKING, Any
 
 from .errors import InputError
 
@@ -35,7 +36,7 @@ if TYPE_CHECKING:  # sympy is imported only when a model is actually built
 
 __all__ = ["Parameter", "System"]
 
-SINGLE_VARIANT = "default"           # the variant name of a system declared with one model
+SINGLE_VARIANT = "default"  # the variant name of a system declared with one model
 
 
 @dataclass(frozen=True)
@@ -56,15 +57,18 @@ class Parameter:
 
     def __post_init__(self):
         if isinstance(self.default, str):
-            raise InputError("Parameter.default", self.default,
-                             "a number: Parameter(default, min, max, unit, description), declared under its "
-                             "symbol or name in System(parameters={m: Parameter(1.0, 0, 10, 'kg')})",
-                             "not a number")
+            raise InputError(
+                "Parameter.default",
+                self.default,
+                "a number: Parameter(default, min, max, unit, description), declared under its "
+                "symbol or name in System(parameters={m: Parameter(1.0, 0, 10, 'kg')})",
+                "not a number",
+            )
         if self.name:
             self.check(self.default, f"parameters.{self.name}.default")
 
     def check(self, value, field_path: str) -> float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) and not hasattr(value, "__float__"):
+        if isinstance(value, bool) or (not isinstance(value, (int, float)) and not hasattr(value, "__float__")):
             raise InputError(field_path, value, self.allowed(), "not a number")
         try:
             v = float(value)
@@ -150,8 +154,8 @@ class System:
     title: str = ""
     description: str = ""
     option: str = "model"
-    default_variant: str = ""                     # "": the first variant
-    completion_variant: str = ""                  # "": the default variant
+    default_variant: str = ""  # "": the first variant
+    completion_variant: str = ""  # "": the default variant
     equivalents: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
     singular_hints: Mapping[str, str] = field(default_factory=dict)
     default_dt: float = 0.01
@@ -179,8 +183,9 @@ class System:
             self.variants = {str(k): _as_factory(v) for k, v in raw.items()}
         else:
             self.variants = {SINGLE_VARIANT: _as_factory(raw)}
-        self._model_objects = {k: v for k, v in (raw.items() if isinstance(raw, Mapping) else
-                                                 [(SINGLE_VARIANT, raw)]) if hasattr(v, "q")}
+        self._model_objects = {
+            k: v for k, v in (raw.items() if isinstance(raw, Mapping) else [(SINGLE_VARIANT, raw)]) if hasattr(v, "q")
+        }
         if self.option not in ("model", "formulation"):
             raise InputError(f"{self.name}: option", self.option, "model | formulation", "unknown")
         names = " | ".join(self.variants)
@@ -194,8 +199,9 @@ class System:
                 if a not in self.variants:
                     raise InputError(f"{self.name}: equivalents", a, names, "not a variant")
         self.parameters = self._bind_parameters(self.parameters)
-        self.default_initial = {_name(k): self._finite(f"default_initial.{_name(k)}", v)
-                                for k, v in dict(self.default_initial).items()}
+        self.default_initial = {
+            _name(k): self._finite(f"default_initial.{_name(k)}", v) for k, v in dict(self.default_initial).items()
+        }
         for label in ("default_dt", "default_t_final"):
             v = getattr(self, label)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
@@ -218,14 +224,26 @@ class System:
         out = []
         for key, p in items:
             if not isinstance(p, Parameter):
-                raise InputError(f"{self.name}: parameters.{key}", p, "Parameter(default, min, max, unit, description)",
-                                 "not a Parameter")
+                raise InputError(
+                    f"{self.name}: parameters.{key}",
+                    p,
+                    "Parameter(default, min, max, unit, description)",
+                    "not a Parameter",
+                )
             if not key:
-                raise InputError(f"{self.name}: parameters", p, "parameters keyed by their symbols or names",
-                                 "a Parameter without a name")
+                raise InputError(
+                    f"{self.name}: parameters",
+                    p,
+                    "parameters keyed by their symbols or names",
+                    "a Parameter without a name",
+                )
             if p.name and p.name != key:
-                raise InputError(f"{self.name}: parameters.{key}", p.name, f"the key it is declared under ({key})",
-                                 "two names for one parameter")
+                raise InputError(
+                    f"{self.name}: parameters.{key}",
+                    p.name,
+                    f"the key it is declared under ({key})",
+                    "two names for one parameter",
+                )
             out.append(replace(p, name=key))
         seen = [p.name for p in out]
         dup = {n for n in seen if seen.count(n) > 1}
@@ -270,8 +288,9 @@ class System:
         if variant is None:
             return self.default_variant
         if variant not in self.variants:
-            raise InputError(field_path or self.option, variant, " | ".join(self.variants),
-                             f"unknown {self.option} of {self.name}")
+            raise InputError(
+                field_path or self.option, variant, " | ".join(self.variants), f"unknown {self.option} of {self.name}"
+            )
         return variant
 
     # ------------------------------------------------------------------ models, derivations, kernels
@@ -285,11 +304,16 @@ class System:
                 except InputError:
                     raise
                 except Exception as e:
-                    raise InputError(f"{self.name}: variant {variant}", type(e).__name__,
-                                     "a function that builds a MechanicalModel", f"building it failed: {e}") from e
+                    raise InputError(
+                        f"{self.name}: variant {variant}",
+                        type(e).__name__,
+                        "a function that builds a MechanicalModel",
+                        f"building it failed: {e}",
+                    ) from e
                 if not hasattr(model, "q") or not hasattr(model, "Q"):
-                    raise InputError(f"{self.name}: variant {variant}", type(model).__name__,
-                                     "a MechanicalModel", "not a model")
+                    raise InputError(
+                        f"{self.name}: variant {variant}", type(model).__name__, "a MechanicalModel", "not a model"
+                    )
                 self._models[variant] = model
             return self._models[variant]
 
@@ -360,8 +384,9 @@ class System:
         variant = self.check_variant(variant)
         with self._lock:
             if variant not in self._kernels:
-                self._kernels[variant] = kernel(self.kernel_key(variant), lambda: self.derivation(variant),
-                                                (self.name, variant))
+                self._kernels[variant] = kernel(
+                    self.kernel_key(variant), lambda: self.derivation(variant), (self.name, variant)
+                )
             return self._kernels[variant]
 
     def info(self, variant: str | None = None) -> ModelInfo:
@@ -373,11 +398,13 @@ class System:
         given = dict(given or {})
         unknown = sorted(set(given) - set(self.param_names))
         if unknown:
-            raise InputError(f"{field_path}.{unknown[0]}", given[unknown[0]],
-                             f"parameters of {self.name}: {', '.join(self.param_names)}",
-                             "unknown parameter")
-        return {p.name: p.check(given.get(p.name, p.default), f"{field_path}.{p.name}")
-                for p in self.parameters}
+            raise InputError(
+                f"{field_path}.{unknown[0]}",
+                given[unknown[0]],
+                f"parameters of {self.name}: {', '.join(self.param_names)}",
+                "unknown parameter",
+            )
+        return {p.name: p.check(given.get(p.name, p.default), f"{field_path}.{p.name}") for p in self.parameters}
 
     def param_vector(self, variant: str | None, params: Mapping[str, float]) -> np.ndarray:
         """The numeric parameter vector of a variant's kernel, bound by name (the model's order)."""
@@ -404,21 +431,28 @@ class System:
         names = self.state_names
         for k, val in self.default_initial.items():
             if k not in names:
-                raise InputError(f"{self.name}: default_initial.{k}", val,
-                                 f"state names of {self.name}: {', '.join(names)}", "not a coordinate or speed")
+                raise InputError(
+                    f"{self.name}: default_initial.{k}",
+                    val,
+                    f"state names of {self.name}: {', '.join(names)}",
+                    "not a coordinate or speed",
+                )
         from .initial import initial_state
 
         params = self.resolve_params({})
         independent = set(self.independent)
         given = {k: v for k, v in self.default_initial.items() if k in independent}
         if len(self.default_initial) == len(names):
-            given = dict(self.default_initial)       # a full state: checked as it is
+            given = dict(self.default_initial)  # a full state: checked as it is
         try:
             _, full = initial_state(self, self.default_variant, params, given, complete_always=True)
         except InputError as e:
-            raise InputError(f"{self.name}: default_initial", dict(self.default_initial),
-                             "independent values (the rest is completed) or a full consistent state",
-                             f"{e.field}: {e.reason or e.allowed}") from None
+            raise InputError(
+                f"{self.name}: default_initial",
+                dict(self.default_initial),
+                "independent values (the rest is completed) or a full consistent state",
+                f"{e.field}: {e.reason or e.allowed}",
+            ) from None
         self.default_initial = full
         self._checked = True
 
@@ -433,6 +467,9 @@ class System:
                 what.append(f"declare {', '.join(missing)}")
             if extra:
                 what.append(f"remove {', '.join(extra)} (no symbol of the model)")
-            raise InputError(f"{self.name}: parameters", list(declared),
-                             f"the parameter symbols of the {variant} {self.option}: {', '.join(model_params)}",
-                             "; ".join(what))
+            raise InputError(
+                f"{self.name}: parameters",
+                list(declared),
+                f"the parameter symbols of the {variant} {self.option}: {', '.join(model_params)}",
+                "; ".join(what),
+            )

@@ -99,8 +99,9 @@ class Visuals:
         names = {f.name for f in self.frames}
         for s in self.shapes:
             if s.frame is not None and s.frame not in names:
-                raise InputError(f"visuals.{s.name}.frame", s.frame, " | ".join(sorted(names)) or "no frames",
-                                 "not a declared frame")
+                raise InputError(
+                    f"visuals.{s.name}.frame", s.frame, " | ".join(sorted(names)) or "no frames", "not a declared frame"
+                )
 
 
 def box(name, frame, size, offset=(0, 0, 0), color=(120, 130, 150), opacity=1.0) -> Shape:
@@ -118,8 +119,16 @@ def cylinder(name, frame, radius, length, axis="z", offset=(0, 0, 0), color=(120
 
 def sphere(name, radius, frame=None, offset=(0, 0, 0), at=None, color=(200, 80, 40), opacity=1.0) -> Shape:
     """A ball on a frame (at ``offset``) or at a world point ``at``."""
-    return Shape("sphere", name, frame, (radius,), tuple(offset), points=(tuple(at),) if at is not None else (),
-                 color=tuple(color), opacity=opacity)
+    return Shape(
+        "sphere",
+        name,
+        frame,
+        (radius,),
+        tuple(offset),
+        points=(tuple(at),) if at is not None else (),
+        color=tuple(color),
+        opacity=opacity,
+    )
 
 
 def segments(name, pairs, color=(90, 40, 30)) -> Shape:
@@ -188,14 +197,14 @@ class CompiledVisuals:
         out = self.poses(states, params)
         frames = {}
         for name, i in self.frames.items():
-            pos = np.stack(out[i:i + 3], axis=1)
-            rot = np.stack(out[i + 3:i + 12], axis=1).reshape(-1, 3, 3)
+            pos = np.stack(out[i : i + 3], axis=1)
+            rot = np.stack(out[i + 3 : i + 12], axis=1).reshape(-1, 3, 3)
             frames[name] = (pos, rot)
         return frames, out
 
     def point(self, out: list[np.ndarray], index: int) -> np.ndarray:
         """World point (n, 3) starting at pose output ``index``."""
-        return np.stack(out[index:index + 3], axis=1)
+        return np.stack(out[index : index + 3], axis=1)
 
 
 def _plain(expr, names: set[str]):
@@ -203,8 +212,11 @@ def _plain(expr, names: set[str]):
     import sympy as sp
 
     expr = sp.sympify(expr)
-    funcs = {f: sp.Symbol(f.func.__name__, real=True) for f in expr.atoms(sp.Function)
-             if isinstance(f, sp.core.function.AppliedUndef)}
+    funcs = {
+        f: sp.Symbol(f.func.__name__, real=True)
+        for f in expr.atoms(sp.Function)
+        if isinstance(f, sp.core.function.AppliedUndef)
+    }
     if funcs:
         expr = expr.subs(funcs)
     return expr.subs({s: sp.Symbol(s.name, real=True) for s in expr.free_symbols if s.name in names})
@@ -226,8 +238,12 @@ def _generate(vis: Visuals, state_names: Sequence[str], param_names: Sequence[st
             e = _plain(e, names)
             bad = sorted(s.name for s in e.free_symbols if s.name not in allowed)
             if bad:
-                raise InputError(where, bad[0], "names of " + ("parameters" if allowed is param_set else
-                                                               "coordinates, speeds and parameters"), "unknown name")
+                raise InputError(
+                    where,
+                    bad[0],
+                    "names of " + ("parameters" if allowed is param_set else "coordinates, speeds and parameters"),
+                    "unknown name",
+                )
             target.append(e)
         return start
 
@@ -238,8 +254,14 @@ def _generate(vis: Visuals, state_names: Sequence[str], param_names: Sequence[st
             raise InputError(f"visuals.{f.name}", f.name, "origin of 3 expressions and a 3×3 rotation", "bad shape")
         frames[f.name] = add(pose_exprs, list(f.origin) + list(rot), f"visuals.{f.name}", names)
     for s in vis.shapes:
-        d = {"kind": s.kind, "name": s.name, "frame": s.frame, "axis": s.axis, "color": list(s.color),
-             "opacity": float(s.opacity)}
+        d = {
+            "kind": s.kind,
+            "name": s.name,
+            "frame": s.frame,
+            "axis": s.axis,
+            "color": list(s.color),
+            "opacity": float(s.opacity),
+        }
         d["size"] = [add(size_exprs, s.size, f"visuals.{s.name}.size", param_set), len(s.size)]
         d["offset"] = add(size_exprs, s.offset, f"visuals.{s.name}.offset", param_set)
         d["points"] = [add(pose_exprs, p, f"visuals.{s.name}.points", names) for p in s.points]
@@ -319,8 +341,9 @@ def compile_visuals(system) -> CompiledVisuals | None:
 
         vis = system.visuals()
         if not isinstance(vis, Visuals):
-            raise InputError(f"{system.name}: visuals", type(vis).__name__, "a function returning Visuals",
-                             "not Visuals")
+            raise InputError(
+                f"{system.name}: visuals", type(vis).__name__, "a function returning Visuals", "not Visuals"
+            )
         info = system.info(system.default_variant)
         state_names = tuple(info.q) + tuple(info.u) + tuple(info.outputs)
         shapes, frames, source = _generate(vis, state_names, system.param_names)
@@ -354,8 +377,10 @@ def rotation_to_wxyz(R: np.ndarray) -> np.ndarray:
         r = R[m]
         if case == 0:
             s = np.sqrt(np.maximum(1 + tr[m], 1e-300)) * 2
-            q[m] = np.stack([s / 4, (r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s,
-                             (r[:, 1, 0] - r[:, 0, 1]) / s], axis=1)
+            q[m] = np.stack(
+                [s / 4, (r[:, 2, 1] - r[:, 1, 2]) / s, (r[:, 0, 2] - r[:, 2, 0]) / s, (r[:, 1, 0] - r[:, 0, 1]) / s],
+                axis=1,
+            )
         else:
             i = case - 1
             j, l = (i + 1) % 3, (i + 2) % 3

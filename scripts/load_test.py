@@ -63,10 +63,14 @@ def _cpu_seconds(pid: int) -> float | None:
 def _start_service(db: str) -> tuple[subprocess.Popen, str]:
     port = _free_port()
     root = Path(__file__).resolve().parents[1]
-    proc = subprocess.Popen([sys.executable, "-m", "backend", "--port", str(port), "--db", db], cwd=root,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "backend", "--port", str(port), "--db", db],
+        cwd=root,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     base = f"http://127.0.0.1:{port}"
-    deadline = time.time() + 600      # a cold kernel cache compiles first
+    deadline = time.time() + 600  # a cold kernel cache compiles first
     while True:
         try:
             if httpx.get(f"{base}/api/health", timeout=1).status_code == 200:
@@ -137,15 +141,18 @@ def _run(args, base: str, proc: subprocess.Popen | None) -> int:
                 t0 = time.perf_counter()
                 try:
                     r = c.post("/api/runs", json=SMALL)
-                    body = r.content                                  # the whole document is read
+                    body = r.content  # the whole document is read
                 except httpx.HTTPError as e:
                     with lock:
                         errors[type(e).__name__] += 1
                     continue
                 dt = time.perf_counter() - t0
                 # the id from Location: parsing 570 kB of JSON here would load the shared CPUs
-                run_id = (r.headers.get("location", "").rsplit("/", 1)[-1] or None
-                          if r.status_code == 201 and len(body) > 100_000 else None)
+                run_id = (
+                    r.headers.get("location", "").rsplit("/", 1)[-1] or None
+                    if r.status_code == 201 and len(body) > 100_000
+                    else None
+                )
                 with lock:
                     codes[r.status_code] += 1
                     latencies.append(dt)
@@ -170,7 +177,7 @@ def _run(args, base: str, proc: subprocess.Popen | None) -> int:
 
     stored = httpx.get(f"{base}/api/health").json()["runs_stored"] - stored_before
     missing = 0
-    with httpx.Client(base_url=base, timeout=30) as c:                    # after the timed window
+    with httpx.Client(base_url=base, timeout=30) as c:  # after the timed window
         for run_id in acked:
             if c.get(f"/api/runs/{run_id}").status_code != 200:
                 missing += 1
@@ -180,19 +187,31 @@ def _run(args, base: str, proc: subprocess.Popen | None) -> int:
     p50, p90, p99, worst = (_pct(latencies, p) for p in (0.50, 0.90, 0.99, 1.0))
     non_201 = sum(n for code, n in codes.items() if code != 201)
 
-    print(f"target   {base}  ({args.clients} clients, {wall:.1f} s, {sum(codes.values())} requests, "
-          f"{os.cpu_count()} CPU cores)")
+    print(
+        f"target   {base}  ({args.clients} clients, {wall:.1f} s, {sum(codes.values())} requests, "
+        f"{os.cpu_count()} CPU cores)"
+    )
     print(f"rate     {rate:.1f} runs/s acknowledged (201)")
     print(f"latency  p50 {p50:.1f} ms  p90 {p90:.1f} ms  p99 {p99:.1f} ms  max {worst:.1f} ms")
     print(f"answers  {dict(sorted(codes.items()))}  transport errors: {dict(errors) or 0}")
-    print(f"stored   {stored} new runs in the database for {created} answers 201 "
-          f"({'equal' if stored == created else 'NOT EQUAL'}); acknowledged ids not found: {missing}")
+    print(
+        f"stored   {stored} new runs in the database for {created} answers 201 "
+        f"({'equal' if stored == created else 'NOT EQUAL'}); acknowledged ids not found: {missing}"
+    )
     if cpu0 is not None and cpu1 is not None:
         print(f"cpu      server {(cpu1 - cpu0) / wall:.2f} cores, load clients {cpu_self / wall:.2f} cores")
-    ok = (rate >= TARGET_RATE and p99 <= TARGET_P99_MS and not errors and non_201 == 0
-          and stored == created and missing == 0)
-    print(f"result   {'PASS' if ok else 'FAIL'} (targets: ≥ {TARGET_RATE:g} runs/s, p99 ≤ {TARGET_P99_MS:g} ms, "
-          "no errors, stored == acknowledged)")
+    ok = (
+        rate >= TARGET_RATE
+        and p99 <= TARGET_P99_MS
+        and not errors
+        and non_201 == 0
+        and stored == created
+        and missing == 0
+    )
+    print(
+        f"result   {'PASS' if ok else 'FAIL'} (targets: ≥ {TARGET_RATE:g} runs/s, p99 ≤ {TARGET_P99_MS:g} ms, "
+        "no errors, stored == acknowledged)"
+    )
     return 0 if ok else 1
 
 

@@ -24,17 +24,26 @@ from collections import Counter
 
 import httpx
 
-GOOD = [{"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20},
-        {"system": "appell-hamel", "model": "linear", "dt": 0.02, "t_final": 30, "gamma": -2},
-        {"system": "sliding-particle", "gamma1": -20, "gamma2": -100, "dt": 0.01, "t_final": 50},
-        {"system": "sliding-particle", "formulation": "minimal", "dt": 0.05, "t_final": 100},
-        {"system": "sliding-particle", "projection": "blajer", "dt": 0.01, "t_final": 30}]
-SINGULAR = [{"system": "appell-hamel", "initial": {"u2": 0.0}, "t_final": 5},
-            {"system": "appell-hamel", "initial": {"u2": 0.0}, "switching": False},
-            {"system": "appell-hamel", "initial": {"u2": -1.5, "u1": 0.2}, "t_final": 10}]
-BAD = [{"system": "nope"}, {"system": "appell-hamel", "dt": -1}, {"system": "appell-hamel", "dt": "x"},
-       {"system": "appell-hamel", "params": {"rho": -2}}, {"system": "appell-hamel", "initial": {"u3": 1}},
-       {"system": "appell-hamel", "dt": 1e-6, "t_final": 1000}]
+GOOD = [
+    {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20},
+    {"system": "appell-hamel", "model": "linear", "dt": 0.02, "t_final": 30, "gamma": -2},
+    {"system": "sliding-particle", "gamma1": -20, "gamma2": -100, "dt": 0.01, "t_final": 50},
+    {"system": "sliding-particle", "formulation": "minimal", "dt": 0.05, "t_final": 100},
+    {"system": "sliding-particle", "projection": "blajer", "dt": 0.01, "t_final": 30},
+]
+SINGULAR = [
+    {"system": "appell-hamel", "initial": {"u2": 0.0}, "t_final": 5},
+    {"system": "appell-hamel", "initial": {"u2": 0.0}, "switching": False},
+    {"system": "appell-hamel", "initial": {"u2": -1.5, "u1": 0.2}, "t_final": 10},
+]
+BAD = [
+    {"system": "nope"},
+    {"system": "appell-hamel", "dt": -1},
+    {"system": "appell-hamel", "dt": "x"},
+    {"system": "appell-hamel", "params": {"rho": -2}},
+    {"system": "appell-hamel", "initial": {"u3": 1}},
+    {"system": "appell-hamel", "dt": 1e-6, "t_final": 1000},
+]
 RAW_BAD = [b'{"system": "appell-hamel", "dt": NaN}', b"[" * 5000, b"{" + b" " * 70000 + b"}"]
 
 
@@ -60,8 +69,12 @@ def main(argv=None) -> int:
     port = _free_port()
     tmp = tempfile.mkdtemp(prefix="nmkane-soak-")
     env = {**os.environ, "NMKANE_DB": os.path.join(tmp, "runs.sqlite3")}
-    proc = subprocess.Popen([sys.executable, "-m", "backend", "--port", str(port)], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "backend", "--port", str(port)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     base = f"http://127.0.0.1:{port}"
     deadline = time.time() + 180
     while True:
@@ -90,8 +103,9 @@ def main(argv=None) -> int:
                 t0 = time.perf_counter()
                 try:
                     if kind == "raw":
-                        r = c.post("/api/runs", content=rng.choice(RAW_BAD),
-                                   headers={"content-type": "application/json"})
+                        r = c.post(
+                            "/api/runs", content=rng.choice(RAW_BAD), headers={"content-type": "application/json"}
+                        )
                     else:
                         body = rng.choice({"good": GOOD, "singular": SINGULAR, "bad": BAD}[kind])
                         r = c.post("/api/runs", json=body)

@@ -60,4 +60,4 @@ def test_appell_hamel_linearization_keeps_what_is_asked():
     s = get_system("appell-hamel")
     lin = linearize(s, dict(s.default_initial), keep=["theta", "u1", "u2"])
     assert lin.A.shape == (3, 3) and np.all(np.isfinite(lin.A))
-    assert lin.A[0].tolist() == pytest.approx([0.0, 1.0, 0.0], abs=1e-8)      # θ̇ = u1
+    assert lin.A[0].tolist() == pytest.approx([0.0, 1.0, 0.0], abs=1e-8)  # θ̇ = u1

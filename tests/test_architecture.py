@@ -55,7 +55,7 @@ def _imports(module: str, path: Path) -> set[str]:
             else:
                 target = node.module or ""
             out.add(target)
-            out.update(f"{target}.{a.name}" for a in node.names)   # `from . import x` names a module
+            out.update(f"{target}.{a.name}" for a in node.names)  # `from . import x` names a module
     return out
 
 
@@ -63,14 +63,16 @@ def _top(name: str) -> str:
     return name.split(".")[0]
 
 
-@pytest.mark.parametrize("package,forbidden", [
-    ("nmkane_core", {"backend", "web"}),
-    ("backend", {"web"}),
-    ("web", {"backend"}),
-])
+@pytest.mark.parametrize(
+    "package,forbidden",
+    [
+        ("nmkane_core", {"backend", "web"}),
+        ("backend", {"web"}),
+        ("web", {"backend"}),
+    ],
+)
 def test_imports_run_one_way(package, forbidden):
-    bad = [f"{m} imports {i}" for m, p in _modules(package).items()
-           for i in _imports(m, p) if _top(i) in forbidden]
+    bad = [f"{m} imports {i}" for m, p in _modules(package).items() for i in _imports(m, p) if _top(i) in forbidden]
     assert not bad, "\n".join(bad)
 
 
@@ -85,9 +87,9 @@ def test_the_core_has_no_import_circles():
         state[m] = 1
         for n in sorted(graph[m]):
             if state.get(n) == 1:
-                cycles.append(" -> ".join(stack[stack.index(n):] + [n]))
+                cycles.append(" -> ".join([*stack[stack.index(n) :], n]))
             elif n not in state:
-                visit(n, stack + [n])
+                visit(n, [*stack, n])
         state[m] = 2
 
     for m in sorted(graph):
@@ -97,25 +99,40 @@ def test_the_core_has_no_import_circles():
 
 
 def test_no_hand_written_module_is_too_big():
-    big = [f"{p.relative_to(ROOT)}: {n} lines" for pkg in (*PACKAGES, "tests", "scripts")
-           for p in sorted((ROOT / pkg).rglob("*.py"))
-           if (n := len(p.read_text().splitlines())) > MAX_LINES]
+    big = [
+        f"{p.relative_to(ROOT)}: {n} lines"
+        for pkg in (*PACKAGES, "tests", "scripts")
+        for p in sorted((ROOT / pkg).rglob("*.py"))
+        if (n := len(p.read_text().splitlines())) > MAX_LINES
+    ]
     assert not big, "\n".join(big)
 
 
 def test_importing_the_core_loads_no_face_dependency():
-    code = ("import sys, nmkane_core, nmkane_core.cli\n"
-            "heavy = {'fastapi', 'uvicorn', 'viser', 'matplotlib', 'starlette', 'backend', 'web'}\n"
-            "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))")
+    code = (
+        "import sys, nmkane_core, nmkane_core.cli\n"
+        "heavy = {'fastapi', 'uvicorn', 'viser', 'matplotlib', 'starlette', 'backend', 'web'}\n"
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in heavy))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
     assert out.stdout.strip() == "[]", out.stdout
 
 
 def test_the_repository_does_not_point_outside_itself():
     """Someone who clones the repository has none of the team's shared folder."""
-    files = subprocess.run(["git", "ls-files", "--cached", "--others", "--exclude-standard"], cwd=ROOT,
-                           capture_output=True, text=True, check=True).stdout.split()
+    files = subprocess.run(
+        ["git", "ls-files", "--cached", "--others", "--exclude-standard"],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
     outside = "../" + "shared"
-    bad = [f for f in files if (ROOT / f).is_file() and Path(f).suffix in {".py", ".md", ".toml", ".txt", ""}
-           and outside in (ROOT / f).read_text(errors="ignore")]
+    bad = [
+        f
+        for f in files
+        if (ROOT / f).is_file()
+        and Path(f).suffix in {".py", ".md", ".toml", ".txt", ""}
+        and outside in (ROOT / f).read_text(errors="ignore")
+    ]
     assert not bad, bad

@@ -7,22 +7,19 @@ import re
 import sys
 import threading
 import time
-import warnings
 
 import orjson
 import pytest
+from fastapi.testclient import TestClient
 
-warnings.filterwarnings("ignore", message=".*httpx.*")
-from fastapi.testclient import TestClient  # noqa: E402
-
-from backend import Settings, create_app  # noqa: E402
-from backend.errors import ErrorResponse  # noqa: E402
-from backend.service import encode_document, make_finite  # noqa: E402
-from nmkane_core.schema import RunResult  # noqa: E402
-from nmkane_core.simulate import simulate  # noqa: E402
+from backend import Settings, create_app
+from backend.errors import ErrorResponse
+from backend.service import encode_document, make_finite
+from nmkane_core.schema import RunResult
+from nmkane_core.simulate import simulate
 
 SMALL = {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}
-LONG = {"system": "appell-hamel", "dt": 0.0005, "t_final": 900, "every": 1000}     # seconds of work
+LONG = {"system": "appell-hamel", "dt": 0.0005, "t_final": 900, "every": 1000}  # seconds of work
 
 
 @pytest.fixture()
@@ -38,7 +35,7 @@ def client(settings):
 
 def _error(r, status=422):
     assert r.status_code == status, r.text[:500]
-    body = ErrorResponse.model_validate(r.json())           # the one error shape
+    body = ErrorResponse.model_validate(r.json())  # the one error shape
     assert body.detail and all(e.msg for e in body.detail)
     return r.json()["detail"][0]
 
@@ -52,10 +49,10 @@ def test_create_fetch_list_and_csv(client):
     assert doc["summary"]["status"] == "ok" and len(doc["t"]) == 2001 and len(doc["state"]) == 10
     assert doc["settings"]["params"]["rho"] == 5.0 and doc["settings"]["integrator"] == "kutta-merson"
     assert r.headers["location"] == f"/api/runs/{doc['id']}"
-    assert re.fullmatch(r"[A-Za-z0-9_-]{22,}", doc["id"])            # 128 random bits, URL-safe
+    assert re.fullmatch(r"[A-Za-z0-9_-]{22,}", doc["id"])  # 128 random bits, URL-safe
 
     again = client.get(f"/api/runs/{doc['id']}")
-    assert again.status_code == 200 and again.content == r.content   # served exactly as acknowledged
+    assert again.status_code == 200 and again.content == r.content  # served exactly as acknowledged
 
     listing = client.get("/api/runs").json()
     assert listing["total"] == 1 and listing["runs"][0]["id"] == doc["id"]
@@ -104,9 +101,21 @@ def test_health_and_systems_expose_the_limits(client):
     sp = next(s for s in data["systems"] if s["name"] == "sliding-particle")
     assert sp["formulations"] == ["nonminimal", "minimal"]
     limits = data["service_limits"]
-    assert set(limits) == set(data["service_limit_descriptions"]) == {
-        "max_steps", "max_rows", "max_request_bytes", "max_wall_time_s", "queue_limit", "max_concurrent_runs",
-        "max_stored_runs", "max_store_bytes", "read_timeout_s"}
+    assert (
+        set(limits)
+        == set(data["service_limit_descriptions"])
+        == {
+            "max_steps",
+            "max_rows",
+            "max_request_bytes",
+            "max_wall_time_s",
+            "queue_limit",
+            "max_concurrent_runs",
+            "max_stored_runs",
+            "max_store_bytes",
+            "read_timeout_s",
+        }
+    )
     assert limits["max_request_bytes"] == 65_536
     assert "kutta-merson" in data["integrators"] and set(data["projections"]) == {"none", "blajer", "yoon"}
 
@@ -121,36 +130,56 @@ def test_openapi_documents_runs_as_the_run_result_schema(client):
     assert get["responses"]["200"]["content"]["application/json"]["schema"]["$ref"].endswith("/RunResult")
     docs = client.get("/docs")
     assert docs.status_code == 200
-    for asset in re.findall(r'(?:src|href)="(/static-offline-docs/[^"]+)"', docs.text):   # no CDN: works offline
+    for asset in re.findall(r'(?:src|href)="(/static-offline-docs/[^"]+)"', docs.text):  # no CDN: works offline
         assert client.get(asset).status_code == 200, asset
     assert "swagger-ui-bundle.js" in docs.text and "cdn." not in docs.text
 
 
 # --------------------------------------------------------------------------- bad input -> 422
-@pytest.mark.parametrize("body,field,kind", [
-    ({"system": "nope"}, "system", "value_error"),                                  # unknown system
-    ({"system": "appell-hamel", "model": "cubic"}, "model", "value_error"),          # unknown model
-    ({"system": "appell-hamel", "formulation": "minimal"}, "formulation", "value_error"),  # other system's
-    ({"system": "appell-hamel", "integrator": "euler"}, "integrator", "value_error"),
-    ({"system": "appell-hamel", "dt": "fast"}, "dt", "float_type"),                  # wrong types
-    ({"system": "appell-hamel", "dt": "0.01"}, "dt", "float_type"),
-    ({"system": "appell-hamel", "t_final": True}, "t_final", "float_type"),
-    ({"system": "appell-hamel", "every": 2.5}, "every", "int_type"),
-    ({"system": "appell-hamel", "params": ["rho", 1]}, "params", "dict_type"),
-    ({"system": 7}, "system", "string_type"),
-    ({"system": "appell-hamel", "dt": 0}, "dt", "greater_than"),                     # dt <= 0
-    ({"system": "appell-hamel", "dt": -0.01}, "dt", "greater_than"),
-    ({"system": "appell-hamel", "t_final": 0}, "t_final", "greater_than"),
-    ({"system": "appell-hamel", "dt": 1e-6, "t_final": 100, "every": 1000}, "dt", "value_error"),  # steps cap
-    ({"system": "appell-hamel", "params": {"rho": -1}}, "params.rho", "value_error"),
-    ({"system": "appell-hamel", "params": {"mass": 1}}, "params.mass", "value_error"),
-    ({"system": "appell-hamel", "params": {"rho": "2*3"}}, "params.rho", "float_type"),  # never evaluated
-    ({"system": "appell-hamel", "initial": {"u3": 7}}, "initial.u3", "value_error"),
-    ({"system": "appell-hamel", "initial": {"theta": 0, "phi": 0, "x": 0, "y": 0, "z": 30, "u1": 1, "u2": 1,
-                                            "u3": 2, "u4": 5, "u5": -0.5}}, "initial", "inconsistent_state"),
-    ({"system": "appell-hamel", "gamma": [[-1, 0, 0]]}, "gamma", "value_error"),      # Γ is 2×2 here
-    ({"system": "appell-hamel", "color": "red"}, "color", "extra_forbidden"),       # unknown field
-])
+@pytest.mark.parametrize(
+    "body,field,kind",
+    [
+        ({"system": "nope"}, "system", "value_error"),  # unknown system
+        ({"system": "appell-hamel", "model": "cubic"}, "model", "value_error"),  # unknown model
+        ({"system": "appell-hamel", "formulation": "minimal"}, "formulation", "value_error"),  # other system's
+        ({"system": "appell-hamel", "integrator": "euler"}, "integrator", "value_error"),
+        ({"system": "appell-hamel", "dt": "fast"}, "dt", "float_type"),  # wrong types
+        ({"system": "appell-hamel", "dt": "0.01"}, "dt", "float_type"),
+        ({"system": "appell-hamel", "t_final": True}, "t_final", "float_type"),
+        ({"system": "appell-hamel", "every": 2.5}, "every", "int_type"),
+        ({"system": "appell-hamel", "params": ["rho", 1]}, "params", "dict_type"),
+        ({"system": 7}, "system", "string_type"),
+        ({"system": "appell-hamel", "dt": 0}, "dt", "greater_than"),  # dt <= 0
+        ({"system": "appell-hamel", "dt": -0.01}, "dt", "greater_than"),
+        ({"system": "appell-hamel", "t_final": 0}, "t_final", "greater_than"),
+        ({"system": "appell-hamel", "dt": 1e-6, "t_final": 100, "every": 1000}, "dt", "value_error"),  # steps cap
+        ({"system": "appell-hamel", "params": {"rho": -1}}, "params.rho", "value_error"),
+        ({"system": "appell-hamel", "params": {"mass": 1}}, "params.mass", "value_error"),
+        ({"system": "appell-hamel", "params": {"rho": "2*3"}}, "params.rho", "float_type"),  # never evaluated
+        ({"system": "appell-hamel", "initial": {"u3": 7}}, "initial.u3", "value_error"),
+        (
+            {
+                "system": "appell-hamel",
+                "initial": {
+                    "theta": 0,
+                    "phi": 0,
+                    "x": 0,
+                    "y": 0,
+                    "z": 30,
+                    "u1": 1,
+                    "u2": 1,
+                    "u3": 2,
+                    "u4": 5,
+                    "u5": -0.5,
+                },
+            },
+            "initial",
+            "inconsistent_state",
+        ),
+        ({"system": "appell-hamel", "gamma": [[-1, 0, 0]]}, "gamma", "value_error"),  # Γ is 2×2 here
+        ({"system": "appell-hamel", "color": "red"}, "color", "extra_forbidden"),  # unknown field
+    ],
+)
 def test_bad_input_gets_422_with_field_path_value_and_reason(client, body, field, kind):
     err = _error(client.post("/api/runs", json=body))
     assert err["field"] == field and err["loc"][0] == "body" and err["type"] == kind, err
@@ -173,12 +202,15 @@ def test_inconsistent_initial_state_says_which_constraint(client):
     assert "project_initial" in err["msg"] or "constraint" in err["msg"]
 
 
-@pytest.mark.parametrize("raw,field,shown", [
-    (b'{"system": "appell-hamel", "dt": NaN}', "dt", "NaN"),
-    (b'{"system": "appell-hamel", "t_final": Infinity}', "t_final", "Infinity"),
-    (b'{"system": "appell-hamel", "params": {"rho": -Infinity}}', "params.rho", "-Infinity"),
-    (b'{"system": "appell-hamel", "gamma": NaN}', "gamma", "NaN"),
-])
+@pytest.mark.parametrize(
+    "raw,field,shown",
+    [
+        (b'{"system": "appell-hamel", "dt": NaN}', "dt", "NaN"),
+        (b'{"system": "appell-hamel", "t_final": Infinity}', "t_final", "Infinity"),
+        (b'{"system": "appell-hamel", "params": {"rho": -Infinity}}', "params.rho", "-Infinity"),
+        (b'{"system": "appell-hamel", "gamma": NaN}', "gamma", "NaN"),
+    ],
+)
 def test_nan_and_infinity_in_json_get_422(client, raw, field, shown):
     r = client.post("/api/runs", content=raw, headers={"content-type": "application/json"})
     err = _error(r)
@@ -186,16 +218,28 @@ def test_nan_and_infinity_in_json_get_422(client, raw, field, shown):
 
 
 def test_hostile_bodies_get_4xx_in_the_error_shape_never_5xx(client):
-    cases = [b"[" * 20000, b'{"system": "' + b"a" * 60000 + b'"}', b"not json", b"", b"null", b"[]",
-             b'{"system": 1e999999}', b'{"params": {"rho": 1e308}}', b"\xff\xfe\x00", b'{"dt": 1e-320}',
-             b'{"gamma": [[1e308, 1e308, 1e308], [0, 0, 0], [0, 0, 0]]}', b'{"every": 99999999999999999999999}',
-             b'{"initial": {"__class__": 1}}', b'{"system": "appell-hamel", "system": "x"}']
+    cases = [
+        b"[" * 20000,
+        b'{"system": "' + b"a" * 60000 + b'"}',
+        b"not json",
+        b"",
+        b"null",
+        b"[]",
+        b'{"system": 1e999999}',
+        b'{"params": {"rho": 1e308}}',
+        b"\xff\xfe\x00",
+        b'{"dt": 1e-320}',
+        b'{"gamma": [[1e308, 1e308, 1e308], [0, 0, 0], [0, 0, 0]]}',
+        b'{"every": 99999999999999999999999}',
+        b'{"initial": {"__class__": 1}}',
+        b'{"system": "appell-hamel", "system": "x"}',
+    ]
     for raw in cases:
         r = client.post("/api/runs", content=raw, headers={"content-type": "application/json"})
         assert 400 <= r.status_code < 500, (raw[:30], r.status_code, r.text[:200])
         _error(r, r.status_code)
     long_value = _error(client.post("/api/runs", json={"system": "a" * 60000}))["value"]
-    assert len(long_value) < 300                                    # echoed values are shortened
+    assert len(long_value) < 300  # echoed values are shortened
     _error(client.post("/api/runs", content=b"system=appell-hamel", headers={"content-type": "text/plain"}), 415)
 
 
@@ -234,7 +278,7 @@ def test_singular_and_diverged_runs_are_normal_results(client):
     assert r.status_code == 201
     doc = r.json()
     assert doc["summary"]["status"] == "diverged" and "finite" in doc["summary"]["message"]
-    RunResult.model_validate(doc)                                     # every number finite, no nulls
+    RunResult.model_validate(doc)  # every number finite, no nulls
     arrays = [doc["t"], doc["energy"], *doc["state"].values(), *doc["violation"].values()]
     assert all(isinstance(v, float) and math.isfinite(v) for a in arrays for v in a)
 
@@ -293,8 +337,10 @@ def test_adaptive_run_stops_at_the_row_cap_with_bounded_memory(tmp_path, integra
     # tolerances this tight make millions of rows (GBs) within the wall-time limit otherwise
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_rows=rows)
     with TestClient(base_url="http://localhost", app=create_app(s)) as c:
-        r = c.post("/api/runs", json={"system": "sliding-particle", "integrator": integrator,
-                                      "rtol": 1e-12, "atol": 1e-14, "t_final": 1e5})
+        r = c.post(
+            "/api/runs",
+            json={"system": "sliding-particle", "integrator": integrator, "rtol": 1e-12, "atol": 1e-14, "t_final": 1e5},
+        )
         assert r.status_code == 201
         doc = r.json()
         assert doc["summary"]["status"] == "timeout" and "max_rows" in doc["summary"]["message"]
@@ -304,8 +350,10 @@ def test_adaptive_run_stops_at_the_row_cap_with_bounded_memory(tmp_path, integra
 def test_output_over_the_row_cap_is_thinned_keeping_the_last_row(tmp_path):
     s = Settings(data_dir=tmp_path, warm_kernels=False, max_rows=50)
     with TestClient(base_url="http://localhost", app=create_app(s)) as c:
-        doc = c.post("/api/runs", json={"system": "appell-hamel", "integrator": "kutta-merson-adaptive",
-                                        "t_final": 20, "rtol": 1e-12}).json()
+        doc = c.post(
+            "/api/runs",
+            json={"system": "appell-hamel", "integrator": "kutta-merson-adaptive", "t_final": 20, "rtol": 1e-12},
+        ).json()
         assert len(doc["t"]) <= 50 and doc["t"][-1] == doc["summary"]["t_end"] > doc["t"][-2]
         assert any("thinned" in w for w in doc["summary"]["warnings"])
 
@@ -338,7 +386,7 @@ def test_past_queue_limit_answers_503_with_retry_after(tmp_path):
         assert err["type"] == "overloaded" and int(r.headers["retry-after"]) >= 1
         th.join(30)
         assert out["r"].status_code == 201 and out["r"].json()["summary"]["status"] == "timeout"
-        assert c.post("/api/runs", json=SMALL).status_code == 201          # admitted again
+        assert c.post("/api/runs", json=SMALL).status_code == 201  # admitted again
 
 
 def test_at_most_max_concurrent_runs_simulate_at_once_the_rest_wait(tmp_path):
@@ -363,7 +411,7 @@ def test_a_running_simulation_does_not_block_the_event_loop(tmp_path):
         for path in ("/api/health", "/api/systems", "/api/runs"):
             t0 = time.perf_counter()
             assert c.get(path).status_code == 200
-            assert time.perf_counter() - t0 < 1.0, path           # not after the 3 s run
+            assert time.perf_counter() - t0 < 1.0, path  # not after the 3 s run
         th.join(30)
         assert out["r"].status_code == 201
 
@@ -403,7 +451,10 @@ def test_cors_is_closed_by_default_and_opens_to_configured_origins(client, tmp_p
     pre = {"Origin": "http://evil.example", "Access-Control-Request-Method": "POST"}
     r = client.options("/api/runs", headers=pre)
     assert "access-control-allow-origin" not in r.headers
-    assert "access-control-allow-origin" not in client.get("/api/health", headers={"Origin": "http://evil.example"}).headers
+    assert (
+        "access-control-allow-origin"
+        not in client.get("/api/health", headers={"Origin": "http://evil.example"}).headers
+    )
     s = Settings(data_dir=tmp_path, warm_kernels=False, cors_origins=("http://class.example",))
     with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         ok = c.options("/api/runs", headers={**pre, "Origin": "http://class.example"})
@@ -419,9 +470,12 @@ def test_kernel_warm_up_reports_each_step(tmp_path):
     svc.warm(lines.append)
     steps = [ln for ln in lines if re.match(r"nmkane: kernels \[\d+/\d+\] ", ln)]
     assert len(steps) == len(lines) - 1 >= 17
-    assert {"appell-hamel nonlinear, fixed step", "sliding-particle minimal, adaptive", "scipy adapter",
-            "appell-hamel linear, adaptive, projected"} <= \
-        {ln.split("] ", 1)[1].rsplit(":", 1)[0] for ln in steps}
+    assert {
+        "appell-hamel nonlinear, fixed step",
+        "sliding-particle minimal, adaptive",
+        "scipy adapter",
+        "appell-hamel linear, adaptive, projected",
+    } <= {ln.split("] ", 1)[1].rsplit(":", 1)[0] for ln in steps}
     assert lines[-1].startswith("nmkane: kernels ready in")
 
 
@@ -435,7 +489,7 @@ def test_background_warm_up_serves_meanwhile_and_stops_with_the_service(tmp_path
     lines = []
     svc.warm_in_background(later[:2], lines.append).join(600)
     assert svc.warmed.is_set() and lines[-1].startswith("nmkane: projection loops ready in")
-    svc.stop()                                   # a stopped service warms nothing more
+    svc.stop()  # a stopped service warms nothing more
     lines.clear()
     svc.warm_in_background(later, lines.append).join(60)
     assert svc.warmed.is_set() and lines == []

@@ -9,19 +9,23 @@ import threading
 import time
 
 import httpx
-
 from _helpers import free_port
+
 from backend.store import RunStore
 from nmkane_core.schema import RunResult
 
-RUN = {"system": "appell-hamel", "dt": 0.005, "t_final": 20}     # 4001 rows
+RUN = {"system": "appell-hamel", "dt": 0.005, "t_final": 20}  # 4001 rows
 
 
 def _start(db, port):
     env = {**os.environ, "NMKANE_MAX_CONCURRENT_RUNS": "2"}
-    proc = subprocess.Popen([sys.executable, "-m", "backend", "--port", str(port), "--db", str(db)], env=env,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.time() + 600      # a cold kernel cache compiles first
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "backend", "--port", str(port), "--db", str(db)],
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    deadline = time.time() + 600  # a cold kernel cache compiles first
     while time.time() < deadline:
         assert proc.poll() is None, "the server exited"
         try:
@@ -45,7 +49,7 @@ def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one
                 try:
                     r = c.post("/api/runs", json=RUN)
                 except httpx.HTTPError:
-                    return                                  # the server is gone
+                    return  # the server is gone
                 if r.status_code == 201:
                     with lock:
                         acked[r.json()["id"]] = r.content
@@ -54,7 +58,7 @@ def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one
     for th in threads:
         th.start()
     deadline = time.time() + 30
-    while len(acked) < 30 and time.time() < deadline:       # killed in full flow, runs in flight
+    while len(acked) < 30 and time.time() < deadline:  # killed in full flow, runs in flight
         time.sleep(0.05)
     proc.send_signal(signal.SIGKILL)
     proc.wait(10)
@@ -75,7 +79,7 @@ def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one
             doc = RunResult.model_validate_json(store.document(run_id))
             assert doc.id == run_id and doc.summary.status == "ok"
             assert len(doc.t) == 4001 and doc.t[-1] == 20.0 and all(len(v) == 4001 for v in doc.state.values())
-        assert set(acked) <= set(ids)                        # no acknowledged run lost
+        assert set(acked) <= set(ids)  # no acknowledged run lost
     finally:
         store.close()
 

@@ -8,17 +8,14 @@ documented status codes, content types, headers and bodies (``RunResult`` for ru
 and checked too.
 """
 
-import warnings
-
 import pytest
 
-warnings.filterwarnings("ignore", message=".*httpx.*")
 schemathesis = pytest.importorskip("schemathesis")
-from fastapi.testclient import TestClient  # noqa: E402
-from hypothesis import HealthCheck, settings  # noqa: E402
-from schemathesis.specs.openapi.checks import positive_data_acceptance  # noqa: E402
+from fastapi.testclient import TestClient
+from hypothesis import HealthCheck, settings
+from schemathesis.specs.openapi.checks import positive_data_acceptance
 
-from backend import Settings, create_app  # noqa: E402
+from backend import Settings, create_app
 
 # Schema-valid but semantically wrong settings (a model of the other system, an initial
 # state off the constraints, an unknown parameter name...) are rightly refused with 422
@@ -33,8 +30,14 @@ FUZZ = settings(max_examples=25, deadline=None, suppress_health_check=list(Healt
 # warmed before the first request: on an empty kernel cache a first request compiles for
 # ~12 s (a first projected one, whose loops the service warms in the background, ~17 s),
 # past schemathesis' 10 s read timeout (a warm cache on the CI machine had hidden both).
-_SETTINGS = Settings(data_dir="unused", warm_kernels=True, max_wall_time_s=0.2, max_steps=100_000,
-                     max_rows=5_000, allowed_hosts=("testserver",))   # the ASGI test client's host name
+_SETTINGS = Settings(
+    data_dir="unused",
+    warm_kernels=True,
+    max_wall_time_s=0.2,
+    max_steps=100_000,
+    max_rows=5_000,
+    allowed_hosts=("testserver",),
+)  # the ASGI test client's host name
 _APP = create_app(_SETTINGS)
 schema = schemathesis.openapi.from_asgi("/openapi.json", _APP)
 
@@ -42,7 +45,7 @@ schema = schemathesis.openapi.from_asgi("/openapi.json", _APP)
 @pytest.fixture(scope="module", autouse=True)
 def _service(tmp_path_factory):
     _SETTINGS.db_path = tmp_path_factory.mktemp("fuzz") / "runs.sqlite3"
-    with TestClient(_APP):                      # runs the lifespan: the service starts and stops
+    with TestClient(_APP):  # runs the lifespan: the service starts and stops
         assert _APP.state.service.warmed.wait(900), "the background warm-up did not finish"
         yield
 
@@ -63,8 +66,16 @@ def test_stateful_post_then_fetch_conforms():
     class Machine(base):
         def validate_response(self, response, case, additional_checks=None, **kwargs):
             assert response.status_code < 500, response.text[:500]
-            case.validate_response(response, additional_checks=additional_checks, excluded_checks=EXCLUDED,
-                                   transport_kwargs=kwargs or None, recorder=self.recorder)
+            case.validate_response(
+                response,
+                additional_checks=additional_checks,
+                excluded_checks=EXCLUDED,
+                transport_kwargs=kwargs or None,
+                recorder=self.recorder,
+            )
 
-    Machine.run(settings=settings(max_examples=15, stateful_step_count=4, deadline=None,
-                                  suppress_health_check=list(HealthCheck)))
+    Machine.run(
+        settings=settings(
+            max_examples=15, stateful_step_count=4, deadline=None, suppress_health_check=list(HealthCheck)
+        )
+    )

@@ -15,11 +15,12 @@ from _helpers import free_port
 
 def _serve(tmp_path, code):
     env = {**os.environ, "NMKANE_DB": str(tmp_path / "runs.sqlite3"), "PYTHONUNBUFFERED": "1"}
-    return subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-c", code], env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
 
 
-def _read_until(proc, pattern, timeout=600):        # a cold kernel cache compiles first
+def _read_until(proc, pattern, timeout=600):  # a cold kernel cache compiles first
     lines, deadline = [], time.time() + timeout
     while time.time() < deadline:
         line = proc.stdout.readline()
@@ -29,7 +30,7 @@ def _read_until(proc, pattern, timeout=600):        # a cold kernel cache compil
         if re.search(pattern, line):
             return "".join(lines)
     proc.kill()
-    pytest.fail("no line matching %r in:\n%s" % (pattern, "".join(lines)))
+    pytest.fail("no line matching {!r} in:\n{}".format(pattern, "".join(lines)))
 
 
 def _stop(proc, sig=signal.SIGTERM):
@@ -49,15 +50,17 @@ def test_serve_starts_api_and_web_app_and_stops_both(tmp_path, sig):
     assert httpx.get(f"http://127.0.0.1:{ui}/", timeout=5).status_code == 200
     code, rest = _stop(proc, sig)
     assert code == 0 and "stopped" in rest, rest
-    for port in (api, ui):                                   # nobody listens any more
+    for port in (api, ui):  # nobody listens any more
         with pytest.raises(ConnectionRefusedError), socket.create_connection(("127.0.0.1", port), timeout=2):
             pass
 
 
 def test_serve_runs_the_api_alone_when_the_web_app_cannot_be_imported(tmp_path):
     api = free_port()
-    code = ("import sys; sys.modules['web.app'] = None\n"     # makes `from web.app import launch` fail
-            f"from backend.serve import serve; serve(api_port={api}, viser_port=0)")
+    code = (
+        "import sys; sys.modules['web.app'] = None\n"  # makes `from web.app import launch` fail
+        f"from backend.serve import serve; serve(api_port={api}, viser_port=0)"
+    )
     proc = _serve(tmp_path, code)
     out = _read_until(proc, "Ctrl-C")
     assert "3D web app not available" in out
@@ -83,7 +86,7 @@ def test_serve_stops_on_a_burst_of_signals(tmp_path):
     api, ui = free_port(), free_port()
     proc = _serve(tmp_path, f"from backend.serve import serve; serve(api_port={api}, viser_port={ui}, web=False)")
     _read_until(proc, "Ctrl-C")
-    deadline = time.time() + 0.3                             # signals as fast as they go
+    deadline = time.time() + 0.3  # signals as fast as they go
     while proc.poll() is None and time.time() < deadline:
         proc.send_signal(signal.SIGTERM)
     try:

@@ -15,38 +15,48 @@ from nmkane_core.simulate import simulate
 a, b, c, x, y = sp.symbols("a b c x y", real=True)
 
 
-@pytest.mark.parametrize("expr,want", [
-    (sp.sin(x) ** 2 + sp.cos(x) ** 2, sp.Integer(1)),
-    (a * sp.sin(x) ** 2 + a * sp.cos(x) ** 2 + b * (c ** 2 * sp.sin(y) ** 2 + c ** 2 * sp.cos(y) ** 2),
-     a + b * c ** 2),
-    (a * sp.sin(x) ** 2 + a * sp.cos(x) ** 2 + sp.sin(x) ** 2, a + sp.sin(x) ** 2),
-])
+@pytest.mark.parametrize(
+    "expr,want",
+    [
+        (sp.sin(x) ** 2 + sp.cos(x) ** 2, sp.Integer(1)),
+        (a * sp.sin(x) ** 2 + a * sp.cos(x) ** 2 + b * (c**2 * sp.sin(y) ** 2 + c**2 * sp.cos(y) ** 2), a + b * c**2),
+        (a * sp.sin(x) ** 2 + a * sp.cos(x) ** 2 + sp.sin(x) ** 2, a + sp.sin(x) ** 2),
+    ],
+)
 def test_pythagorean_rewrite_removes_matched_pairs(expr, want):
     assert sp.simplify(pythagorean(expr) - want) == 0
     assert pythagorean(expr).count_ops() <= want.count_ops() + 2
 
 
-@pytest.mark.parametrize("expr", [sp.sin(x) ** 2 + sp.cos(y) ** 2, 2 * sp.sin(x) ** 2 + sp.cos(x) ** 2,
-                                  a * sp.sin(x) ** 2 + b * sp.cos(x) ** 2, sp.sin(x) + sp.cos(x)])
+@pytest.mark.parametrize(
+    "expr",
+    [
+        sp.sin(x) ** 2 + sp.cos(y) ** 2,
+        2 * sp.sin(x) ** 2 + sp.cos(x) ** 2,
+        a * sp.sin(x) ** 2 + b * sp.cos(x) ** 2,
+        sp.sin(x) + sp.cos(x),
+    ],
+)
 def test_pythagorean_rewrite_leaves_unmatched_sums_alone(expr):
     assert pythagorean(expr) == expr
 
 
 def test_pythagorean_rewrite_does_not_expand_large_powers():
     big = (sum(sp.symbols("s0:12")) + sp.sin(x)) ** 12 + sp.cos(x) ** 2
-    assert pythagorean(big) == big          # returns at once: no multinomial expansion
+    assert pythagorean(big) == big  # returns at once: no multinomial expansion
 
 
-@pytest.mark.parametrize("name,variant", [("appell-hamel", "nonlinear"), ("appell-hamel", "linear"),
-                                          ("sliding-particle", "nonminimal")])
+@pytest.mark.parametrize(
+    "name,variant", [("appell-hamel", "nonlinear"), ("appell-hamel", "linear"), ("sliding-particle", "nonminimal")]
+)
 def test_kernel_terms_are_the_derivations_matrices(name, variant):
     d = get_system(name).derivation(variant)
     kt = kernel_terms(d)
     rng = np.random.default_rng(3)
     syms = list(d.model.q) + list(d.model.u) + list(d.model.params)
     for _ in range(5):
-        sub = dict(zip(syms, rng.uniform(0.3, 2.0, len(syms))))
-        for mine, theirs in [(kt.Q, d.Q), (kt.P, d.P), (kt.J[:, :d.p], d.J1), (kt.b, d.b)]:
+        sub = dict(zip(syms, rng.uniform(0.3, 2.0, len(syms)), strict=True))
+        for mine, theirs in [(kt.Q, d.Q), (kt.P, d.P), (kt.J[:, : d.p], d.J1), (kt.b, d.b)]:
             diff = (mine - theirs).xreplace(sub).evalf()
             assert max((abs(v) for v in diff), default=0) < 1e-12
 
@@ -60,11 +70,11 @@ def test_appell_hamel_mass_matrix_has_no_needless_trigonometry():
 
 def test_hot_path_is_one_function_after_source_inlining():
     src = generate_source(get_system("appell-hamel").derivation("nonlinear"))
-    stages = src[src.index("def _stages("):src.index("def _record(")]
+    stages = src[src.index("def _stages(") : src.index("def _record(")]
     for call in ("rhs_ws(", "terms(", "lu_solve_flat(", "_reduced_solve("):
         assert call not in stages, call
-    assert "math.sin(x" not in stages and "math.sin(_" in stages       # terms, renamed apart
-    rhs_ws = src[src.index("def rhs_ws("):src.index("def _reduced_solve(")]
+    assert "math.sin(x" not in stages and "math.sin(_" in stages  # terms, renamed apart
+    rhs_ws = src[src.index("def rhs_ws(") : src.index("def _reduced_solve(")]
     assert "terms(" not in rhs_ws and "lu_solve_flat(" not in rhs_ws
 
 
@@ -100,8 +110,9 @@ def test_inline_marked_binds_arguments_and_renames_locals_apart():
 
 def test_inline_marked_refuses_early_returns_and_leaves_unmarked_calls():
     with pytest.raises(RuntimeError, match="return"):
-        inline_marked("def f(a):\n    if a:\n        return 1\n    return 2\n\n"
-                      "def g(x):\n    y = f(x)  # INLINE\n    return y\n")
+        inline_marked(
+            "def f(a):\n    if a:\n        return 1\n    return 2\n\ndef g(x):\n    y = f(x)  # INLINE\n    return y\n"
+        )
     plain = "def f(a):\n    return a\n\n# a comment\ndef g(x):\n    return f(x)\n"
     assert inline_marked(plain) == plain
 
@@ -114,13 +125,14 @@ def test_projection_helpers_compile_once_per_run(tmp_path):
     import subprocess
     import sys
 
-    code = ("from nmkane_core.simulate import simulate, kernel_for\n"
-            "from nmkane_core import get_system\n"
-            "r = simulate({'system': 'sliding-particle', 't_final': 0.1, 'projection': 'yoon'})\n"
-            "m = kernel_for(get_system('sliding-particle'), 'nonminimal')\n"
-            "print(r.summary['status'], len(m._weighted_correction.signatures), len(m.lu_solve_flat.signatures))\n")
-    env = {**os.environ, "NMKANE_CACHE_DIR": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path),
-           "NMKANE_PRECOMPILE": "0"}
+    code = (
+        "from nmkane_core.simulate import simulate, kernel_for\n"
+        "from nmkane_core import get_system\n"
+        "r = simulate({'system': 'sliding-particle', 't_final': 0.1, 'projection': 'yoon'})\n"
+        "m = kernel_for(get_system('sliding-particle'), 'nonminimal')\n"
+        "print(r.summary['status'], len(m._weighted_correction.signatures), len(m.lu_solve_flat.signatures))\n"
+    )
+    env = {**os.environ, "NMKANE_CACHE_DIR": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path), "NMKANE_PRECOMPILE": "0"}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["ok", "1", "1"]
@@ -159,11 +171,12 @@ def test_loop_argument_structures_are_the_loops_parameters_and_the_signatures_ru
     assert params["integrate_fixed"] == list(FixedArgs._fields)
     assert params["integrate_adaptive"] == list(AdaptiveArgs._fields)
     mod = kernel_for(get_system("sliding-particle"), "nonminimal")
-    for settings, loop, args in [({}, mod.integrate_fixed, FixedArgs),
-                                 ({"integrator": "kutta-merson-adaptive"}, mod.integrate_adaptive, AdaptiveArgs)]:
+    for settings, loop, args in [
+        ({}, mod.integrate_fixed, FixedArgs),
+        ({"integrator": "kutta-merson-adaptive"}, mod.integrate_adaptive, AdaptiveArgs),
+    ]:
         for projection in ("none", "yoon"):
-            simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 0.2, "projection": projection,
-                      **settings})
+            simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 0.2, "projection": projection, **settings})
             assert loop_signature(args, projected=projection != "none") in loop.signatures, loop.signatures
 
 
@@ -171,19 +184,25 @@ def test_background_precompile_fills_the_cache_for_a_new_kernel(tmp_path):
     import subprocess
     import sys
 
-    code = ("from nmkane_core.simulate import simulate, kernel_for\n"
-            "from nmkane_core import get_system\n"
-            "r = simulate({'system': 'sliding-particle', 't_final': 0.1})\n"
-            "m = kernel_for(get_system('sliding-particle'), 'nonminimal')\n"
-            "print(sum(m.integrate_fixed.stats.cache_hits.values()), r.summary['status'])\n")
-    env = {**__import__("os").environ, "NMKANE_CACHE_DIR": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path),
-           "NMKANE_PRECOMPILE": "1"}
+    code = (
+        "from nmkane_core.simulate import simulate, kernel_for\n"
+        "from nmkane_core import get_system\n"
+        "r = simulate({'system': 'sliding-particle', 't_final': 0.1})\n"
+        "m = kernel_for(get_system('sliding-particle'), 'nonminimal')\n"
+        "print(sum(m.integrate_fixed.stats.cache_hits.values()), r.summary['status'])\n"
+    )
+    env = {
+        **__import__("os").environ,
+        "NMKANE_CACHE_DIR": str(tmp_path),
+        "NUMBA_CACHE_DIR": str(tmp_path),
+        "NMKANE_PRECOMPILE": "1",
+    }
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     hits, status = out.stdout.split()
     assert status == "ok"
     if (__import__("os").cpu_count() or 1) >= 2:
-        assert int(hits) == 1          # loaded what the child compiled
+        assert int(hits) == 1  # loaded what the child compiled
 
 
 def test_scipy_runs_compile_before_their_clock_starts(tmp_path):
@@ -193,13 +212,15 @@ def test_scipy_runs_compile_before_their_clock_starts(tmp_path):
     import subprocess
     import sys
 
-    code = ("from nmkane_core import simulate\n"
-            "r = simulate({'system': 'sliding-particle', 'formulation': 'minimal', 'integrator': 'radau',"
-            " 't_final': 0.5})\n"
-            "print(r.status, r.summary['wall_time_s'], r.summary['kernel_load_s'])\n")
+    code = (
+        "from nmkane_core import simulate\n"
+        "r = simulate({'system': 'sliding-particle', 'formulation': 'minimal', 'integrator': 'radau',"
+        " 't_final': 0.5})\n"
+        "print(r.status, r.summary['wall_time_s'], r.summary['kernel_load_s'])\n"
+    )
     env = {**os.environ, "NMKANE_CACHE_DIR": str(tmp_path), "NUMBA_CACHE_DIR": str(tmp_path)}
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     status, wall, load = out.stdout.split()
     assert status == "ok"
-    assert float(wall) < float(load)        # compiling (seconds) happened in kernel_load_s
+    assert float(wall) < float(load)  # compiling (seconds) happened in kernel_load_s

@@ -32,8 +32,8 @@ def _png_size(data: bytes) -> tuple[int, int]:
     length, kind = struct.unpack(">I4s", data[8:16])
     assert kind == b"IHDR" and length == 13
     width, height = struct.unpack(">II", data[16:24])
-    crc = struct.unpack(">I", data[16 + length:20 + length])[0]
-    assert crc == zlib.crc32(data[12:16 + length]) & 0xFFFFFFFF, "corrupt IHDR chunk"
+    crc = struct.unpack(">I", data[16 + length : 20 + length])[0]
+    assert crc == zlib.crc32(data[12 : 16 + length]) & 0xFFFFFFFF, "corrupt IHDR chunk"
     return width, height
 
 
@@ -116,20 +116,19 @@ def test_report_records_settings_that_rerun_through_the_rest_schema(report):
         body = doc["rest"].split("-d '", 1)[1].rstrip("'")
         settings = json.loads(body)
         assert settings == plan[key]
-        resolve(settings)                     # the library (and so REST) accepts them as they are
+        resolve(settings)  # the library (and so REST) accepts them as they are
         assert doc["summary"]["status"] == "ok"
 
 
 def test_rest_limits_quoted_by_the_report_are_the_service_defaults(monkeypatch):
     """The report tells which runs need the REST limits raised; its numbers are the service's."""
     from backend.config import Settings
-
     from nmkane_core.schema import REST_DEFAULT_LIMITS
 
     monkeypatch.delenv("NMKANE_MAX_STEPS", raising=False)
     monkeypatch.delenv("NMKANE_MAX_ROWS", raising=False)
     service = Settings()
-    assert REST_DEFAULT_LIMITS == {"max_steps": service.max_steps, "max_rows": service.max_rows}
+    assert {"max_steps": service.max_steps, "max_rows": service.max_rows} == REST_DEFAULT_LIMITS
 
 
 def test_cli_command_in_the_report_reproduces_the_run(report, tmp_path):
@@ -140,8 +139,13 @@ def test_cli_command_in_the_report_reproduces_the_run(report, tmp_path):
     out = tmp_path / "rerun.json"
     argv[argv.index("--out") + 1] = str(out)
     env = {**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parents[1])}
-    proc = subprocess.run([sys.executable, "-m", "nmkane_core.cli", *argv[1:], "--no-progress"],
-                          capture_output=True, text=True, env=env, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "nmkane_core.cli", *argv[1:], "--no-progress"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     rerun = json.loads(out.read_text())
     assert rerun["summary"]["max_abs_energy_drift"] == doc["summary"]["max_abs_energy_drift"]
@@ -150,7 +154,7 @@ def test_cli_command_in_the_report_reproduces_the_run(report, tmp_path):
 
 def test_report_states_the_choices_the_paper_leaves_open(report):
     md = Path(report.files["md"]).read_text(encoding="utf-8")
-    assert "the paper states neither" in md             # Appell–Hamel horizon and step
+    assert "the paper states neither" in md  # Appell–Hamel horizon and step
     assert "Fig. 18 over 100 s (not stated in the paper; quick mode)" in md
     assert "Figs. 11–15 and 17 over 500 s (the paper's)" in md
 

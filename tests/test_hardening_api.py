@@ -4,15 +4,12 @@ cap, DELETE and ``nmkane store prune``, Host allow-list and token, read deadline
 import socket
 import threading
 import time
-import warnings
 
 import pytest
+from fastapi.testclient import TestClient
 
-warnings.filterwarnings("ignore", message=".*httpx.*")
-from fastapi.testclient import TestClient  # noqa: E402
-
-from backend import Settings, create_app  # noqa: E402
-from backend.errors import ErrorResponse  # noqa: E402
+from backend import Settings, create_app
+from backend.errors import ErrorResponse
 
 SMALL = {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 2}
 
@@ -43,19 +40,22 @@ def _post(client, raw: bytes, ctype="application/json"):
 
 
 # ----------------------------------------------------------------------------- hostile bodies
-@pytest.mark.parametrize("raw,field", [
-    (b'{"system": "\\ud800"}', "system"),
-    (b'{"params": {"\\ud800": 1}}', "params.\\ud800"),
-    (b'{"initial": {"\\udfff\\ud800": 1}}', None),
-    (b'{"model": "x\\ud800y"}', None),
-])
+@pytest.mark.parametrize(
+    "raw,field",
+    [
+        (b'{"system": "\\ud800"}', "system"),
+        (b'{"params": {"\\ud800": 1}}', "params.\\ud800"),
+        (b'{"initial": {"\\udfff\\ud800": 1}}', None),
+        (b'{"model": "x\\ud800y"}', None),
+    ],
+)
 def test_lone_surrogates_get_a_4xx_not_a_500(client, raw, field):
     r = _post(client, raw)
     assert 400 <= r.status_code < 500, r.text[:300]
     item = _error(r, r.status_code)[0]
     if field:
         assert item["field"] == field
-    r.content.decode("utf-8")                              # the body is valid UTF-8
+    r.content.decode("utf-8")  # the body is valid UTF-8
 
 
 def test_malformed_json_names_the_body_and_the_position_in_the_reason(client):
@@ -72,7 +72,7 @@ def test_a_wrong_content_type_is_415_without_a_python_byte_string(client):
 def test_huge_values_are_shortened_when_echoed(client):
     item = _error(_post(client, b'{"every": ' + b"9" * 400 + b"}"), 422)[0]
     assert len(item["msg"]) < 300 and "digits" in str(item["value"])
-    item = _error(_post(client, b'{"every": ' + b"9" * 5000 + b"}"), 400)[0]     # beyond int()'s limit
+    item = _error(_post(client, b'{"every": ' + b"9" * 5000 + b"}"), 400)[0]  # beyond int()'s limit
     assert "digits" in item["reason"] and len(item["msg"]) < 600
 
 
@@ -88,7 +88,7 @@ def test_every_violated_service_limit_in_one_answer(tmp_path):
     with _client(Settings(data_dir=tmp_path, warm_kernels=False, max_steps=1000, max_rows=50)) as c:
         items = _error(c.post("/api/runs", json={**SMALL, "dt": 0.0001, "t_final": 1}), 422)
         assert [i["field"] for i in items] == ["dt", "every"]
-        items = _error(c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10}), 422)   # rows only
+        items = _error(c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10}), 422)  # rows only
         hint = int(items[0]["allowed"].split("≥")[1].split()[0])
         assert c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10, "every": hint}).status_code == 201
         assert _error(c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10, "every": hint - 1}), 422)
@@ -109,14 +109,14 @@ def test_a_full_store_refuses_with_507_and_keeps_every_run(tmp_path):
         assert c.delete(f"/api/runs/{ids[0]}").status_code == 204
         assert c.get(f"/api/runs/{ids[0]}").status_code == 404
         assert _error(c.delete(f"/api/runs/{ids[0]}"), 404)[0]["value"] == ids[0]
-        assert c.post("/api/runs", json=SMALL).status_code == 201          # room again
+        assert c.post("/api/runs", json=SMALL).status_code == 201  # room again
         assert c.get("/api/health").json()["runs_stored"] == 2
 
 
 def test_the_size_cap_counts_bytes(tmp_path):
     with _client(Settings(data_dir=tmp_path, warm_kernels=False, max_store_bytes=30_000)) as c:
         codes = [c.post("/api/runs", json=SMALL).status_code for _ in range(8)]
-        assert codes[0] == 201 and codes[-1] == 507 and 201 not in codes[codes.index(507):]
+        assert codes[0] == 201 and codes[-1] == 507 and 201 not in codes[codes.index(507) :]
         assert c.app.state.service.store.size <= 30_000
 
 
@@ -148,7 +148,7 @@ def test_store_prune_command(tmp_path, monkeypatch, capsys):
     import nmkane_core.cli.commands as commands
     from nmkane_core.cli import main
 
-    monkeypatch.setattr(commands, "contributed", lambda: [STORE])         # the entry point, faked
+    monkeypatch.setattr(commands, "contributed", lambda: [STORE])  # the entry point, faked
     commands.all_commands.cache_clear()
     try:
         assert main(["store", "--db", str(db), "prune", "--older-than", "30"]) == 0
@@ -235,8 +235,10 @@ def test_clients_that_stop_sending_are_cut_off(tmp_path):
     server, thread, port = _run_api(tmp_path, 1.0)
     try:
         partial_body = socket.create_connection(("127.0.0.1", port))
-        partial_body.sendall(b"POST /api/runs HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/json\r\n"
-                             b"Content-Length: 100\r\n\r\n{\"system\": ")
+        partial_body.sendall(
+            b"POST /api/runs HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/json\r\n"
+            b'Content-Length: 100\r\n\r\n{"system": '
+        )
         partial_head = socket.create_connection(("127.0.0.1", port))
         partial_head.sendall(b"GET /api/health HTTP/1.1\r\nHost: loc")
         silent = socket.create_connection(("127.0.0.1", port))
@@ -247,7 +249,7 @@ def test_clients_that_stop_sending_are_cut_off(tmp_path):
             assert b"408" in got.split(b"\r\n", 1)[0], got[:200]
             sock.close()
         assert time.monotonic() - t0 < 6.0
-        with socket.create_connection(("127.0.0.1", port)) as ok:      # a prompt client is served
+        with socket.create_connection(("127.0.0.1", port)) as ok:  # a prompt client is served
             ok.sendall(b"GET /api/health HTTP/1.1\r\nHost: localhost\r\nConnection: close\r\n\r\n")
             closed, got = _closed_within(ok, 5.0)
             assert got.startswith(b"HTTP/1.1 200")
@@ -261,8 +263,11 @@ def test_a_slow_run_is_not_cut_off_by_the_read_deadline(tmp_path):
     try:
         import httpx
 
-        r = httpx.post(f"http://127.0.0.1:{port}/api/runs", timeout=30,
-                       json={"system": "appell-hamel", "dt": 0.0005, "t_final": 150, "every": 1000})
+        r = httpx.post(
+            f"http://127.0.0.1:{port}/api/runs",
+            timeout=30,
+            json={"system": "appell-hamel", "dt": 0.0005, "t_final": 150, "every": 1000},
+        )
         assert r.status_code == 201 and r.json()["summary"]["wall_time_s"] > 0
     finally:
         server.should_exit = True

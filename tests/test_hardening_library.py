@@ -28,10 +28,18 @@ def test_settings_that_are_not_a_mapping_are_an_input_error_naming_settings(sett
     assert e.value.field == "settings" and "mapping" in e.value.allowed
 
 
-@pytest.mark.parametrize("settings,field", [
-    ({"dt": True}, "dt"), ({"dt": "0.01"}, "dt"), ({"every": 2.0}, "every"), ({"every": True}, "every"),
-    ({"params": {"rho": "4"}}, "params.rho"), ({"switching": 1}, "switching"), ({"t_final": "20"}, "t_final"),
-])
+@pytest.mark.parametrize(
+    "settings,field",
+    [
+        ({"dt": True}, "dt"),
+        ({"dt": "0.01"}, "dt"),
+        ({"every": 2.0}, "every"),
+        ({"every": True}, "every"),
+        ({"params": {"rho": "4"}}, "params.rho"),
+        ({"switching": 1}, "switching"),
+        ({"t_final": "20"}, "t_final"),
+    ],
+)
 def test_library_settings_are_as_strict_as_rest(settings, field):
     with pytest.raises(InputError) as e:
         resolve(settings)
@@ -39,8 +47,16 @@ def test_library_settings_are_as_strict_as_rest(settings, field):
 
 
 def test_numpy_numbers_and_tuples_are_still_accepted():
-    plan = resolve({"dt": np.float64(0.01), "every": np.int64(2), "t_final": 1, "gamma": np.diag([-1.0, -2]),
-                    "params": {"rho": np.float32(4.0)}, "initial": {"u1": np.float64(0.5)}})
+    plan = resolve(
+        {
+            "dt": np.float64(0.01),
+            "every": np.int64(2),
+            "t_final": 1,
+            "gamma": np.diag([-1.0, -2]),
+            "params": {"rho": np.float32(4.0)},
+            "initial": {"u1": np.float64(0.5)},
+        }
+    )
     assert plan.dt == 0.01 and plan.every == 2 and plan.G[1, 1] == -2 and plan.params["rho"] == 4.0
     assert resolve({"gamma": ((-1.0, 0), (0, -1))}).G[1, 1] == -1
 
@@ -53,7 +69,7 @@ def test_deeply_nested_gamma_and_huge_integers_are_input_errors():
         resolve({"gamma": deep})
     assert e.value.field.startswith("gamma") and len(str(e.value)) < 2000
     with pytest.raises(InputError) as e:
-        resolve({"every": 10 ** 5000})                  # str() of this int is refused by Python
+        resolve({"every": 10**5000})  # str() of this int is refused by Python
     assert e.value.field == "every" and "digits" in str(e.value)
 
 
@@ -65,18 +81,18 @@ def test_every_violated_limit_is_reported_in_one_message():
 
 
 def test_the_every_and_dt_hints_are_accepted():
-    t_final, dt = 1000.0, 2e-5                           # 50,000,000 steps: the most allowed
+    t_final, dt = 1000.0, 2e-5  # 50,000,000 steps: the most allowed
     with pytest.raises(InputError) as e:
         resolve({"dt": dt, "t_final": t_final})
     hint = int(e.value.allowed.split("≥")[1].split()[0])
     assert hint == min_every(50_000_000, LIMITS["max_rows"])
-    plan = resolve({"dt": dt, "t_final": t_final, "every": hint})    # the hint is accepted...
+    plan = resolve({"dt": dt, "t_final": t_final, "every": hint})  # the hint is accepted...
     assert output_rows(50_000_000, hint) <= LIMITS["max_rows"] < output_rows(50_000_000, hint - 1)  # ...and least
     assert plan.every == hint
     with pytest.raises(InputError) as e:
-        resolve({"dt": 1e-6, "t_final": 3e5 / 7, "every": 10 ** 6})
+        resolve({"dt": 1e-6, "t_final": 3e5 / 7, "every": 10**6})
     dt_hint = float(e.value.allowed.split("dt ≥ ")[1].split()[0])
-    resolve({"dt": dt_hint, "t_final": 3e5 / 7, "every": 10 ** 6})
+    resolve({"dt": dt_hint, "t_final": 3e5 / 7, "every": 10**6})
 
 
 def test_an_overflowing_initial_state_is_refused_and_a_later_overflow_ends_diverged_and_finite():
@@ -114,6 +130,7 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
                 return fn(*a, **k)
             finally:
                 phase["now"] = "resolve"
+
         return run
 
     monkeypatch.setattr(System, "kernel", spy)
@@ -123,8 +140,16 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
     for integrator in ("kutta-merson", "kutta-merson-adaptive"):
         for v in requested.values():
             v.clear()
-        run = simulate({"system": "appell-hamel", "model": "nonlinear", "initial": {"u2": 0}, "t_final": 1,
-                        "integrator": integrator}, progress=False)
+        run = simulate(
+            {
+                "system": "appell-hamel",
+                "model": "nonlinear",
+                "initial": {"u2": 0},
+                "t_final": 1,
+                "integrator": integrator,
+            },
+            progress=False,
+        )
         assert run.summary["switches"], "the run should switch models"
         # the switch target is loaded and its loop primed by prepare (not only by resolve's initial-state
         # completion, which does not compile the loops), and nothing new is requested on the clock
@@ -134,12 +159,19 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
 def test_a_progress_bar_is_drawn_on_a_terminal_that_reports_no_size():
     """A fresh pseudo-terminal has 0 rows and 0 columns (``script``, container consoles):
     tqdm took that as −1 rows and drew nothing during long CLI runs."""
-    code = ("from nmkane_core.simulate import simulate\n"
-            "simulate({'dt': 0.0002, 'integrator': 'rk4', 't_final': 1000, 'every': 10**6})\n"
-            "simulate({'dt': 0.01, 't_final': 1})\n")
-    master, slave = pty.openpty()                         # size 0 × 0
-    proc = subprocess.Popen([sys.executable, "-c", code], stderr=slave, stdout=subprocess.DEVNULL,
-                            env={**os.environ, "PYTHONPATH": ROOT}, cwd=ROOT)
+    code = (
+        "from nmkane_core.simulate import simulate\n"
+        "simulate({'dt': 0.0002, 'integrator': 'rk4', 't_final': 1000, 'every': 10**6})\n"
+        "simulate({'dt': 0.01, 't_final': 1})\n"
+    )
+    master, slave = pty.openpty()  # size 0 × 0
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stderr=slave,
+        stdout=subprocess.DEVNULL,
+        env={**os.environ, "PYTHONPATH": ROOT},
+        cwd=ROOT,
+    )
     os.close(slave)
     out = b""
     end = time.monotonic() + 300
@@ -164,14 +196,17 @@ def test_a_progress_bar_is_drawn_on_a_terminal_that_reports_no_size():
 def test_bench_exits_0_when_a_target_is_missed_unless_strict(monkeypatch, capsys):
     import nmkane_core.bench as bench
 
-    rows = [{"workload": "fast", "wall_s": 0.1, "evals_per_s": None, "target": "≤ 1 s", "pass": True, "note": ""},
-            {"workload": "slow", "wall_s": 9.0, "evals_per_s": None, "target": "≤ 1 s", "pass": False, "note": ""}]
+    rows = [
+        {"workload": "fast", "wall_s": 0.1, "evals_per_s": None, "target": "≤ 1 s", "pass": True, "note": ""},
+        {"workload": "slow", "wall_s": 9.0, "evals_per_s": None, "target": "≤ 1 s", "pass": False, "note": ""},
+    ]
     monkeypatch.setattr(bench, "run_bench", lambda quick=False, log=print: rows)
     assert bench.main() == 0
     out = capsys.readouterr().out
     assert "PASS" in out and "FAIL" in out and "1 of 2 targets missed" in out
     assert bench.main(strict=True) == 1
     from nmkane_core.cli import main as cli_main
+
     assert cli_main(["bench"]) == 0 and cli_main(["bench", "--strict"]) == 1
 
 

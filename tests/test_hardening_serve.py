@@ -16,11 +16,21 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 @pytest.mark.slow
 def test_stop_during_background_compilation_on_an_empty_cache(tmp_path):
     api = free_port()
-    env = {**os.environ, "NMKANE_DB": str(tmp_path / "runs.sqlite3"), "PYTHONUNBUFFERED": "1",
-           "NMKANE_CACHE_DIR": str(tmp_path / "cache"), "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
-           "PYTHONPATH": ROOT}
-    proc = subprocess.Popen([sys.executable, "-c", f"from backend.serve import serve; serve(api_port={api}, web=False)"],
-                            env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    env = {
+        **os.environ,
+        "NMKANE_DB": str(tmp_path / "runs.sqlite3"),
+        "PYTHONUNBUFFERED": "1",
+        "NMKANE_CACHE_DIR": str(tmp_path / "cache"),
+        "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
+        "PYTHONPATH": ROOT,
+    }
+    proc = subprocess.Popen(
+        [sys.executable, "-c", f"from backend.serve import serve; serve(api_port={api}, web=False)"],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     lines, deadline = [], time.time() + 900
     while time.time() < deadline:
         line = proc.stdout.readline()
@@ -30,7 +40,7 @@ def test_stop_during_background_compilation_on_an_empty_cache(tmp_path):
         if "service is ready" in line:
             break
     assert any("service is ready" in x for x in lines), "".join(lines)
-    time.sleep(2.0)                     # the background thread is compiling the first projected loop now
+    time.sleep(2.0)  # the background thread is compiling the first projected loop now
     assert not any("projection loops ready" in x for x in lines)
     t0 = time.monotonic()
     proc.send_signal(signal.SIGTERM)

@@ -16,9 +16,18 @@ from websockets.sync.client import connect
 from web.server import WebApp
 
 PROTOCOL = f"viser-v{viser.__version__}"
-CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0], "position": [0.0, -4.0, 2.0], "fov": 1.0,
-          "near": 0.01, "far": 100.0, "image_height": 480, "image_width": 640, "look_at": [0.0, 0.0, 0.0],
-          "up_direction": [0.0, 0.0, 1.0]}
+CAMERA = {
+    "type": "ViewerCameraMessage",
+    "wxyz": [1.0, 0.0, 0.0, 0.0],
+    "position": [0.0, -4.0, 2.0],
+    "fov": 1.0,
+    "near": 0.01,
+    "far": 100.0,
+    "image_height": 480,
+    "image_width": 640,
+    "look_at": [0.0, 0.0, 0.0],
+    "up_direction": [0.0, 0.0, 1.0],
+}
 
 
 @pytest.fixture()
@@ -45,8 +54,14 @@ def _open(app, host=None, origin="same", path="/", camera=True):
         headers["Origin"] = f"http://{host}"
     elif origin is not None:
         headers["Origin"] = origin
-    ws = connect(f"ws://{host}{path}", sock=sock, subprotocols=[PROTOCOL], additional_headers=headers,
-                 open_timeout=20, max_size=None)
+    ws = connect(
+        f"ws://{host}{path}",
+        sock=sock,
+        subprotocols=[PROTOCOL],
+        additional_headers=headers,
+        open_timeout=20,
+        max_size=None,
+    )
     if camera:
         with contextlib.suppress(ConnectionClosed):
             ws.send(msgspec.msgpack.encode(CAMERA))
@@ -151,7 +166,7 @@ def test_closed_sessions_leave_no_threads_sessions_or_memory_behind(web):
         for ws in socks:
             ws.close()
         assert _wait(lambda: not app.sessions, 60)
-        time.sleep(4.0)                                    # the server returns memory ~2 s after a close
+        time.sleep(4.0)  # the server returns memory ~2 s after a close
         return _rss_mb()
 
     first = cycle()

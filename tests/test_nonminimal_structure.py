@@ -21,9 +21,15 @@ speeds = st.floats(-5, 5).filter(lambda v: abs(v) > 1e-2)
 
 
 @settings(max_examples=60, deadline=None)
-@given(theta=st.floats(-np.pi, np.pi), u1=st.floats(-5, 5), u2=speeds,
-       variant=st.sampled_from(["nonlinear", "linear"]),
-       rho=st.floats(0.5, 10), a=st.floats(0.2, 3), b=st.floats(0.1, 2))
+@given(
+    theta=st.floats(-np.pi, np.pi),
+    u1=st.floats(-5, 5),
+    u2=speeds,
+    variant=st.sampled_from(["nonlinear", "linear"]),
+    rho=st.floats(0.5, 10),
+    a=st.floats(0.2, 3),
+    b=st.floats(0.1, 2),
+)
 def test_A1_A2T_is_zero_and_T_invertible_at_consistent_states(theta, u1, u2, variant, rho, a, b):
     system = get_system("appell-hamel")
     params = system.resolve_params({"rho": rho, "a": a, "b": b})

@@ -47,8 +47,8 @@ def test_nonminimal_solution_matches_kanes_method_oracle_figs2_8(claims):
 def test_theta_reaches_steady_state_figs2_4_6(claims):
     c = claims["theta_reaches_steady_state"]
     assert c.status == PASS, c.measured
-    assert abs(c.values["theta_dot_end"]) < 1e-6        # the claim allows 1e-3; measured ≈ 2e-12 rad/s
-    assert 2.0 < c.values["theta_end"] < 2.5     # ≈ 2.2515 rad with the paper's initial state
+    assert abs(c.values["theta_dot_end"]) < 1e-6  # the claim allows 1e-3; measured ≈ 2e-12 rad/s
+    assert 2.0 < c.values["theta_end"] < 2.5  # ≈ 2.2515 rad with the paper's initial state
 
 
 def test_load_falls_and_spins_the_wheel_up_figs3_5_8(claims):
@@ -69,8 +69,16 @@ def test_nonlinear_model_energy_drift_below_linear_fig9(claims, runs):
     for dt, t_final in ((0.01, 100), (0.05, 20), (0.05, 100), (0.1, 20), (0.1, 100)):
         drift = {}
         for model in ("nonlinear", "linear"):
-            run = simulate({"system": "appell-hamel", "model": model, "dt": dt, "t_final": t_final,
-                            "integrator": "kutta-merson", "every": 10})
+            run = simulate(
+                {
+                    "system": "appell-hamel",
+                    "model": model,
+                    "dt": dt,
+                    "t_final": t_final,
+                    "integrator": "kutta-merson",
+                    "every": 10,
+                }
+            )
             assert run.status == "ok"
             drift[model] = run.summary["max_abs_energy_drift"]
         assert drift["nonlinear"] < drift["linear"], (dt, t_final, drift)
@@ -111,7 +119,7 @@ def test_damped_particle_bound_matches_paper_fig15(claims, runs):
     assert c.status == PASS, c.measured
     # paper: |φ| < 2.0e−11 m; an independent Kutta–Merson gives ≈ 1.8e−11 m
     assert 1.7e-11 < c.values["max_abs_phi"] < 2.0e-11
-    assert c.values["second_half"] <= 1.5 * c.values["first_half"]      # bounded, not growing
+    assert c.values["second_half"] <= 1.5 * c.values["first_half"]  # bounded, not growing
 
 
 # ---- Fig. 16 ---------------------------------------------------------------------------
@@ -119,7 +127,7 @@ def test_damped_nonminimal_stays_in_the_bowl_after_1h_fig16(claims):
     c = claims["fig16_damped_stays_in_bowl"]
     assert c.status == PASS, c.measured
     lo, hi = c.values["damped"]
-    assert -0.1 <= lo and hi <= 1.1
+    assert lo >= -0.1 and hi <= 1.1
 
 
 def test_undamped_nonminimal_drifts_off_by_orders_of_magnitude_fig16(claims):
@@ -180,11 +188,12 @@ def test_fig18_claims_not_run_when_the_library_refuses_a_projection(monkeypatch)
     for key in ("fig18_all_bounded", "fig18_baumgarte_smallest_bound"):
         assert claims[key].status == NOT_RUN
         assert "sp-fig18-yoon" in claims[key].measured
-    assert claims["fig15_damped_bound"].status == NOT_RUN        # not part of this subset
+    assert claims["fig15_damped_bound"].status == NOT_RUN  # not part of this subset
 
 
 def test_claims_cover_every_figure_with_a_claim_in_the_issue(claims):
     covered = {f for c in claims.values() for f in c.figures}
     assert {9, 11, 12, 14, 15, 16, 17, 18} <= covered
-    assert all(c.status in (PASS, FAIL) for c in claims.values()), \
-        [(c.key, c.status, c.measured) for c in claims.values() if c.status not in (PASS, FAIL)]
+    assert all(c.status in (PASS, FAIL) for c in claims.values()), [
+        (c.key, c.status, c.measured) for c in claims.values() if c.status not in (PASS, FAIL)
+    ]

@@ -21,8 +21,14 @@ NMKANE = [sys.executable, "-m", "nmkane_core.cli"]
 
 
 def nmkane(*args, env=None, timeout=600):
-    return subprocess.run([*NMKANE, *map(str, args)], capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, **(env or {})}, cwd=ROOT)
+    return subprocess.run(
+        [*NMKANE, *map(str, args)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env={**os.environ, **(env or {})},
+        cwd=ROOT,
+    )
 
 
 def test_examples_run_through_systems_option_and_conserve_what_they_should():
@@ -43,8 +49,9 @@ def test_skate_on_incline_does_not_run_away_downhill(tmp_path):
     from nmkane_core.plugins import load_systems
 
     assert load_systems([str(SKATE)]) == []
-    run = simulate({"system": "skate-on-incline", "t_final": 20.0, "every": 10,
-                    "initial": {"theta": 0.0, "u1": 0.0, "u3": 2.0}})
+    run = simulate(
+        {"system": "skate-on-incline", "t_final": 20.0, "every": 10, "initial": {"theta": 0.0, "u1": 0.0, "u3": 2.0}}
+    )
     assert run.status == "ok"
     assert run.state["x"].max() - run.state["x"].min() <= 9.81 * 0.19866933 / 4.0 * 1.001
     mean_vy = (run.state["y"][-1] - run.state["y"][0]) / 20.0
@@ -104,7 +111,8 @@ def test_rest_service_lists_and_runs_a_plugged_in_system(tmp_path):
 
 
 def _write_model(path: Path, force: float) -> None:
-    path.write_text(textwrap.dedent(f"""
+    path.write_text(
+        textwrap.dedent(f"""
         from nmkane_core import Parameter, System, register
 
         def model():
@@ -118,31 +126,40 @@ def _write_model(path: Path, force: float) -> None:
 
         register(System(name="pushed-bead", variants=model, parameters={{"m": Parameter(1.0, 0.0, 10.0)}},
                         default_initial={{"x": 0.0, "y": 0.0, "u1": 0.0}}, default_dt=0.01, default_t_final=1.0))
-    """))
+    """)
+    )
 
 
 def test_kernels_are_cached_by_model_no_sympy_later_and_never_stale(tmp_path):
     cache = tmp_path / "cache"
     env = {"NMKANE_CACHE_DIR": str(cache), "NUMBA_CACHE_DIR": str(cache)}
     systems = tmp_path / "bead.py"
-    probe = ("import sys, json\nfrom nmkane_core.plugins import load_systems\nfrom nmkane_core import simulate\n"
-             f"assert load_systems([{str(systems)!r}]) == []\n"
-             "r = simulate({'system': 'pushed-bead'})\n"
-             "print(json.dumps({'x': float(r.state['x'][-1]), 'sympy': 'sympy' in sys.modules}))\n")
+    probe = (
+        "import sys, json\nfrom nmkane_core.plugins import load_systems\nfrom nmkane_core import simulate\n"
+        f"assert load_systems([{str(systems)!r}]) == []\n"
+        "r = simulate({'system': 'pushed-bead'})\n"
+        "print(json.dumps({'x': float(r.state['x'][-1]), 'sympy': 'sympy' in sys.modules}))\n"
+    )
 
     def run(cache_env=env):
-        proc = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=600,
-                              env={**os.environ, **cache_env}, cwd=ROOT)
+        proc = subprocess.run(
+            [sys.executable, "-c", probe],
+            capture_output=True,
+            text=True,
+            timeout=600,
+            env={**os.environ, **cache_env},
+            cwd=ROOT,
+        )
         assert proc.returncode == 0, proc.stderr
         return json.loads(proc.stdout.strip().splitlines()[-1])
 
     _write_model(systems, 1.0)
-    first = run()                                    # derives and compiles
-    again = run()                                    # a fresh process: from the cache, no sympy
+    first = run()  # derives and compiles
+    again = run()  # a fresh process: from the cache, no sympy
     assert again == {"x": first["x"], "sympy": False} and first["x"] > 0
-    _write_model(systems, 2.0)                       # the user edits the model: never the stale kernel
+    _write_model(systems, 2.0)  # the user edits the model: never the stale kernel
     changed = run()
-    fresh = tmp_path / "fresh"                       # the edited model compiled from scratch
+    fresh = tmp_path / "fresh"  # the edited model compiled from scratch
     truth = run({"NMKANE_CACHE_DIR": str(fresh), "NUMBA_CACHE_DIR": str(fresh)})
     assert changed["x"] == truth["x"] and abs(changed["x"] - first["x"]) > 0.1 * first["x"]
 

@@ -1,6 +1,5 @@
 """Post-step corrections (Blajer 2002 / Yoon, Howe & Greenwood 1994 family)."""
 
-import numpy as np
 import pytest
 
 from nmkane_core import InputError
@@ -10,8 +9,7 @@ from nmkane_core.simulate import simulate
 
 @pytest.mark.parametrize("projection", ["blajer", "yoon"])
 def test_projection_keeps_particle_on_the_surface_to_roundoff(projection):
-    run = simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 200, "projection": projection,
-                    "every": 100})
+    run = simulate({"system": "sliding-particle", "dt": 0.01, "t_final": 200, "projection": projection, "every": 100})
     assert run.status == "ok"
     assert run.summary["max_abs_violation"]["surface"] < 1e-13
     # without the correction the same run drifts by orders of magnitude more
@@ -28,23 +26,27 @@ def test_blajer_preset_restores_energy_and_yoon_does_not_by_default():
 
 @pytest.mark.parametrize("model", ["nonlinear", "linear"])
 def test_projection_on_appell_hamel_satisfies_every_constraint(model):
-    run = simulate({"system": "appell-hamel", "model": model, "dt": 0.02, "t_final": 20,
-                    "projection": "yoon"})
+    run = simulate({"system": "appell-hamel", "model": model, "dt": 0.02, "t_final": 20, "projection": "yoon"})
     assert run.status == "ok"
     assert max(run.summary["max_abs_violation"].values()) < 1e-11
 
 
 def test_projection_does_not_change_the_motion_beyond_integration_error():
     ref = simulate({"system": "appell-hamel", "dt": 0.001, "t_final": 10, "every": 10000})
-    proj = simulate({"system": "appell-hamel", "dt": 0.01, "t_final": 10, "projection": "blajer",
-                     "every": 1000})
+    proj = simulate({"system": "appell-hamel", "dt": 0.01, "t_final": 10, "projection": "blajer", "every": 1000})
     for k in ("theta", "phi", "x", "y"):
         assert abs(proj.state[k][-1] - ref.state[k][-1]) < 1e-6 * max(1, abs(ref.state[k][-1]))
 
 
 def test_switches_are_recorded_in_resolved_settings():
-    plan = resolve({"system": "sliding-particle", "projection": "yoon", "projection_iterations": 1,
-                    "projection_jacobian": "frozen"})
+    plan = resolve(
+        {
+            "system": "sliding-particle",
+            "projection": "yoon",
+            "projection_iterations": 1,
+            "projection_jacobian": "frozen",
+        }
+    )
     assert plan.settings["projection_weight"] == "mass"
     assert plan.settings["projection_iterations"] == 1
     assert plan.settings["projection_jacobian"] == "frozen"

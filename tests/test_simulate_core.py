@@ -14,8 +14,12 @@ from nmkane_core.reference import ReferenceKernel, integrate_reference
 from nmkane_core.schema import RunResult
 from nmkane_core.simulate import simulate
 
-CASES = [("appell-hamel", "nonlinear"), ("appell-hamel", "linear"),
-         ("sliding-particle", "nonminimal"), ("sliding-particle", "minimal")]
+CASES = [
+    ("appell-hamel", "nonlinear"),
+    ("appell-hamel", "linear"),
+    ("sliding-particle", "nonminimal"),
+    ("sliding-particle", "minimal"),
+]
 
 
 def _random_state(system, variant, rng):
@@ -32,8 +36,9 @@ def test_compiled_rhs_agrees_with_numpy_reference_to_1e12(name, variant):
     md = system.model(variant)
     for _ in range(50):
         x = _random_state(system, variant, rng)
-        p = np.array([rng.uniform(0.5, 2) * prm.default if prm.default else rng.uniform(-1, 1)
-                      for prm in system.parameters])
+        p = np.array(
+            [rng.uniform(0.5, 2) * prm.default if prm.default else rng.uniform(-1, 1) for prm in system.parameters]
+        )
         G = rng.uniform(-5, 0, (len(md.nonholonomic),) * 2)
         G1 = rng.uniform(-30, 0, (len(md.holonomic),) * 2)
         G2 = rng.uniform(-100, 0, (len(md.holonomic),) * 2)
@@ -47,9 +52,17 @@ def test_compiled_rhs_agrees_with_numpy_reference_to_1e12(name, variant):
 def test_compiled_trajectory_agrees_with_reference_loop(name, variant, tableau):
     system = get_system(name)
     option = system.option
-    run = simulate({"system": name, option: variant, "integrator": tableau.name, "dt": 0.01,
-                    "t_final": 1.0, "gamma1": -20 if name == "sliding-particle" else None,
-                    "gamma2": -100 if name == "sliding-particle" else None})
+    run = simulate(
+        {
+            "system": name,
+            option: variant,
+            "integrator": tableau.name,
+            "dt": 0.01,
+            "t_final": 1.0,
+            "gamma1": -20 if name == "sliding-particle" else None,
+            "gamma2": -100 if name == "sliding-particle" else None,
+        }
+    )
     plan = resolve(run.settings)
     ref = ReferenceKernel(system.derivation(variant))
     t, xs = integrate_reference(ref, plan.x0, plan.p, 0.01, 100, tableau, plan.G, plan.G1, plan.G2)
@@ -61,8 +74,9 @@ def test_compiled_trajectory_agrees_with_reference_loop(name, variant, tableau):
 
 @pytest.mark.parametrize("integrator", list(INTEGRATORS))
 def test_every_integrator_reaches_t_final_with_finite_results(integrator):
-    run = simulate({"system": "appell-hamel", "integrator": integrator, "dt": 0.01, "t_final": 5,
-                    "rtol": 1e-8, "atol": 1e-10})
+    run = simulate(
+        {"system": "appell-hamel", "integrator": integrator, "dt": 0.01, "t_final": 5, "rtol": 1e-8, "atol": 1e-10}
+    )
     assert run.status == "ok", run.summary["message"]
     assert run.t[0] == 0 and abs(run.t[-1] - 5) < 1e-12
     for arr in [run.t, run.energy, *run.state.values(), *run.violation.values()]:
@@ -72,8 +86,9 @@ def test_every_integrator_reaches_t_final_with_finite_results(integrator):
 
 def test_adaptive_kutta_merson_meets_tolerance_against_fine_fixed_step():
     fine = simulate({"system": "appell-hamel", "dt": 0.0005, "t_final": 20, "every": 40000})
-    adapt = simulate({"system": "appell-hamel", "integrator": "kutta-merson-adaptive", "t_final": 20,
-                      "rtol": 1e-10, "atol": 1e-12})
+    adapt = simulate(
+        {"system": "appell-hamel", "integrator": "kutta-merson-adaptive", "t_final": 20, "rtol": 1e-10, "atol": 1e-12}
+    )
     assert adapt.summary["steps"] < 5000
     for k in ("theta", "phi", "u2"):
         assert abs(adapt.state[k][-1] - fine.state[k][-1]) < 1e-7 * max(1, abs(fine.state[k][-1]))
@@ -89,8 +104,7 @@ def test_every_thins_output_but_not_the_summary():
 
 
 def test_singular_start_of_nonlinear_model_is_reported_not_integrated():
-    run = simulate({"system": "appell-hamel", "model": "nonlinear", "initial": {"u2": 0.0},
-                    "switching": False})
+    run = simulate({"system": "appell-hamel", "model": "nonlinear", "initial": {"u2": 0.0}, "switching": False})
     assert run.status == "singular"
     assert "J2" in run.summary["message"] and "t = 0" in run.summary["message"]
     assert all(np.all(np.isfinite(v)) for v in run.state.values())
@@ -98,8 +112,7 @@ def test_singular_start_of_nonlinear_model_is_reported_not_integrated():
 
 def test_diverging_run_stops_with_status_and_finite_data():
     # a destabilizing gain with a large step blows up: reported, never NaN in the result
-    run = simulate({"system": "sliding-particle", "gamma1": 500, "gamma2": 5000, "dt": 0.05,
-                    "t_final": 200})
+    run = simulate({"system": "sliding-particle", "gamma1": 500, "gamma2": 5000, "dt": 0.05, "t_final": 200})
     assert run.status == "diverged"
     assert all(np.all(np.isfinite(v)) for v in run.state.values())
     assert np.all(np.isfinite(run.energy))
@@ -107,8 +120,7 @@ def test_diverging_run_stops_with_status_and_finite_data():
 
 
 def test_time_limit_returns_partial_run_with_status_timeout():
-    run = simulate({"system": "appell-hamel", "dt": 0.0001, "t_final": 5000, "every": 1000},
-                   time_limit=0.05)
+    run = simulate({"system": "appell-hamel", "dt": 0.0001, "t_final": 5000, "every": 1000}, time_limit=0.05)
     assert run.status == "timeout"
     assert 0 < run.t[-1] < 5000
 
@@ -119,8 +131,16 @@ def test_document_has_contract_keys_and_round_trips():
     assert set(doc) >= {"system", "settings", "t", "state", "energy", "violation", "summary"}
     assert set(doc["state"]) == {"theta", "phi", "x", "y", "z", "u1", "u2", "u3", "u4", "u5"}
     assert set(doc["violation"]) == {"rolling_speed", "no_side_slip", "thread"}
-    assert set(doc["summary"]) >= {"status", "message", "steps", "rhs_evals", "wall_time_s",
-                                   "max_abs_violation", "max_abs_energy_drift", "final_energy_drift"}
+    assert set(doc["summary"]) >= {
+        "status",
+        "message",
+        "steps",
+        "rhs_evals",
+        "wall_time_s",
+        "max_abs_violation",
+        "max_abs_energy_drift",
+        "final_energy_drift",
+    }
     assert doc["settings"]["model"] == "nonlinear" and doc["settings"]["params"]["rho"] == 5.0
     RunResult.model_validate(doc)
     # the resolved settings re-run to the same result
@@ -128,9 +148,15 @@ def test_document_has_contract_keys_and_round_trips():
     assert again.state["phi"][-1] == run.state["phi"][-1]
 
 
-@pytest.mark.parametrize("settings", [{"system": "sliding-particle", "formulation": "minimal"},
-                                      {"system": "sliding-particle"}, {"system": "appell-hamel"},
-                                      {"system": "appell-hamel", "integrator": "dop853"}])
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {"system": "sliding-particle", "formulation": "minimal"},
+        {"system": "sliding-particle"},
+        {"system": "appell-hamel"},
+        {"system": "appell-hamel", "integrator": "dop853"},
+    ],
+)
 def test_result_arrays_are_contiguous_float64(settings):
     """Found by the soak test: an output column of the minimal formulation was a strided view,
     which fast JSON encoders refuse."""
@@ -173,20 +199,23 @@ def test_full_consistent_state_is_accepted_unchanged():
     assert plan.initial == {k: float(v) for k, v in full.items()}
 
 
-@pytest.mark.parametrize("settings,field", [
-    ({"system": "nope"}, "system"),
-    ({"system": "appell-hamel", "model": "quadratic"}, "model"),
-    ({"system": "appell-hamel", "formulation": "minimal"}, "formulation"),
-    ({"system": "appell-hamel", "dt": 0}, "dt"),
-    ({"system": "appell-hamel", "dt": -0.1}, "dt"),
-    ({"system": "appell-hamel", "t_final": 0}, "t_final"),
-    ({"system": "appell-hamel", "dt": 1e-6, "t_final": 1e3}, "dt"),
-    ({"system": "appell-hamel", "integrator": "euler"}, "integrator"),
-    ({"system": "appell-hamel", "params": {"rho": -1}}, "params.rho"),
-    ({"system": "appell-hamel", "params": {"mass": 1}}, "params.mass"),
-    ({"system": "appell-hamel", "initial": {"w": 1}}, "initial.w"),
-    ({"system": "appell-hamel", "gamma": [[1, 2]]}, "gamma"),
-])
+@pytest.mark.parametrize(
+    "settings,field",
+    [
+        ({"system": "nope"}, "system"),
+        ({"system": "appell-hamel", "model": "quadratic"}, "model"),
+        ({"system": "appell-hamel", "formulation": "minimal"}, "formulation"),
+        ({"system": "appell-hamel", "dt": 0}, "dt"),
+        ({"system": "appell-hamel", "dt": -0.1}, "dt"),
+        ({"system": "appell-hamel", "t_final": 0}, "t_final"),
+        ({"system": "appell-hamel", "dt": 1e-6, "t_final": 1e3}, "dt"),
+        ({"system": "appell-hamel", "integrator": "euler"}, "integrator"),
+        ({"system": "appell-hamel", "params": {"rho": -1}}, "params.rho"),
+        ({"system": "appell-hamel", "params": {"mass": 1}}, "params.mass"),
+        ({"system": "appell-hamel", "initial": {"w": 1}}, "initial.w"),
+        ({"system": "appell-hamel", "gamma": [[1, 2]]}, "gamma"),
+    ],
+)
 def test_bad_input_names_the_field(settings, field):
     with pytest.raises(InputError) as e:
         resolve(settings)
@@ -213,9 +242,18 @@ def test_catalog_lists_the_projections_the_schema_accepts():
 def test_simulate_module_still_exports_its_public_names():
     import importlib
 
-    sim = importlib.import_module("nmkane_core.simulate")   # the package's ``simulate`` is the function
-    for name in ("Plan", "Run", "resolve", "simulate", "simulate_many", "kernel_for", "catalog", "prepare",
-                 "validate_settings"):
+    sim = importlib.import_module("nmkane_core.simulate")  # the package's ``simulate`` is the function
+    for name in (
+        "Plan",
+        "Run",
+        "resolve",
+        "simulate",
+        "simulate_many",
+        "kernel_for",
+        "catalog",
+        "prepare",
+        "validate_settings",
+    ):
         assert name in sim.__all__ and callable(getattr(sim, name)), name
 
 

@@ -26,7 +26,7 @@ def test_start_with_wheel_not_rolling_switches_and_agrees_with_linear_model():
     assert nl.status == "ok", nl.summary["message"]
     sw = nl.summary["switches"]
     assert sw[0]["t"] == 0.0 and sw[0]["from"] == "nonlinear" and sw[0]["to"] == "linear"
-    assert sw[-1]["to"] == "nonlinear"           # back on the selected model once φ̇ has grown
+    assert sw[-1]["to"] == "nonlinear"  # back on the selected model once φ̇ has grown
     np.testing.assert_allclose(_final(nl), _final(lin), rtol=1e-9, atol=1e-9)
     # constraint values reported are those of the selected (nonlinear) model
     assert set(nl.violation) == {"rolling_speed", "no_side_slip", "thread"}
@@ -41,12 +41,11 @@ def test_without_switching_the_singular_start_stops_with_status_singular():
 
 @pytest.mark.parametrize("u2", [-2.0, -0.4])
 def test_wheel_reversal_stays_on_the_physical_branch_and_agrees_with_linear_model(u2):
-    s = {"system": "appell-hamel", "initial": {"u2": u2, "u1": 0.3}, "params": {"g": 1.0},
-         "dt": 0.01, "t_final": 15}
+    s = {"system": "appell-hamel", "initial": {"u2": u2, "u1": 0.3}, "params": {"g": 1.0}, "dt": 0.01, "t_final": 15}
     nl = simulate({**s, "model": "nonlinear"})
     lin = simulate({**s, "model": "linear"})
     assert nl.status == "ok"
-    assert nl.state["u2"][0] < 0 < nl.state["u2"][-1]            # φ̇ changed sign
+    assert nl.state["u2"][0] < 0 < nl.state["u2"][-1]  # φ̇ changed sign
     assert any(sw["to"] == "linear" for sw in nl.summary["switches"])
     np.testing.assert_allclose(_final(nl), _final(lin), rtol=1e-8, atol=1e-8)
     # physical branch: v_o = +aφ̇(cos θ, sin θ) (rolling (51)–(52)), not the spurious −aφ̇
@@ -68,8 +67,16 @@ def test_switching_keeps_accuracy_near_the_singularity():
 
 
 def test_adaptive_integrator_switches_too():
-    run = simulate({"system": "appell-hamel", "initial": {"u2": 0.0}, "integrator": "kutta-merson-adaptive",
-                    "t_final": 5, "rtol": 1e-9, "atol": 1e-9})
+    run = simulate(
+        {
+            "system": "appell-hamel",
+            "initial": {"u2": 0.0},
+            "integrator": "kutta-merson-adaptive",
+            "t_final": 5,
+            "rtol": 1e-9,
+            "atol": 1e-9,
+        }
+    )
     assert run.status == "ok" and run.summary["switches"][0]["to"] == "linear"
 
 
@@ -116,10 +123,12 @@ def test_singular_start_with_no_cure_stops_as_singular_and_does_not_loop(integra
     0.32 < 0.4): no switch is possible, so the run must stop as ``singular`` at once.  It
     used to retry the same step forever (found by the library fuzz test), ignoring even
     ``time_limit`` — hence a child process with a timeout: a regression fails, not hangs."""
-    code = ("from nmkane_core.simulate import simulate\n"
-            "r = simulate({'system': 'appell-hamel', 'initial': {'u2': 0.0}, 'rcond_switch': 0.4, "
-            f"'integrator': '{integrator}'}}, progress=False, time_limit=5.0)\n"
-            "print(r.status, len(r.t), r.summary['switches'], r.summary['message'])\n")
+    code = (
+        "from nmkane_core.simulate import simulate\n"
+        "r = simulate({'system': 'appell-hamel', 'initial': {'u2': 0.0}, 'rcond_switch': 0.4, "
+        f"'integrator': '{integrator}'}}, progress=False, time_limit=5.0)\n"
+        "print(r.status, len(r.t), r.summary['switches'], r.summary['message'])\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     status, rows, rest = out.stdout.split(" ", 2)

@@ -18,9 +18,13 @@ COMPARED = ("status", "max_abs_violation.surface", "max_abs_energy_drift", "fina
 
 def _direct(point):
     s = simulate(apply_point(BASE, point), progress=False).summary
-    return {"status": s["status"], "max_abs_violation.surface": s["max_abs_violation"]["surface"],
-            "max_abs_energy_drift": s["max_abs_energy_drift"], "final_energy_drift": s["final_energy_drift"],
-            "steps": s["steps"]}
+    return {
+        "status": s["status"],
+        "max_abs_violation.surface": s["max_abs_violation"]["surface"],
+        "max_abs_energy_drift": s["max_abs_energy_drift"],
+        "final_energy_drift": s["final_energy_drift"],
+        "steps": s["steps"],
+    }
 
 
 def _check_rows_equal_direct(path, names, n):
@@ -28,15 +32,16 @@ def _check_rows_equal_direct(path, names, n):
     assert columns[: len(names)] == names
     assert len(rows) == n
     keys = {tuple(r[k] for k in names) for r in rows}
-    assert len(keys) == n                                       # each point once
+    assert len(keys) == n  # each point once
     for r in rows:
         want = _direct({k: r[k] for k in names})
-        assert {k: r[k] for k in COMPARED} == want             # exactly: floats round-trip through repr
+        assert {k: r[k] for k in COMPARED} == want  # exactly: floats round-trip through repr
         assert r["wall_time_s"] > 0
     return rows
 
 
 # ---------------------------------------------------------------- parsing
+
 
 def test_grid_list_log_and_lhs_parsing():
     a = parse_axis("gamma1=-40:-10:4")
@@ -52,45 +57,55 @@ def test_grid_list_log_and_lhs_parsing():
     pts = list(spec.points())
     assert len(pts) == 10
     lhs = spec.sample_points()
-    for j, (lo, hi) in enumerate(spec.sample.values()):     # Latin hypercube: one point per stratum
+    for j, (lo, hi) in enumerate(spec.sample.values()):  # Latin hypercube: one point per stratum
         strata = np.floor((lhs[:, j] - lo) / (hi - lo) * 5).astype(int)
         assert sorted(strata) == [0, 1, 2, 3, 4]
     again = sweep_spec(sample=["gamma2=-200:-50", "params.m=1:2"], samples=5, seed=3).sample_points()
-    assert np.array_equal(again, lhs)                        # a seed reproduces the sample (resume)
-    assert apply_point({"system": "x", "params": {"g": 1.0}}, {"params.m": 2.0, "gamma": -1.0}) == \
-        {"system": "x", "params": {"g": 1.0, "m": 2.0}, "initial": {}, "gamma": -1.0}
+    assert np.array_equal(again, lhs)  # a seed reproduces the sample (resume)
+    assert apply_point({"system": "x", "params": {"g": 1.0}}, {"params.m": 2.0, "gamma": -1.0}) == {
+        "system": "x",
+        "params": {"g": 1.0, "m": 2.0},
+        "initial": {},
+        "gamma": -1.0,
+    }
 
 
-@pytest.mark.parametrize("kwargs, needle", [
-    ({"grid": ["gamma=1:2"]}, "2 fields"),
-    ({"grid": ["gamma"]}, "no '='"),
-    ({"grid": ["colour=1,2"]}, "unknown name"),
-    ({"grid": ["gamma=1,x"]}, "not a number"),
-    ({"grid": ["gamma=1,1"]}, "repeats"),
-    ({"grid": ["gamma=0:1:0"]}, "NUM"),
-    ({"log_grid": ["gamma=-1:1:3"]}, "one sign"),
-    ({"log_grid": ["gamma=0:10:3"]}, "nonzero"),
-    ({"sample": ["gamma=1:0"]}, "LOW is not below HIGH"),
-    ({"sample": ["gamma=-1:0"]}, "--samples"),
-    ({"grid": ["gamma=1,2"], "samples": 3}, "nothing to sample"),
-    ({}, "nothing varies"),
-    ({"grid": ["gamma=1,2", "gamma=3,4"]}, "varied twice"),
-])
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        ({"grid": ["gamma=1:2"]}, "2 fields"),
+        ({"grid": ["gamma"]}, "no '='"),
+        ({"grid": ["colour=1,2"]}, "unknown name"),
+        ({"grid": ["gamma=1,x"]}, "not a number"),
+        ({"grid": ["gamma=1,1"]}, "repeats"),
+        ({"grid": ["gamma=0:1:0"]}, "NUM"),
+        ({"log_grid": ["gamma=-1:1:3"]}, "one sign"),
+        ({"log_grid": ["gamma=0:10:3"]}, "nonzero"),
+        ({"sample": ["gamma=1:0"]}, "LOW is not below HIGH"),
+        ({"sample": ["gamma=-1:0"]}, "--samples"),
+        ({"grid": ["gamma=1,2"], "samples": 3}, "nothing to sample"),
+        ({}, "nothing varies"),
+        ({"grid": ["gamma=1,2", "gamma=3,4"]}, "varied twice"),
+    ],
+)
 def test_bad_specifications_are_input_errors(kwargs, needle):
     with pytest.raises(InputError) as e:
         sweep_spec(**kwargs)
     assert needle in str(e.value)
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["--grid", "gamma1=-40:-10"], "--grid"),
-    (["--grid", "gamma1=-1e9,-20"], "--grid gamma1: got -1000000000.0"),       # refused by the system
-    (["--grid", "params.l0=-1,1"], "--grid params.l0"),
-    (["--grid", "gamma1=-20,-10", "--out", "x.txt"], "--out"),
-    (["--grid", "gamma1=-20,-10", "--plot", "x.gif"], "--plot"),
-    (["--grid", "gamma1=-20,-10", "--dask", "nowhere"], "--dask"),
-    (["--grid", "gamma1=-20,-10", "--grid", "gamma2=-1,-2", "--grid", "dt=0.01,0.02", "--plot", "a.png"], "--plot"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["--grid", "gamma1=-40:-10"], "--grid"),
+        (["--grid", "gamma1=-1e9,-20"], "--grid gamma1: got -1000000000.0"),  # refused by the system
+        (["--grid", "params.l0=-1,1"], "--grid params.l0"),
+        (["--grid", "gamma1=-20,-10", "--out", "x.txt"], "--out"),
+        (["--grid", "gamma1=-20,-10", "--plot", "x.gif"], "--plot"),
+        (["--grid", "gamma1=-20,-10", "--dask", "nowhere"], "--dask"),
+        (["--grid", "gamma1=-20,-10", "--grid", "gamma2=-1,-2", "--grid", "dt=0.01,0.02", "--plot", "a.png"], "--plot"),
+    ],
+)
 def test_bad_sweep_commands_print_one_line_and_exit_2(argv, needle, tmp_path, capsys):
     if "--out" not in argv:
         argv = [*argv, "--out", str(tmp_path / "s.csv")]
@@ -101,9 +116,9 @@ def test_bad_sweep_commands_print_one_line_and_exit_2(argv, needle, tmp_path, ca
 
 
 def test_parquet_needs_pyarrow(tmp_path, capsys):
-    try:
-        import pyarrow  # noqa: F401
-    except ImportError:
+    import importlib.util
+
+    if importlib.util.find_spec("pyarrow") is None:
         code = main(["sweep", "sliding-particle", "--grid", "gamma1=-1,-2", "--out", str(tmp_path / "s.parquet")])
         err = capsys.readouterr().err
         assert code == 2 and "pyarrow" in err and len(err.strip().splitlines()) == 1
@@ -112,6 +127,7 @@ def test_parquet_needs_pyarrow(tmp_path, capsys):
 
 
 # ---------------------------------------------------------------- executors
+
 
 def test_local_processes_equal_direct_runs(tmp_path):
     spec = sweep_spec(grid=["gamma1=-40,-20"], log_grid=["gamma2=-10:-1000:3"])
@@ -130,7 +146,7 @@ def test_dask_local_cluster_equals_direct_runs(tmp_path):
     with DaskExecutor("local:2", warm=({**BASE, "integrator": "rk4"}, {**BASE, "integrator": "kutta-merson"})) as ex:
         assert ex.workers == 2
         pids = set(ex.client.run(__import__("os").getpid).values())
-        assert len(pids) == 2                                    # two worker processes
+        assert len(pids) == 2  # two worker processes
         res = run_sweep(BASE, spec, out, executor=ex, progress=False)
     assert res.executor == "dask" and res.ran == 4
     rows = _check_rows_equal_direct(out, ["integrator", "params.m"], 4)
@@ -151,13 +167,13 @@ def test_resume_after_an_interruption(tmp_path):
         run_sweep(BASE, spec, out, workers=1, progress=False, on_rows=stop_after_three)
     _, partial = read_rows(out)
     assert len(partial) == 3
-    with open(out, "a") as f:                     # a line cut off by the interruption
+    with open(out, "a") as f:  # a line cut off by the interruption
         f.write("-10.0,-100.0,ok,1e-")
     res = run_sweep(BASE, spec, out, workers=1, progress=False)
     assert res.skipped == 3 and res.ran == 5
     rows = _check_rows_equal_direct(out, ["gamma1", "gamma2"], 8)
     assert [r["gamma1"] for r in rows[:3]] == [r["gamma1"] for r in partial]
-    again = run_sweep(BASE, spec, out, workers=1, progress=False)       # complete: nothing to do
+    again = run_sweep(BASE, spec, out, workers=1, progress=False)  # complete: nothing to do
     assert again.ran == 0 and again.skipped == 8
 
 
@@ -170,8 +186,25 @@ def test_resume_refuses_another_sweeps_file(tmp_path):
 
 def test_sweep_command_writes_rows_and_plot(tmp_path, capsys):
     out, png = tmp_path / "s.csv", tmp_path / "s.png"
-    code = main(["sweep", "sliding-particle", "--t-final", "0.3", "--grid", "gamma1=-30,-10", "--grid",
-                 "gamma2=-100,-10", "--workers", "1", "--no-progress", "--out", str(out), "--plot", str(png)])
+    code = main(
+        [
+            "sweep",
+            "sliding-particle",
+            "--t-final",
+            "0.3",
+            "--grid",
+            "gamma1=-30,-10",
+            "--grid",
+            "gamma2=-100,-10",
+            "--workers",
+            "1",
+            "--no-progress",
+            "--out",
+            str(out),
+            "--plot",
+            str(png),
+        ]
+    )
     assert code == 0, capsys.readouterr().err
     assert "4 runs (0 already" in capsys.readouterr().out
     _, rows = read_rows(str(out))
@@ -186,22 +219,23 @@ def test_a_refused_point_is_a_row_not_a_crash():
 
 # ---------------------------------------------------------------- tune
 
+
 def test_stability_interval_from_the_tableau():
     from nmkane_core.integrators import KUTTA_MERSON, RK4
     from nmkane_core.sweep.tune import real_stability_interval, stability_polynomial, stable_gains
 
-    assert np.allclose(stability_polynomial(RK4), [1, 1, 1 / 2, 1 / 6, 1 / 24])          # e^z to order 4
+    assert np.allclose(stability_polynomial(RK4), [1, 1, 1 / 2, 1 / 6, 1 / 24])  # e^z to order 4
     assert np.allclose(stability_polynomial(KUTTA_MERSON), [1, 1, 1 / 2, 1 / 6, 1 / 24, 1 / 144])
     x = real_stability_interval(RK4)
-    assert x == pytest.approx(-2.785293563405282, abs=1e-9)      # Hairer & Wanner II, Table IV.2.1
+    assert x == pytest.approx(-2.785293563405282, abs=1e-9)  # Hairer & Wanner II, Table IV.2.1
     R = np.polynomial.Polynomial([1, 1, 1 / 2, 1 / 6, 1 / 24])
     assert abs(R(x)) == pytest.approx(1) and abs(R(x - 1e-3)) > 1 and all(abs(R(np.linspace(x, 0, 500))) <= 1 + 1e-12)
     km = real_stability_interval(KUTTA_MERSON)
     assert -3.6 < km < -3.5
     dt = 0.01
     assert stable_gains(RK4, dt, G=x / dt * 0.999) and not stable_gains(RK4, dt, G=x / dt * 1.01)
-    assert stable_gains(KUTTA_MERSON, dt, G1=-20, G2=-100)           # the paper's Γ1, Γ2 at dt = 0.01
-    assert not stable_gains(KUTTA_MERSON, dt, G1=-20, G2=100)        # a positive real root
+    assert stable_gains(KUTTA_MERSON, dt, G1=-20, G2=-100)  # the paper's Γ1, Γ2 at dt = 0.01
+    assert not stable_gains(KUTTA_MERSON, dt, G1=-20, G2=100)  # a positive real root
 
 
 def test_tune_picks_the_smallest_violation_among_qualifying_gains():
@@ -226,6 +260,7 @@ def test_tune_refuses_adaptive_integrators(capsys):
 
 
 # ---------------------------------------------------------------- REST
+
 
 @pytest.fixture()
 def api(tmp_path):
@@ -253,8 +288,11 @@ def _wait(api, sweep_id, timeout=60.0):
 
 
 def test_rest_sweep_runs_and_serves_rows_and_csv(api):
-    body = {"settings": {"system": "sliding-particle", "t_final": 0.5, "dt": 0.01},
-            "grid": ["gamma1=-40,-20"], "log_grid": ["gamma2=-10:-1000:3"]}
+    body = {
+        "settings": {"system": "sliding-particle", "t_final": 0.5, "dt": 0.01},
+        "grid": ["gamma1=-40,-20"],
+        "log_grid": ["gamma2=-10:-1000:3"],
+    }
     r = api.post("/api/sweeps", json=body)
     assert r.status_code == 202, r.text
     sid = r.json()["id"]
@@ -270,15 +308,21 @@ def test_rest_sweep_runs_and_serves_rows_and_csv(api):
     assert api.get("/api/sweeps/nope").status_code == 404
 
 
-@pytest.mark.parametrize("body, field, needle", [
-    ({"grid": ["gamma1=1:2"]}, "grid", "2 fields"),
-    ({"grid": ["gamma1=-1e9,-1"]}, "grid", "gamma1"),
-    ({"grid": ["gamma1=-1:-2:20000"]}, "grid", "at most 10,000 runs"),
-    ({"grid": ["dt=1e-4,0.01"], "settings": {"system": "sliding-particle", "t_final": 500, "every": 100}}, "grid",
-     "max_steps"),
-    ({}, "grid", "nothing varies"),
-    ({"grid": ["gamma1=-1,-2"], "settings": {"system": "nope"}}, "settings", "nope"),
-])
+@pytest.mark.parametrize(
+    "body, field, needle",
+    [
+        ({"grid": ["gamma1=1:2"]}, "grid", "2 fields"),
+        ({"grid": ["gamma1=-1e9,-1"]}, "grid", "gamma1"),
+        ({"grid": ["gamma1=-1:-2:20000"]}, "grid", "at most 10,000 runs"),
+        (
+            {"grid": ["dt=1e-4,0.01"], "settings": {"system": "sliding-particle", "t_final": 500, "every": 100}},
+            "grid",
+            "max_steps",
+        ),
+        ({}, "grid", "nothing varies"),
+        ({"grid": ["gamma1=-1,-2"], "settings": {"system": "nope"}}, "settings", "nope"),
+    ],
+)
 def test_rest_bad_sweeps_are_422(api, body, field, needle):
     body = {"settings": {"system": "sliding-particle", "t_final": 0.2}, **body}
     r = api.post("/api/sweeps", json=body)

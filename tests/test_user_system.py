@@ -28,20 +28,30 @@ def _knife_edge():
     u1, u2, u3 = plain_symbols("u1 u2 u3")
     m, inertia = sp.symbols("m I", real=True)
     return MechanicalModel(
-        name="nonminimal", q=(x, y, th), u=(u1, u2, u3), params=(m, inertia),
-        C=sp.eye(3), D=sp.zeros(3, 1),
-        Q=sp.diag(m, m, inertia), P=sp.zeros(3, 1),
+        name="nonminimal",
+        q=(x, y, th),
+        u=(u1, u2, u3),
+        params=(m, inertia),
+        C=sp.eye(3),
+        D=sp.zeros(3, 1),
+        Q=sp.diag(m, m, inertia),
+        P=sp.zeros(3, 1),
         nonholonomic={"no_side_slip": -sp.sin(th) * u1 + sp.cos(th) * u2},
         u_independent=(u1, u3),
-        energy=m / 2 * (u1 ** 2 + u2 ** 2) + inertia / 2 * u3 ** 2)
+        energy=m / 2 * (u1**2 + u2**2) + inertia / 2 * u3**2,
+    )
 
 
 def knife_edge() -> System:
     return System(
-        name=NAME, title="Knife edge on the plane (test)", variants=_knife_edge,
+        name=NAME,
+        title="Knife edge on the plane (test)",
+        variants=_knife_edge,
         parameters={"m": Parameter(1.0, 0.0, 1e3, "kg"), "I": Parameter(0.5, 0.0, 1e3, "kg m²")},
         default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u3": 1.0},
-        default_dt=0.001, default_t_final=1.2)
+        default_dt=0.001,
+        default_t_final=1.2,
+    )
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -69,14 +79,13 @@ def test_user_system_compiled_rhs_agrees_with_reference():
         got, rc_j2, _ = mod.rhs(0.0, x, p, G, empty, empty)
         want = ref.rhs(0.0, x, p, G, empty, empty)
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
-        assert rc_j2 == 1.0                          # a 1×1 J2 = cos θ: pivot ratio 1
+        assert rc_j2 == 1.0  # a 1×1 J2 = cos θ: pivot ratio 1
 
 
 @pytest.mark.parametrize("integrator", ["rk4", "kutta-merson", "kutta-merson-adaptive", "dop853"])
 def test_user_system_follows_the_closed_form_circle(integrator):
     v, w, t_end = 1.0, 1.0, 1.2
-    settings = {"system": NAME, "integrator": integrator, "dt": 0.001, "t_final": t_end,
-                "initial": {"u1": v, "u3": w}}
+    settings = {"system": NAME, "integrator": integrator, "dt": 0.001, "t_final": t_end, "initial": {"u1": v, "u3": w}}
     if integrator in ("kutta-merson-adaptive", "dop853"):
         settings.update(rtol=1e-11, atol=1e-11)
     run = simulate(settings, progress=False)
@@ -92,8 +101,7 @@ def test_user_system_follows_the_closed_form_circle(integrator):
 def test_user_system_singular_constraint_jacobian_is_reported_not_integrated():
     # θ̇ = π/2: θ reaches π/2 on the step ending at t = 1 s, where J2 = cos θ vanishes (to
     # round-off): the run stops there, says why, and keeps the good part
-    run = simulate({"system": NAME, "dt": 0.001, "t_final": 3.0, "initial": {"u3": np.pi / 2}},
-                   progress=False)
+    run = simulate({"system": NAME, "dt": 0.001, "t_final": 3.0, "initial": {"u3": np.pi / 2}}, progress=False)
     assert run.status == "singular", run.summary["message"]
     assert 0.99 <= run.summary["t_end"] <= 1.0
     assert np.all(np.isfinite(run.state["u2"]))
@@ -116,14 +124,16 @@ def test_public_simulate_is_the_function_whatever_was_imported_first():
     import subprocess
     import sys
 
-    code = ("import nmkane_core.simulate\n"
-            "from nmkane_core.simulate import kernel_for\n"
-            "from nmkane_core import simulate, simulate_many, resolve\n"
-            "import nmkane_core, sys\n"
-            "assert callable(simulate) and simulate.__name__ == 'simulate', simulate\n"
-            "assert nmkane_core.simulate is simulate\n"
-            "assert 'sympy' not in sys.modules\n"
-            "print(simulate({'system': 'sliding-particle', 't_final': 0.1}).status)\n")
+    code = (
+        "import nmkane_core.simulate\n"
+        "from nmkane_core.simulate import kernel_for\n"
+        "from nmkane_core import simulate, simulate_many, resolve\n"
+        "import nmkane_core, sys\n"
+        "assert callable(simulate) and simulate.__name__ == 'simulate', simulate\n"
+        "assert nmkane_core.simulate is simulate\n"
+        "assert 'sympy' not in sys.modules\n"
+        "print(simulate({'system': 'sliding-particle', 't_final': 0.1}).status)\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "ok"

@@ -28,17 +28,28 @@ def knife_edge_model():
     u1, u2, u3 = plain_symbols("u1 u2 u3")
     m, inertia = sp.symbols("m I", positive=True)
     return MechanicalModel(
-        q=(x, y, th), u=(u1, u2, u3), params=(m, inertia),
-        C=sp.eye(3), D=sp.zeros(3, 1), Q=sp.diag(m, m, inertia), P=sp.zeros(3, 1),
+        q=(x, y, th),
+        u=(u1, u2, u3),
+        params=(m, inertia),
+        C=sp.eye(3),
+        D=sp.zeros(3, 1),
+        Q=sp.diag(m, m, inertia),
+        P=sp.zeros(3, 1),
         nonholonomic={"no_side_slip": -sp.sin(th) * u1 + sp.cos(th) * u2},
-        u_independent=(u1, u3), energy=m / 2 * (u1**2 + u2**2) + inertia / 2 * u3**2)
+        u_independent=(u1, u3),
+        energy=m / 2 * (u1**2 + u2**2) + inertia / 2 * u3**2,
+    )
 
 
 def declare(**over) -> System:
-    kw = dict(name=NAME, variants=knife_edge_model,
-              parameters={"m": Parameter(1.0, 0.0, 1e3, "kg"), "I": Parameter(0.5, 0.0, 1e3, "kg m²")},
-              default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u3": 1.0},
-              default_dt=0.001, default_t_final=1.0)
+    kw = dict(
+        name=NAME,
+        variants=knife_edge_model,
+        parameters={"m": Parameter(1.0, 0.0, 1e3, "kg"), "I": Parameter(0.5, 0.0, 1e3, "kg m²")},
+        default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u3": 1.0},
+        default_dt=0.001,
+        default_t_final=1.0,
+    )
     kw.update(over)
     return System(**kw)
 
@@ -52,8 +63,8 @@ def _forget():
 def test_names_come_from_the_model_said_once():
     s = register(declare())
     assert s.coordinates == ("x", "y", "theta") and s.speeds == ("u1", "u2", "u3")
-    assert s.independent == ("x", "y", "theta", "u1", "u3")          # q (no holonomic) and u_I
-    assert s.variant_names == ("default",) and s.default_initial["u2"] == 0.0   # completed
+    assert s.independent == ("x", "y", "theta", "u1", "u3")  # q (no holonomic) and u_I
+    assert s.variant_names == ("default",) and s.default_initial["u2"] == 0.0  # completed
 
 
 def test_parameters_are_bound_by_name_not_by_declaration_order():
@@ -73,11 +84,16 @@ def test_parameters_may_be_keyed_by_the_models_own_symbols():
     assert simulate({"system": NAME, "t_final": 0.01}).energy[0] == pytest.approx(3.0 / 2 + 1.0 / 2)
 
 
-@pytest.mark.parametrize("params,needle", [
-    ({"m": Parameter(1.0, 0, 10)}, "declare I"),                                   # one missing
-    ({"m": Parameter(1.0, 0, 10), "I": Parameter(1.0, 0, 10), "k": Parameter(1.0, 0, 10)},
-     "remove k (no symbol of the model)"),                                        # not a symbol
-])
+@pytest.mark.parametrize(
+    "params,needle",
+    [
+        ({"m": Parameter(1.0, 0, 10)}, "declare I"),  # one missing
+        (
+            {"m": Parameter(1.0, 0, 10), "I": Parameter(1.0, 0, 10), "k": Parameter(1.0, 0, 10)},
+            "remove k (no symbol of the model)",
+        ),  # not a symbol
+    ],
+)
 def test_parameters_that_do_not_match_the_model_are_refused_at_registration(params, needle):
     with pytest.raises(InputError) as e:
         register(declare(parameters=params))
@@ -92,7 +108,7 @@ def test_a_parameter_default_outside_its_range_is_refused():
 
 def test_positional_parameter_names_of_the_old_api_get_a_message_that_says_what_to_write():
     with pytest.raises(InputError) as e:
-        Parameter("m", 1.0, 0.0, 1e3)                                     # type: ignore[arg-type]
+        Parameter("m", 1.0, 0.0, 1e3)  # type: ignore[arg-type]
     assert "Parameter(default, min, max, unit, description)" in str(e.value)
 
 
@@ -103,7 +119,7 @@ def test_an_unknown_initial_name_is_refused_at_registration_naming_default_initi
 
 
 def test_an_inconsistent_full_default_state_is_refused_at_registration():
-    full = {"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u2": 0.5, "u3": 1.0}   # slips sideways
+    full = {"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u2": 0.5, "u3": 1.0}  # slips sideways
     with pytest.raises(InputError) as e:
         register(declare(default_initial=full))
     assert e.value.field.endswith("default_initial") and "no_side_slip" in str(e.value)
@@ -138,9 +154,9 @@ def test_registering_a_name_again_replaces_it_and_warns_when_it_was_used():
     assert get_system(NAME).parameter("m").default == 4.0
     assert simulate({"system": NAME, "t_final": 0.01}).energy[0] == pytest.approx(first + 1.5)
     with pytest.warns(UserWarning):
-        register(declare())                               # replaces the used one (warns)...
+        register(declare())  # replaces the used one (warns)...
     with warnings.catch_warnings():
-        warnings.simplefilter("error")                    # ...but this one was never used: no warning
+        warnings.simplefilter("error")  # ...but this one was never used: no warning
         register(declare())
 
 

@@ -17,7 +17,7 @@ from web.worker import LatestWorker
 
 @pytest.fixture()
 def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)   # a free port
+    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)  # a free port
     yield srv
     srv.stop()
 
@@ -47,10 +47,15 @@ def test_slider_changes_resimulate_with_those_settings(app):
     app.log_dt.value = -2.5
     app.t_final.value = 12.0
     last = app.sim_log[-1]
-    assert (last["gamma"], last["gamma1"], last["gamma2"], last["model"], last["integrator"]) == \
-        (-7.5, -20.0, -100.0, "linear", "rk4")
+    assert (last["gamma"], last["gamma1"], last["gamma2"], last["model"], last["integrator"]) == (
+        -7.5,
+        -20.0,
+        -100.0,
+        "linear",
+        "rk4",
+    )
     assert last["dt"] == dt_of(-2.5) == 0.0032 and last["t_final"] == 12.0
-    run = app.traj.main                         # the trajectory shown is the one just computed
+    run = app.traj.main  # the trajectory shown is the one just computed
     assert run.settings["model"] == "linear" and run.settings["gamma"] == -7.5
     assert run.settings["gamma1"] == -20.0 and run.settings["integrator"] == "rk4"
     assert run.t[-1] == pytest.approx(12.0)
@@ -89,9 +94,11 @@ def test_scene_nodes_match_the_state_at_time_t(app):
         np.testing.assert_allclose(centre, geo.wheel_centre_world(p, th, x, y), atol=1e-3)
         # wheel orientation: axle along (−sin θ, cos θ, 0); a wheel-fixed radius turned by φ
         np.testing.assert_allclose(geo.rotate(rot, (0, 1, 0)), geo.axle_world(th), atol=2e-5)
-        np.testing.assert_allclose(geo.rotate(rot, (1, 0, 0)),
-                                   (math.cos(ph) * math.cos(th), math.cos(ph) * math.sin(th), -math.sin(ph)),
-                                   atol=2e-5)
+        np.testing.assert_allclose(
+            geo.rotate(rot, (1, 0, 0)),
+            (math.cos(ph) * math.cos(th), math.cos(ph) * math.sin(th), -math.sin(ph)),
+            atol=2e-5,
+        )
         # the load P at (x, y, z), the thread's hanging run ends on it
         load, _ = _world([body.node, body.load])
         np.testing.assert_allclose(load, (x, y, z), atol=1e-3)
@@ -111,7 +118,7 @@ def test_wheel_rolls_without_slipping_in_the_scene(app):
     th = run.state["theta"][k0]
     step = positions[1] - positions[0]
     assert np.linalg.norm(step) == pytest.approx(abs(a * dphi), rel=2e-2)
-    assert abs(np.dot(step / np.linalg.norm(step), geo.axle_world(th))) < 2e-2      # no side slip
+    assert abs(np.dot(step / np.linalg.norm(step), geo.axle_world(th))) < 2e-2  # no side slip
 
 
 def test_fig7_trace_is_the_load_path_on_the_plane(app):
@@ -125,17 +132,17 @@ def test_fig7_trace_is_the_load_path_on_the_plane(app):
 def test_load_falls_below_the_plane_and_the_bar_reaches_it(app):
     app.t_final.value = 40.0
     z_min = float(app.traj.main.state["z"].min())
-    assert z_min < -50                                     # the paper's model: no floor
+    assert z_min < -50  # the paper's model: no floor
     bar = app.scene.get_handle_by_name("/mechanism/body/frame/bar")
     bottom = bar.position[2] - bar.dimensions[2] / 2
     assert bottom < z_min - geo.LOAD_RADIUS
 
 
 def test_singular_start_shows_status_and_a_moving_scene(app):
-    app.phi_dot0.value = 0.0            # the nonlinear model's J2 is singular at φ̇ = 0
+    app.phi_dot0.value = 0.0  # the nonlinear model's J2 is singular at φ̇ = 0
     run = app.traj.main
     assert run.t[-1] > 0
-    assert "nonlinear → linear" in app.status.content    # the library's switch is reported
+    assert "nonlinear → linear" in app.status.content  # the library's switch is reported
     app.phi_dot0.value = 1.0
     app.model.value = "nonlinear"
     app.phi_dot0.value = 0.0
@@ -144,7 +151,7 @@ def test_singular_start_shows_status_and_a_moving_scene(app):
 
 def test_unstable_gain_result_is_reported_in_the_panel(app):
     app.log_dt.value = math.log10(0.2)
-    app.gamma.value = 10.0               # positive Γ: unstable constraint error dynamics
+    app.gamma.value = 10.0  # positive Γ: unstable constraint error dynamics
     run = app.traj.main
     assert run.settings["gamma"] == 10.0
     assert run.summary["status"] in app.status.content and "not stable" in app.status.content
@@ -158,8 +165,9 @@ def test_compare_ghost_animates_the_other_model(app):
     app.seek(5.0)
     other = app.traj.runs["linear"]
     k = geo.index_at(other.t, 5.0)
-    np.testing.assert_allclose(app.mechanism.ghost.node.position, (other.state["x"][k], other.state["y"][k], 0),
-                               atol=1e-4)
+    np.testing.assert_allclose(
+        app.mechanism.ghost.node.position, (other.state["x"][k], other.state["y"][k], 0), atol=1e-4
+    )
     assert "linear" in app.summary.content and "rolling_x" in app.summary.content
     app.compare.value = False
     assert not app.mechanism.ghost.node.visible
@@ -172,8 +180,8 @@ def test_plots_show_the_run_with_a_current_time_marker(app):
             continue
         t, *ys = h.data
         assert len(t) <= pl.MAX_POINTS and t[0] == 0.0 and t[-1] == pytest.approx(app.traj.t_end)
-        assert all(np.all(np.isfinite(y)) for y in ys)       # never NaN (uPlot drops the curve)
-        marker = h.axes[2]                                   # the hidden top axis' grid line
+        assert all(np.all(np.isfinite(y)) for y in ys)  # never NaN (uPlot drops the curve)
+        marker = h.axes[2]  # the hidden top axis' grid line
         assert marker["splits"] == (7.5,) and marker["grid"]["show"]
     theta = app.plot_handles[("ah", "theta")].data[1]
     assert theta.min() == pytest.approx(app.traj.main.state["theta"].min(), abs=1e-9)
@@ -188,11 +196,11 @@ def test_playback_advances_time_and_pause_holds_it(app):
     app.speed.value = 4.0
     app.tick(0.25, refresh=True)
     assert app.t_now == pytest.approx(2.5) and app.time.value == pytest.approx(2.5)
-    app.play.value = True                 # the button: pause
+    app.play.value = True  # the button: pause
     assert not app.playing and "Play" in app.play.label
     app.tick(1.0, refresh=True)
     assert app.t_now == pytest.approx(2.5)
-    app.time.value = 4.0                  # the scrubber seeks
+    app.time.value = 4.0  # the scrubber seeks
     assert app.t_now == pytest.approx(4.0)
 
 
@@ -216,7 +224,7 @@ def test_particle_scene_shows_minimal_undamped_and_damped_side_by_side(app):
     app.pt_gamma1.value = -10.0
     assert app.traj.runs["DN"].settings["gamma1"] == -10.0
     app.seek(120.0)
-    for ball, lab in zip(app.particle.balls, ("M", "N", "DN")):
+    for ball, lab in zip(app.particle.balls, ("M", "N", "DN"), strict=True):
         run = app.traj.runs[lab]
         k = geo.index_at(run.t, 120.0)
         np.testing.assert_allclose(ball.position, (run.state["x"][k], 0.0, -run.state["y"][k]), atol=1e-6)
@@ -226,10 +234,10 @@ def test_particle_scene_shows_minimal_undamped_and_damped_side_by_side(app):
 
 
 def test_background_worker_latest_wins_and_is_fast(server):
-    a = MechanismApp(server)                       # the real, threaded path
+    a = MechanismApp(server)  # the real, threaded path
     try:
         assert a.wait_idle(60)
-        for g in np.arange(-1.0, -11.0, -0.5):      # a drag: 20 events
+        for g in np.arange(-1.0, -11.0, -0.5):  # a drag: 20 events
             a.gamma.value = float(g)
         assert a.wait_idle(30)
         assert a.traj.main.settings["gamma"] == -10.5
@@ -241,7 +249,7 @@ def test_background_worker_latest_wins_and_is_fast(server):
             assert a.traj.main.settings["gamma"] == g
             lat.append(a.latencies[-1])
         print(f"control change -> new trajectory installed: median {np.median(lat) * 1e3:.0f} ms")
-        assert np.median(lat) < 0.25                 # target 0.1 s; measured ~20 ms here
+        assert np.median(lat) < 0.25  # target 0.1 s; measured ~20 ms here
     finally:
         a.close()
 
@@ -259,7 +267,7 @@ def test_latest_worker_coalesces_bursts():
 def test_envelope_decimation_keeps_extremes():
     t = np.linspace(0, 10, 100_001)
     y = np.sin(t)
-    y[54_321] = 50.0                       # a one-sample spike survives thinning
+    y[54_321] = 50.0  # a one-sample spike survives thinning
     td, (yd,) = pl.envelope(t, [y], 1000)
     assert len(td) <= 1000 and yd.max() == 50.0 and yd.min() == pytest.approx(-1.0, abs=1e-6)
     assert np.all(np.diff(td) >= 0)
@@ -269,7 +277,7 @@ def test_matrices_panel_draws_the_derived_matrices():
     panel = mx.panel("sliding-particle", "nonminimal")
     assert set(panel.images) == {"A1", "A2", "T"}
     for img in panel.images.values():
-        assert img.dtype == np.uint8 and img.shape[2] == 4 and img[..., :3].min() < 100   # ink on white
+        assert img.dtype == np.uint8 and img.shape[2] == 4 and img[..., :3].min() < 100  # ink on white
     assert "x" in panel.latex["T"] and "l_{0}" in panel.latex["T"]
 
 
@@ -278,7 +286,7 @@ def test_launch_serves_and_stops():
     try:
         assert handle.port > 0
         time.sleep(1.0)
-        assert handle.fps() > 20          # the animation thread runs (40 frames/s nominal)
+        assert handle.fps() > 20  # the animation thread runs (40 frames/s nominal)
         import urllib.request
 
         html = urllib.request.urlopen(f"http://127.0.0.1:{handle.port}/", timeout=10).read()

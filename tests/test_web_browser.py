@@ -18,8 +18,9 @@ CHROMIUM = chromium_path()
 if CHROMIUM is None:
     if IN_CI:
         raise RuntimeError("CI=true but Chromium is not installed: .ci/run must `apt-get install -y chromium`")
-    pytest.skip("headless Chromium not installed (apt-get install chromium) — browser test skipped",
-                allow_module_level=True)
+    pytest.skip(
+        "headless Chromium not installed (apt-get install chromium) — browser test skipped", allow_module_level=True
+    )
 try:
     from playwright.sync_api import sync_playwright
 except ImportError:
@@ -27,7 +28,7 @@ except ImportError:
         raise
     pytest.skip("playwright not installed (pip install playwright) — browser test skipped", allow_module_level=True)
 
-from web.app import launch  # noqa: E402
+from web.app import launch
 
 pytestmark = pytest.mark.browser
 
@@ -53,8 +54,10 @@ def _png(data: bytes) -> np.ndarray:
     return imread(io.BytesIO(data), format="png")[..., :3]
 
 
-BODY_POSITION = "(() => { const n = window.__viserMutable.nodeRefFromName['/mechanism/body']; " \
-                "return n ? n.position.toArray() : null })()"
+BODY_POSITION = (
+    "(() => { const n = window.__viserMutable.nodeRefFromName['/mechanism/body']; "
+    "return n ? n.position.toArray() : null })()"
+)
 
 
 def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser):
@@ -65,11 +68,31 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
 
     # the controls are there
     text = page.inner_text("body")
-    for label in ("Scene", "Pause", "Speed ×", "Time t [s]", "Camera follows", "Constraint model", "Integrator",
-                  "Γ (nonholonomic)", "Γ1 (holonomic)", "Γ2 (holonomic)", "log₁₀ Δt [s]", "Final time [s]",
-                  "θ̇0 [rad/s]", "φ̇0 [rad/s]", "Compare: ghost of the other model", "Physical parameters",
-                  "Reset to the paper's values", "Energy drift ΔE(t)", "log₁₀ |constraint violation|", "θ(t)",
-                  "φ̇(t)", "Derived matrices", "max |ΔE|"):
+    for label in (
+        "Scene",
+        "Pause",
+        "Speed ×",
+        "Time t [s]",
+        "Camera follows",
+        "Constraint model",
+        "Integrator",
+        "Γ (nonholonomic)",
+        "Γ1 (holonomic)",
+        "Γ2 (holonomic)",
+        "log₁₀ Δt [s]",
+        "Final time [s]",
+        "θ̇0 [rad/s]",
+        "φ̇0 [rad/s]",
+        "Compare: ghost of the other model",
+        "Physical parameters",
+        "Reset to the paper's values",
+        "Energy drift ΔE(t)",
+        "log₁₀ |constraint violation|",
+        "θ(t)",
+        "φ̇(t)",
+        "Derived matrices",
+        "max |ΔE|",
+    ):
         assert label in text, label
 
     # the mechanism moves in the page (three.js node poses) and the 3D canvas is not blank
@@ -79,7 +102,7 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     assert p0 is not None and p0 != p1, "the scene does not animate"
     close_toasts(page)
     shot = _png(page.locator("canvas").first.screenshot())
-    scene = shot[:, : int(shot.shape[1] * 0.68)]                  # left of the control panel
+    scene = shot[:, : int(shot.shape[1] * 0.68)]  # left of the control panel
     assert scene.std() > 0.03, "the 3D canvas looks blank"
     reddish = (scene[..., 0] > 0.6) & (scene[..., 1] < 0.35) & (scene[..., 2] < 0.35)
     assert reddish.sum() > 50, "the Fig. 7 trace is not drawn"
@@ -95,7 +118,7 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     while session.playing and time.time() < deadline:
         time.sleep(0.05)
     assert not session.playing
-    time.sleep(0.6)                                               # let the last marker refresh land
+    time.sleep(0.6)  # let the last marker refresh land
     plot = page.locator(".uplot").filter(has_text="θ(t)").first
     before = _png(plot.screenshot())
     n = session._installs
@@ -105,8 +128,10 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     box.press("Enter")
     page.wait_for_function(f"() => document.body.innerText.includes('update {n + 1} (')", timeout=15000)
     latency = time.perf_counter() - t0
-    print(f"θ̇0 entered in the page -> new run's status in the page: {latency * 1e3:.0f} ms "
-          f"(server: control change -> installed {session.latencies[-1] * 1e3:.0f} ms)")
+    print(
+        f"θ̇0 entered in the page -> new run's status in the page: {latency * 1e3:.0f} ms "
+        f"(server: control change -> installed {session.latencies[-1] * 1e3:.0f} ms)"
+    )
     assert session.traj.main.settings["initial"]["u1"] == 0.4
     assert session.traj.main.state["u1"][0] == 0.4
     assert latency < 2.0
@@ -116,8 +141,9 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
 
     # the derived matrices panel shows images
     page.get_by_text("Derived matrices", exact=True).click()
-    page.wait_for_function("() => Array.from(document.querySelectorAll('img')).some(i => i.naturalWidth > 100)",
-                           timeout=60000)
+    page.wait_for_function(
+        "() => Array.from(document.querySelectorAll('img')).some(i => i.naturalWidth > 100)", timeout=60000
+    )
 
     # a second browser gets its own session: the first one's settings do not leak into it
     page2 = open_page(browser, app.url)

@@ -64,8 +64,9 @@ def test_each_catalogue_system_runs_and_its_scene_follows_the_state(app, name):
     t = 0.37 * app.traj.t_end
     app.seek(t)
     k = int(np.searchsorted(run.t, t, side="right")) - 1
-    frames, _ = compile_visuals(get_system(name)).frame_poses({n: v[k:k + 1] for n, v in run.state.items()},
-                                                            app.traj.params)
+    frames, _ = compile_visuals(get_system(name)).frame_poses(
+        {n: v[k : k + 1] for n, v in run.state.items()}, app.traj.params
+    )
     for fname, (pos, _rot) in frames.items():
         np.testing.assert_allclose(view.declared.frames[fname].position, pos[0], atol=1e-9)
     # the plots show this run: energy drift, one violation curve per constraint, a coordinate
@@ -77,16 +78,16 @@ def test_each_catalogue_system_runs_and_its_scene_follows_the_state(app, name):
 def test_controls_come_from_the_declaration(app):
     choose(app, "knife-edge")
     fields = {c.field for c in app.sim_controls[app.kind]}
-    assert "gamma" in fields and "gamma1" not in fields and "gamma2" not in fields   # nonholonomic only
+    assert "gamma" in fields and "gamma1" not in fields and "gamma2" not in fields  # nonholonomic only
     assert {"initial.x", "initial.y", "initial.theta", "initial.u1", "initial.u3"} <= fields
-    assert "initial.u2" not in fields                                                  # dependent speed
+    assert "initial.u2" not in fields  # dependent speed
     assert {"integrator", "projection", "log_dt", "t_final", "option.plot"} <= fields
     # a parameter spanning decades gets a log slider, and its value reaches the run
     h = handle(app, "logparams.m")
     h.value = math.log10(4.0)
     assert app.traj.request["settings"]["params"]["m"] == pytest.approx(4.0)
     assert app.traj.main.settings["params"]["m"] == pytest.approx(4.0)
-    handle(app, "initial.u3").value = 0.0          # no turning: a straight line
+    handle(app, "initial.u3").value = 0.0  # no turning: a straight line
     y = app.traj.main.state["y"]
     assert np.max(np.abs(y)) < 1e-12
     handle(app, "option.plot").value = "u1"
@@ -110,9 +111,9 @@ def test_a_plugged_in_system_gets_the_generic_page(server):
         run = a.traj.main
         assert run.system == "isokinetic-bowl" and run.summary["status"] == "ok"
         fields = {c.field for c in a.sim_controls[a.kind]}
-        assert {"gamma", "gamma1", "gamma2"} <= fields           # both kinds of constraints
+        assert {"gamma", "gamma1", "gamma2"} <= fields  # both kinds of constraints
         d = a.system_view.declared
-        assert d.compiled is None                                # no visuals declared: a point and its trace
+        assert d.compiled is None  # no visuals declared: a point and its trace
         a.set_playing(False)
         a.seek(1.0)
         k = int(np.searchsorted(run.t, 1.0, side="right")) - 1
@@ -125,13 +126,14 @@ def test_scene_option_opens_on_a_system_and_an_unknown_one_is_refused(server):
     a = MechanismApp(server, sync=True, scene="rolling-disk")
     try:
         assert a.kind == "gen:rolling-disk" and a.traj.kind == a.kind
-        assert len(a.sim_log) == 1                    # one run: no detour through the first scene
+        assert len(a.sim_log) == 1  # one run: no detour through the first scene
     finally:
         a.close()
     from web.server import launch, launch_app
+
     with pytest.raises(InputError, match="scene"):
         launch(port=0, scene="no-such-system")
-    handle = launch_app("127.0.0.1", 0, scene="knife-edge")     # what `nmkane serve --scene` passes
+    handle = launch_app("127.0.0.1", 0, scene="knife-edge")  # what `nmkane serve --scene` passes
     try:
         assert handle.scene == "knife-edge"
     finally:
@@ -141,10 +143,10 @@ def test_scene_option_opens_on_a_system_and_an_unknown_one_is_refused(server):
 def test_performance_switch_and_slider_to_new_motion(app):
     """Targets: switching to a system ≤ 1 s (kernels cached); a slider change to the new motion
     ≤ 100 ms on the server.  Best of three, so a moment of load on a shared machine does not fail it."""
-    for name in CATALOGUE:                          # kernels, loops and visuals loaded once (the server warms them)
+    for name in CATALOGUE:  # kernels, loops and visuals loaded once (the server warms them)
         choose(app, name)
     other = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    fresh = MechanismApp(other, sync=True)          # a new browser: each system's page is built on first choice
+    fresh = MechanismApp(other, sync=True)  # a new browser: each system's page is built on first choice
     try:
         for name in CATALOGUE:
             t0 = time.perf_counter()

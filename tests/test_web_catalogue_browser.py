@@ -24,13 +24,13 @@ except ImportError:
         raise
     pytest.skip("playwright not installed — browser test skipped", allow_module_level=True)
 
-from nmkane_core.plugins import load_systems  # noqa: E402
-from web.app import launch  # noqa: E402
+from nmkane_core.plugins import load_systems
+from web.app import launch
 
 pytestmark = pytest.mark.browser
 SYSTEMS = ("knife-edge", "chaplygin-sleigh", "rolling-disk", "odometer-puck", "isokinetic-bowl")
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "isokinetic_bowl.py"
-SHOTS = os.environ.get("NMKANE_SHOTS")        # a folder: keep the screenshots to look at
+SHOTS = os.environ.get("NMKANE_SHOTS")  # a folder: keep the screenshots to look at
 
 
 def _png(data: bytes) -> np.ndarray:
@@ -57,9 +57,9 @@ def test_each_system_is_drawn_and_recognizably_different(tmp_path):
                     page.wait_for_function(f"() => document.body.innerText.includes({session.system_view.folder!r})")
                     session.set_playing(False)
                     session.seek(1.0)
-                    time.sleep(2.0)                      # the camera and the nodes arrive
+                    time.sleep(2.0)  # the camera and the nodes arrive
                     close_toasts(page)
-                    cam = session.client.camera          # the browser shows the framing we sent
+                    cam = session.client.camera  # the browser shows the framing we sent
                     view = session.system_view
                     want = view.camera_target(None, "") + session.camera.offset
                     np.testing.assert_allclose(cam.position, want, atol=1e-3 * (1 + np.linalg.norm(want)))
@@ -69,7 +69,7 @@ def test_each_system_is_drawn_and_recognizably_different(tmp_path):
                         Path(SHOTS, f"{name}.png").write_bytes(data)
                     text = page.inner_text("body")
                     assert "Energy drift" in text and "Fit view" in text
-                    shots[name] = _png(data)[:, :650]     # the 3D view left of the control panel
+                    shots[name] = _png(data)[:, :650]  # the 3D view left of the control panel
                     page.close()
             finally:
                 browser.close()
@@ -82,6 +82,6 @@ def test_each_system_is_drawn_and_recognizably_different(tmp_path):
         assert colored.mean() > 0.002, f"{name}: nothing but the grey ground plane is visible"
     names = list(shots)
     for i, a in enumerate(names):
-        for b in names[i + 1:]:
+        for b in names[i + 1 :]:
             diff = np.abs(shots[a] - shots[b]).mean()
             assert diff > 0.01, f"{a} and {b} look the same ({diff:.4f})"

@@ -24,15 +24,26 @@ class RawClient:
     def __init__(self, port: int):
         self.ws = connect(f"ws://127.0.0.1:{port}", subprotocols=[f"viser-v{viser.__version__}"], max_size=None)
         threading.Thread(target=self._drain, daemon=True).start()
-        self.send({"type": "ViewerCameraMessage", "wxyz": (1.0, 0.0, 0.0, 0.0), "position": (-20.0, 35.0, 20.0),
-                   "fov": 1.0, "near": 0.01, "far": 1000.0, "image_height": 900, "image_width": 1400,
-                   "look_at": (0.0, 0.0, 5.0), "up_direction": (0.0, 0.0, 1.0)})   # viser: now connected
+        self.send(
+            {
+                "type": "ViewerCameraMessage",
+                "wxyz": (1.0, 0.0, 0.0, 0.0),
+                "position": (-20.0, 35.0, 20.0),
+                "fov": 1.0,
+                "near": 0.01,
+                "far": 1000.0,
+                "image_height": 900,
+                "image_width": 1400,
+                "look_at": (0.0, 0.0, 5.0),
+                "up_direction": (0.0, 0.0, 1.0),
+            }
+        )  # viser: now connected
 
     def _drain(self) -> None:
         try:
             while True:
                 self.ws.recv()
-        except (ConnectionClosed, OSError):        # closed by the test or the server
+        except (ConnectionClosed, OSError):  # closed by the test or the server
             pass
 
     def send(self, msg: dict) -> None:
@@ -69,20 +80,24 @@ def test_non_finite_or_out_of_range_slider_values_are_refused(served):
     _, client, s = served
     runs = len(s.sim_log)
     log_dt, gamma = s.log_dt.value, s.gamma.value
-    for handle, bad, good in ((s.log_dt, math.nan, log_dt), (s.log_dt, math.inf, log_dt),
-                              (s.gamma, -math.inf, gamma), (s.gamma, 1e6, gamma)):
+    for handle, bad, good in (
+        (s.log_dt, math.nan, log_dt),
+        (s.log_dt, math.inf, log_dt),
+        (s.gamma, -math.inf, gamma),
+        (s.gamma, 1e6, gamma),
+    ):
         client.set_value(handle, bad)
-        assert _until(lambda b=bad: repr(b) in s.status.content), s.status.content   # not a stale panel
+        assert _until(lambda b=bad: repr(b) in s.status.content), s.status.content  # not a stale panel
         assert "input refused" in s.status.content and handle.label in s.status.content
-        assert _until(lambda h=handle, g=good: h.value == g)                       # back to the last good value
-    assert s.wait_idle(10) and len(s.sim_log) == runs                             # no run with a bad value
+        assert _until(lambda h=handle, g=good: h.value == g)  # back to the last good value
+    assert s.wait_idle(10) and len(s.sim_log) == runs  # no run with a bad value
 
-    client.set_value(s.speed, math.nan)                                           # playback sliders too
+    client.set_value(s.speed, math.nan)  # playback sliders too
     assert _until(lambda: s.speed.value == 1.0 and "Speed" in s.status.content)
     s.tick(0.1, refresh=True)
     assert math.isfinite(s.t_now)
 
-    client.set_value(s.log_dt, -2.5)                                              # a good value still runs
+    client.set_value(s.log_dt, -2.5)  # a good value still runs
     assert _until(lambda: "Δt = 0.0032 s · update" in s.status.content, 30), s.status.content
     assert s.traj.main.settings["dt"] == dt_of(-2.5) == 0.0032
 
@@ -99,7 +114,7 @@ class SlowDisconnect(WebApp):
 def test_nothing_is_sent_to_a_browser_that_left_mid_run():
     app = None
 
-    def late(settings, **kw):                      # a run that ends after the browser left
+    def late(settings, **kw):  # a run that ends after the browser left
         run = core_simulate(settings, **kw)
         if settings.get("gamma") == -2.0:
             _until(lambda: not app.server.get_clients(), 10)
@@ -117,10 +132,10 @@ def test_nothing_is_sent_to_a_browser_that_left_mid_run():
             client.close()
             assert _until(lambda: not app.sessions, 10)
             assert session.wait_idle(10)
-            time.sleep(0.5)                        # frames go on
+            time.sleep(0.5)  # frames go on
         closed = [str(w.message) for w in caught if "closed connection" in str(w.message)]
         assert not closed, closed
-        assert session.traj.main.settings["gamma"] == 0.0      # the late run was not installed
+        assert session.traj.main.settings["gamma"] == 0.0  # the late run was not installed
     finally:
         app.stop()
 
@@ -128,7 +143,7 @@ def test_nothing_is_sent_to_a_browser_that_left_mid_run():
 def test_launch_app_is_the_composition_points_entry():
     from web.app import launch_app
 
-    handle = launch_app("127.0.0.1", 0, title="ignored", reload=True)   # unknown options are ignored
+    handle = launch_app("127.0.0.1", 0, title="ignored", reload=True)  # unknown options are ignored
     try:
         assert handle.port > 0
         import urllib.request

@@ -23,7 +23,7 @@ from nmkane_core import accelerations, get_system, linearize, simulate
 from nmkane_core.initial import initial_state
 
 NAME = "whipple-bicycle"
-KEEP = ("q4", "q7", "u4", "u7")                     # roll, steer and their rates
+KEEP = ("q4", "q7", "u4", "u7")  # roll, steer and their rates
 LAM = math.pi / 10
 RR = 0.3
 
@@ -36,40 +36,105 @@ K2 = np.array([[0.0, 76.59734589573222], [0.0, 2.65431523794604]])
 # Meijaard et al. (2007) Table 2: eigenvalues of the benchmark bicycle at speeds v [m/s]
 EIGENVALUES = {
     0: [3.13164324790656, -3.13164324790656, 5.53094371765393, -5.53094371765393],
-    1: [-3.13423125066578, complex(3.52696170990070, 0.80774027519930),
-        complex(3.52696170990070, -0.80774027519930), -7.11008014637442],
-    2: [-3.07158645641514, complex(2.68234517512745, 1.68066296590675),
-        complex(2.68234517512745, -1.68066296590675), -8.67387984831735],
-    3: [-2.63366137253667, complex(1.70675605663975, 2.31582447384325),
-        complex(1.70675605663975, -2.31582447384325), -10.35101467245920],
-    4: [-1.42944427361326, complex(0.41325331521125, 3.07910818603206),
-        complex(0.41325331521125, -3.07910818603206), -12.15861426576450],
-    5: [-0.32286642900409, complex(-0.77534188219585, 4.46486771378823),
-        complex(-0.77534188219585, -4.46486771378823), -14.07838969279820],
-    6: [-0.00406690076970, complex(-1.52644486584142, 5.87673060598709),
-        complex(-1.52644486584142, -5.87673060598709), -16.08537123098030],
-    7: [0.10268170574766, complex(-2.13875644258362, 7.19525913329805),
-        complex(-2.13875644258362, -7.19525913329805), -18.15788466125262],
-    8: [0.14327879765713, complex(-2.69348683581097, 8.46037971396931),
-        complex(-2.69348683581097, -8.46037971396931), -20.27940894394569],
-    9: [0.15790184030917, complex(-3.21675402252485, 9.69377351531791),
-        complex(-3.21675402252485, -9.69377351531791), -22.43788559040858],
-    10: [0.16105338653172, complex(-3.72016840437287, 10.90681139476287),
-         complex(-3.72016840437287, -10.90681139476287), -24.62459635017404],
+    1: [
+        -3.13423125066578,
+        complex(3.52696170990070, 0.80774027519930),
+        complex(3.52696170990070, -0.80774027519930),
+        -7.11008014637442,
+    ],
+    2: [
+        -3.07158645641514,
+        complex(2.68234517512745, 1.68066296590675),
+        complex(2.68234517512745, -1.68066296590675),
+        -8.67387984831735,
+    ],
+    3: [
+        -2.63366137253667,
+        complex(1.70675605663975, 2.31582447384325),
+        complex(1.70675605663975, -2.31582447384325),
+        -10.35101467245920,
+    ],
+    4: [
+        -1.42944427361326,
+        complex(0.41325331521125, 3.07910818603206),
+        complex(0.41325331521125, -3.07910818603206),
+        -12.15861426576450,
+    ],
+    5: [
+        -0.32286642900409,
+        complex(-0.77534188219585, 4.46486771378823),
+        complex(-0.77534188219585, -4.46486771378823),
+        -14.07838969279820,
+    ],
+    6: [
+        -0.00406690076970,
+        complex(-1.52644486584142, 5.87673060598709),
+        complex(-1.52644486584142, -5.87673060598709),
+        -16.08537123098030,
+    ],
+    7: [
+        0.10268170574766,
+        complex(-2.13875644258362, 7.19525913329805),
+        complex(-2.13875644258362, -7.19525913329805),
+        -18.15788466125262,
+    ],
+    8: [
+        0.14327879765713,
+        complex(-2.69348683581097, 8.46037971396931),
+        complex(-2.69348683581097, -8.46037971396931),
+        -20.27940894394569,
+    ],
+    9: [
+        0.15790184030917,
+        complex(-3.21675402252485, 9.69377351531791),
+        complex(-3.21675402252485, -9.69377351531791),
+        -22.43788559040858,
+    ],
+    10: [
+        0.16105338653172,
+        complex(-3.72016840437287, 10.90681139476287),
+        complex(-3.72016840437287, -10.90681139476287),
+        -24.62459635017404,
+    ],
 }
-WEAVE_SPEED = 4.29238253634111                      # Meijaard et al. (2007) §5
+WEAVE_SPEED = 4.29238253634111  # Meijaard et al. (2007) §5
 CAPSIZE_SPEED = 6.02426201538837
 
 # Basu-Mandal et al. (2007) Table 1, in their coordinates: rear wheel centre (x, y, z), yaw θ,
 # lean ψ (from horizontal), pitch φ, steer ψf, wheel rotations βr, βf; rates; accelerations
-BM_STATE = {"x": 0.0, "y": 0.0, "z": 0.2440472102925, "th": 0.0, "psi": 0.9501292851472, "phi": 3.1257073014894,
-                "psf": 0.2311385135743, "br": 0.0, "bf": 0.0}
-BM_RATES = {"x": -2.8069345714545, "y": -0.1480982396001, "z": 0.1058778746261, "th": 0.7830033527065,
-                "psi": 0.6068425835418, "phi": -0.0119185528069, "psf": 0.4859824687093, "br": 8.9129896614890,
-                "bf": 8.0133620584155}
-BM_ACC = {"x": -0.5041626315047, "y": -0.3449706619454, "z": -1.4604528332980, "th": 0.8353281706379,
-              "psi": -7.8555281128244, "phi": 0.1205543897884, "psf": -4.6198904039403, "br": 1.8472554144217,
-              "bf": 2.4548072904550}
+BM_STATE = {
+    "x": 0.0,
+    "y": 0.0,
+    "z": 0.2440472102925,
+    "th": 0.0,
+    "psi": 0.9501292851472,
+    "phi": 3.1257073014894,
+    "psf": 0.2311385135743,
+    "br": 0.0,
+    "bf": 0.0,
+}
+BM_RATES = {
+    "x": -2.8069345714545,
+    "y": -0.1480982396001,
+    "z": 0.1058778746261,
+    "th": 0.7830033527065,
+    "psi": 0.6068425835418,
+    "phi": -0.0119185528069,
+    "psf": 0.4859824687093,
+    "br": 8.9129896614890,
+    "bf": 8.0133620584155,
+}
+BM_ACC = {
+    "x": -0.5041626315047,
+    "y": -0.3449706619454,
+    "z": -1.4604528332980,
+    "th": 0.8353281706379,
+    "psi": -7.8555281128244,
+    "phi": 0.1205543897884,
+    "psf": -4.6198904039403,
+    "br": 1.8472554144217,
+    "bf": 2.4548072904550,
+}
 
 
 def _basu_mandal_in_moore():
@@ -79,22 +144,47 @@ def _basu_mandal_in_moore():
     s, r, a = BM_STATE, BM_RATES, BM_ACC
     st, ct, sp, cp = math.sin(s["th"]), math.cos(s["th"]), math.sin(s["psi"]), math.cos(s["psi"])
     td, pd, tdd, pdd = r["th"], r["psi"], a["th"], a["psi"]
-    q = {"q1": -RR * st * cp - s["x"], "q2": s["y"] - RR * ct * cp, "q3": -s["th"], "q4": math.pi / 2 - s["psi"],
-             "q5": math.pi - s["phi"] + LAM, "q6": -s["br"], "q7": -s["psf"], "q8": -s["bf"]}
-    u = {"u1": RR * pd * st * sp - RR * td * ct * cp - r["x"], "u2": r["y"] + RR * td * st * cp + RR * pd * ct * sp,
-             "u3": -td, "u4": -pd, "u5": -r["phi"], "u6": -r["br"], "u7": -r["psf"], "u8": -r["bf"]}
-    ud = {"u1": RR * (pdd * st * sp + pd * td * ct * sp + pd * pd * st * cp)
-              - RR * (tdd * ct * cp - td * td * st * cp - td * pd * ct * sp) - a["x"],
-              "u2": a["y"] + RR * (tdd * st * cp + td * td * ct * cp - td * pd * st * sp)
-              + RR * (pdd * ct * sp - pd * td * st * sp + pd * pd * ct * cp),
-              "u3": -tdd, "u4": -pdd, "u5": -a["phi"], "u6": -a["br"], "u7": -a["psf"], "u8": -a["bf"]}
+    q = {
+        "q1": -RR * st * cp - s["x"],
+        "q2": s["y"] - RR * ct * cp,
+        "q3": -s["th"],
+        "q4": math.pi / 2 - s["psi"],
+        "q5": math.pi - s["phi"] + LAM,
+        "q6": -s["br"],
+        "q7": -s["psf"],
+        "q8": -s["bf"],
+    }
+    u = {
+        "u1": RR * pd * st * sp - RR * td * ct * cp - r["x"],
+        "u2": r["y"] + RR * td * st * cp + RR * pd * ct * sp,
+        "u3": -td,
+        "u4": -pd,
+        "u5": -r["phi"],
+        "u6": -r["br"],
+        "u7": -r["psf"],
+        "u8": -r["bf"],
+    }
+    ud = {
+        "u1": RR * (pdd * st * sp + pd * td * ct * sp + pd * pd * st * cp)
+        - RR * (tdd * ct * cp - td * td * st * cp - td * pd * ct * sp)
+        - a["x"],
+        "u2": a["y"]
+        + RR * (tdd * st * cp + td * td * ct * cp - td * pd * st * sp)
+        + RR * (pdd * ct * sp - pd * td * st * sp + pd * pd * ct * cp),
+        "u3": -tdd,
+        "u4": -pdd,
+        "u5": -a["phi"],
+        "u6": -a["br"],
+        "u7": -a["psf"],
+        "u8": -a["bf"],
+    }
     return q, u, ud
 
 
 @pytest.fixture(scope="module")
 def bicycle():
     s = get_system(NAME)
-    s.kernel()                                       # derive and compile once (cached on disk)
+    s.kernel()  # derive and compile once (cached on disk)
     return s
 
 
@@ -116,8 +206,13 @@ def test_declaration(bicycle):
     assert bicycle.coordinates == tuple(f"q{i}" for i in range(1, 9))
     assert bicycle.speeds == tuple(f"u{i}" for i in range(1, 9))
     assert set(bicycle.independent) == {"q1", "q2", "q3", "q4", "q6", "q7", "q8", "u4", "u6", "u7"}
-    assert bicycle.constraint_names() == ("rear_longitudinal", "rear_lateral", "front_longitudinal",
-                                          "front_lateral", "front_contact")
+    assert bicycle.constraint_names() == (
+        "rear_longitudinal",
+        "rear_lateral",
+        "front_longitudinal",
+        "front_lateral",
+        "front_contact",
+    )
     assert bicycle.parameter("lam").default == pytest.approx(LAM)
 
 
@@ -126,7 +221,7 @@ def test_default_state_is_upright_straight_running_at_5_m_per_s(bicycle):
     assert st == pytest.approx(bicycle.default_initial, abs=1e-12)
     assert st["q5"] == pytest.approx(LAM, abs=1e-13) and st["u1"] == pytest.approx(5.0, rel=1e-13)
     assert st["u8"] == pytest.approx(-5.0 / 0.35, rel=1e-13)
-    assert all(abs(a) < 1e-12 for a in accelerations(NAME, st).values())     # a steady motion
+    assert all(abs(a) < 1e-12 for a in accelerations(NAME, st).values())  # a steady motion
 
 
 @pytest.mark.parametrize("v", [0.0, 3.0, 5.0, 8.0])
@@ -148,10 +243,10 @@ def test_eigenvalues_match_meijaard_table_2(bicycle, v):
 def test_weave_and_capsize_speeds_by_root_finding(bicycle):
     from scipy.optimize import brentq
 
-    def weave_real(v):            # real part of the oscillatory pair
+    def weave_real(v):  # real part of the oscillatory pair
         return max(z.real for z in _eigenvalues(v) if abs(z.imag) > 1e-6)
 
-    def capsize(v):               # the real eigenvalue nearest zero
+    def capsize(v):  # the real eigenvalue nearest zero
         return min((z.real for z in _eigenvalues(v) if abs(z.imag) < 1e-9), key=abs)
 
     vw = brentq(weave_real, 4.0, 4.6, xtol=1e-13, rtol=1e-14)
@@ -159,7 +254,7 @@ def test_weave_and_capsize_speeds_by_root_finding(bicycle):
     assert vw == pytest.approx(WEAVE_SPEED, rel=1e-8)
     assert vc == pytest.approx(CAPSIZE_SPEED, rel=1e-8)
     weave_pair = [z for z in _eigenvalues(vw) if abs(z.imag) > 1e-6]
-    assert abs(weave_pair[0].imag) == pytest.approx(3.43503384866144, rel=1e-8)   # Meijaard §5
+    assert abs(weave_pair[0].imag) == pytest.approx(3.43503384866144, rel=1e-8)  # Meijaard §5
 
 
 def test_basu_mandal_accelerations(bicycle):
@@ -167,7 +262,7 @@ def test_basu_mandal_accelerations(bicycle):
     q, u, ud = _basu_mandal_in_moore()
     given = {k: v for k, v in {**q, **u}.items() if k in bicycle.independent}
     _, full = initial_state(bicycle, bicycle.default_variant, bicycle.resolve_params({}), given)
-    for k in ("q5", "u1", "u2", "u3", "u5", "u8"):          # the completion finds their dependent values
+    for k in ("q5", "u1", "u2", "u3", "u5", "u8"):  # the completion finds their dependent values
         assert full[k] == pytest.approx({**q, **u}[k], abs=1e-12), k
     acc = accelerations(NAME, full)
     for k, ref in ud.items():
@@ -179,14 +274,19 @@ def test_energy_is_conserved_in_a_nonlinear_run(bicycle):
     ini = {k: v for k, v in {**q, **u}.items() if k in bicycle.independent}
     run = simulate({"system": NAME, "initial": ini, "dt": 1e-3, "t_final": 0.25}, progress=False)
     assert run.summary["status"] == "ok"
-    assert np.ptp(run.state["q4"]) > 0.05                    # it moves (leans further)
+    assert np.ptp(run.state["q4"]) > 0.05  # it moves (leans further)
     assert run.summary["max_abs_energy_drift"] < 1e-11 * abs(run.energy[0])
     assert max(run.summary["max_abs_violation"].values()) < 1e-10
 
 
 def test_baumgarte_gains_hold_the_front_contact(bicycle):
-    base = {"system": NAME, "dt": 0.01, "t_final": 30.0, "every": 100,
-            "initial": {"q4": 0.2, "q7": 0.1, "u4": 0.5, "u6": -4.6 / RR}}      # self-stable speed
+    base = {
+        "system": NAME,
+        "dt": 0.01,
+        "t_final": 30.0,
+        "every": 100,
+        "initial": {"q4": 0.2, "q7": 0.1, "u4": 0.5, "u6": -4.6 / RR},
+    }  # self-stable speed
     free = simulate(base, progress=False).summary
     held = simulate({**base, "gamma1": -20.0, "gamma2": -100.0}, progress=False).summary
     assert free["status"] == held["status"] == "ok"
@@ -197,9 +297,12 @@ def test_baumgarte_gains_hold_the_front_contact(bicycle):
 
 def test_self_stable_speed_range_in_the_nonlinear_model(bicycle):
     """A small roll-rate kick dies out above the weave speed (4.29 m/s) and grows below it."""
+
     def growth(v):
-        r = simulate({"system": NAME, "dt": 0.005, "t_final": 4.0, "every": 1,
-                      "initial": {"u4": 0.05, "u6": -v / RR}}, progress=False)
+        r = simulate(
+            {"system": NAME, "dt": 0.005, "t_final": 4.0, "every": 1, "initial": {"u4": 0.05, "u6": -v / RR}},
+            progress=False,
+        )
         assert r.summary["status"] == "ok"
         roll = np.abs(r.state["q4"])
         return roll[r.t >= 3.0].max() / roll[r.t <= 1.0].max()

@@ -14,7 +14,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-CATCH_UP_S = 15.0             # how long reports that do not show our preset are taken as stale (a slow browser)
+CATCH_UP_S = 15.0  # how long reports that do not show our preset are taken as stale (a slow browser)
 
 
 class CameraRig:
@@ -24,7 +24,7 @@ class CameraRig:
 
     def __init__(self, client, alive: Callable[[], bool]):
         self.client, self.alive = client, alive
-        self.offset = None                         # camera − target while following
+        self.offset = None  # camera − target while following
         self.reset_at = 0.0
 
     def aim(self, view, view_name: str, row: dict | None, reset: bool = False) -> None:
@@ -38,7 +38,7 @@ class CameraRig:
                     self.reset_at = time.monotonic()
                     self.offset = None
                     look_at, position = view.fixed_camera
-                    cam.position = position               # (moves look_at along: set it after)
+                    cam.position = position  # (moves look_at along: set it after)
                     cam.look_at = look_at
                 return
             row = view.rest_row() if row is None else row
@@ -48,9 +48,9 @@ class CameraRig:
                 self.offset = view.camera_offset(row, view_name)
             if self.offset is None:
                 return
-            cam.position = target + self.offset           # moves look_at along by the same amount
+            cam.position = target + self.offset  # moves look_at along by the same amount
             cam.look_at = target
-        except (AssertionError, ValueError):              # no camera message from the browser yet
+        except (AssertionError, ValueError):  # no camera message from the browser yet
             pass
 
     def on_report(self, view, cam) -> None:
@@ -65,9 +65,9 @@ class CameraRig:
         if not np.all(np.isfinite(offset)) or np.linalg.norm(offset) < 1e-6:
             return
         ours = self.offset
-        if self.reset_at:                         # waiting for the browser to show our preset
+        if self.reset_at:  # waiting for the browser to show our preset
             caught_up = ours is not None and np.linalg.norm(offset - ours) <= 1e-3 * (1 + np.linalg.norm(ours))
             if not caught_up and time.monotonic() - self.reset_at < CATCH_UP_S:
-                return                            # a report sent before our preset arrived
+                return  # a report sent before our preset arrived
             self.reset_at = 0.0
         self.offset = offset

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 INTEGRATORS = ("kutta-merson", "rk4", "kutta-merson-adaptive", "rk45", "dop853", "radau")
 DT_MARKS = ((-4.0, "1e-4"), (-3.0, "1e-3"), (-2.0, "0.01"), (-1.0, "0.1"))
 LOG_DT_RANGE = (-4.0, math.log10(0.2), 0.05)
-TARGET_ROWS = 4000            # output rows kept per run for the animation (`every`)
+TARGET_ROWS = 4000  # output rows kept per run for the animation (`every`)
 
 
 def dt_of(log_dt: float) -> float:
@@ -26,7 +26,7 @@ def dt_of(log_dt: float) -> float:
 
 
 def every_of(dt: float, t_final: float) -> int:
-    return max(1, int(round(t_final / dt / TARGET_ROWS)))
+    return max(1, round(t_final / dt / TARGET_ROWS))
 
 
 @dataclass(frozen=True)
@@ -70,8 +70,18 @@ def parameter_controls(system, ranges: dict, labels: dict | None = None, suffix:
             lo, hi = max(p.min, p.default - span), min(p.max, p.default + span)
             step = float(f"{(hi - lo) / 200:.1g}") or 0.01
         label = (labels or {}).get(p.name, p.name)
-        out.append(Control(p.name, f"{label} [{p.unit}]{suffix}", f"params.{p.name}", p.default,
-                           min=lo, max=hi, step=step, hint=p.description))
+        out.append(
+            Control(
+                p.name,
+                f"{label} [{p.unit}]{suffix}",
+                f"params.{p.name}",
+                p.default,
+                min=lo,
+                max=hi,
+                step=step,
+                hint=p.description,
+            )
+        )
     return tuple(out)
 
 
@@ -84,8 +94,8 @@ class ControlPanel:
     def __init__(self, gui, refuse: Callable[[str], None]):
         self.gui = gui
         self._refuse = refuse
-        self._good: dict[int, float] = {}          # id(handle) -> last good value
-        self._restoring: set[int] = set()          # handles being written by the app itself
+        self._good: dict[int, float] = {}  # id(handle) -> last good value
+        self._restoring: set[int] = set()  # handles being written by the app itself
 
     # ---------------------------------------------------------------- building
     def add(self, c: Control):
@@ -116,6 +126,7 @@ class ControlPanel:
                 return
             if self.accept(handle):
                 fn()
+
         handle.on_update(update)
 
     def accept(self, handle) -> bool:
@@ -131,8 +142,10 @@ class ControlPanel:
             return True
         good = self._good[id(handle)]
         why = "not a finite number" if not math.isfinite(x) else "outside the slider's range"
-        self._refuse(f"**input refused** — {handle.label.strip()} = {v!r}: {why} "
-                     f"(allowed: {lo:g} … {hi:g}); back to {good:g}  \nthe previous motion keeps playing")
+        self._refuse(
+            f"**input refused** — {handle.label.strip()} = {v!r}: {why} "
+            f"(allowed: {lo:g} … {hi:g}); back to {good:g}  \nthe previous motion keeps playing"
+        )
         self.set_quietly(handle, good)
         return False
 
@@ -174,7 +187,7 @@ def settings_from(system, controls: dict, read: Callable) -> tuple[dict, dict]:
             t_final = float(v)
         elif kind in ("initial", "params"):
             s.setdefault(kind, {})[name] = float(v)
-        elif kind == "logparams":                 # a log-scale slider: its value is log10
+        elif kind == "logparams":  # a log-scale slider: its value is log10
             s.setdefault("params", {})[name] = float(f"{10.0 ** float(v):.6g}")
         elif kind == "option":
             options[name] = v

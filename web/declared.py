@@ -17,7 +17,7 @@ from nmkane_core.visuals import axis_wxyz, compile_visuals, rotation_to_wxyz
 
 from . import geometry as geo
 
-BIG = 1e6                       # coordinates are clipped to ±BIG for float32 nodes
+BIG = 1e6  # coordinates are clipped to ±BIG for float32 nodes
 
 
 def _clip(a):
@@ -32,11 +32,11 @@ class DeclaredScene:
         self.prefix = f"/sys/{system.name}"
         self.root = scene.add_frame(self.prefix, show_axes=False, visible=False)
         self.compiled = compile_visuals(system)
-        self.frames: dict = {}               # frame name -> node
-        self.dynamic: list = []              # (node, kind, point indices)
+        self.frames: dict = {}  # frame name -> node
+        self.dynamic: list = []  # (node, kind, point indices)
         self.traces: dict = {}
         self.sizes_for = None
-        self.frame_poses: dict = {}          # frame name -> (positions (n,3), wxyz (n,4))
+        self.frame_poses: dict = {}  # frame name -> (positions (n,3), wxyz (n,4))
         self.points: list[np.ndarray] = []
         self.bounds_ = None
 
@@ -51,20 +51,34 @@ class DeclaredScene:
         cv = self.compiled
         self.dynamic, self.traces = [], {}
         if cv is None:
-            sc.add_grid(f"{pre}/ground", width=40.0, height=40.0, plane="xy", cell_size=0.5, section_size=2.0,
-                        plane_color=(232, 236, 226), plane_opacity=0.5, shadow_opacity=0.2)
+            sc.add_grid(
+                f"{pre}/ground",
+                width=40.0,
+                height=40.0,
+                plane="xy",
+                cell_size=0.5,
+                section_size=2.0,
+                plane_color=(232, 236, 226),
+                plane_opacity=0.5,
+                shadow_opacity=0.2,
+            )
             node = sc.add_icosphere(f"{pre}/world/point", radius=0.05, color=(200, 80, 40))
             self.dynamic.append((node, "point", [0]))
-            self.traces["trace"] = sc.add_line_segments(f"{pre}/world/trace", points=np.zeros((1, 2, 3), np.float32),
-                                                        colors=(214, 48, 39), thickness=2.0, thickness_units="screen")
+            self.traces["trace"] = sc.add_line_segments(
+                f"{pre}/world/trace",
+                points=np.zeros((1, 2, 3), np.float32),
+                colors=(214, 48, 39),
+                thickness=2.0,
+                thickness_units="screen",
+            )
             return
         sizes = cv.sizes(params)
         for name in cv.frames:
             self.frames[name] = sc.add_frame(f"{pre}/frames/{name}", show_axes=False)
         for s in cv.shapes:
             i, n = s["size"]
-            size = sizes[i:i + n]
-            off = tuple(float(v) for v in sizes[s["offset"]:s["offset"] + 3])
+            size = sizes[i : i + n]
+            off = tuple(float(v) for v in sizes[s["offset"] : s["offset"] + 3])
             parent = f"{pre}/frames/{s['frame']}" if s["frame"] else f"{pre}/world"
             path, color, op = f"{parent}/{s['name']}", tuple(s["color"]), s["opacity"]
             kw = {"opacity": op} if op < 1 else {}
@@ -72,26 +86,58 @@ class DeclaredScene:
             if kind == "box":
                 sc.add_box(path, color=color, dimensions=tuple(float(abs(v)) for v in size), position=off, **kw)
             elif kind == "cylinder":
-                sc.add_cylinder(path, radius=float(abs(size[0])), height=float(abs(size[1])), color=color,
-                                wxyz=axis_wxyz(s["axis"]), position=off, radial_segments=48, **kw)
+                sc.add_cylinder(
+                    path,
+                    radius=float(abs(size[0])),
+                    height=float(abs(size[1])),
+                    color=color,
+                    wxyz=axis_wxyz(s["axis"]),
+                    position=off,
+                    radial_segments=48,
+                    **kw,
+                )
             elif kind == "sphere":
                 node = sc.add_icosphere(path, radius=float(abs(size[0])), color=color, position=off, **kw)
                 if s["points"]:
                     self.dynamic.append((node, "point", s["points"]))
             elif kind == "segments":
                 npairs = len(s["points"]) // 2
-                node = sc.add_line_segments(path, points=np.zeros((npairs, 2, 3), np.float32), colors=color,
-                                            thickness=3.0, thickness_units="screen")
+                node = sc.add_line_segments(
+                    path,
+                    points=np.zeros((npairs, 2, 3), np.float32),
+                    colors=color,
+                    thickness=3.0,
+                    thickness_units="screen",
+                )
                 self.dynamic.append((node, "segments", s["points"]))
             elif kind == "trace":
-                self.traces[s["name"]] = (sc.add_line_segments(path, points=np.zeros((1, 2, 3), np.float32),
-                                                               colors=color, thickness=2.5,
-                                                               thickness_units="screen"), s["points"][0])
+                self.traces[s["name"]] = (
+                    sc.add_line_segments(
+                        path,
+                        points=np.zeros((1, 2, 3), np.float32),
+                        colors=color,
+                        thickness=2.5,
+                        thickness_units="screen",
+                    ),
+                    s["points"][0],
+                )
             elif kind == "ground":
-                sc.add_grid(f"{pre}/ground", width=200.0, height=200.0, plane="xy", cell_size=0.5,
-                            section_size=2.0, cell_color=(205, 208, 200), section_color=(150, 155, 145),
-                            plane_color=color, plane_opacity=0.6, shadow_opacity=0.25, infinite_grid=True,
-                            fade_distance=120.0, position=(0.0, 0.0, float(size[0])))
+                sc.add_grid(
+                    f"{pre}/ground",
+                    width=200.0,
+                    height=200.0,
+                    plane="xy",
+                    cell_size=0.5,
+                    section_size=2.0,
+                    cell_color=(205, 208, 200),
+                    section_color=(150, 155, 145),
+                    plane_color=color,
+                    plane_opacity=0.6,
+                    shadow_opacity=0.25,
+                    infinite_grid=True,
+                    fade_distance=120.0,
+                    position=(0.0, 0.0, float(size[0])),
+                )
 
     # ---------------------------------------------------------------- poses
     def install(self, run, params: dict) -> None:

@@ -25,7 +25,7 @@ from .controls import INTEGRATORS, Control, log_dt_control
 from .declared import DeclaredScene, fit_camera
 from .systems import COLORS, SystemView
 
-DECADES = 2.0               # a parameter range spanning this many decades gets a log slider
+DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
 
 
 def _step(lo: float, hi: float, n: int = 200) -> float:
@@ -41,20 +41,43 @@ def parameter_control(p, prefix: str) -> Control:
         lo = d - 4 * abs(d) if d else -1.0
     label = f"{p.name} [{p.unit}]" if p.unit else p.name
     if d > 0 and (lo > 0 or not p.min_inclusive):
-        low = lo if lo > 0 else min(d, hi) / 100.0        # an open range (0, max]: two decades below
+        low = lo if lo > 0 else min(d, hi) / 100.0  # an open range (0, max]: two decades below
         if math.log10(hi / low) >= DECADES:
             a, b = math.log10(low), math.log10(hi)
-            return Control(f"{prefix}p_{p.name}", f"log₁₀ {label}", f"logparams.{p.name}", round(math.log10(d), 6),
-                           min=a, max=b, step=_step(a, b), hint=f"{p.description} (log scale: {low:g} … {hi:g})")
+            return Control(
+                f"{prefix}p_{p.name}",
+                f"log₁₀ {label}",
+                f"logparams.{p.name}",
+                round(math.log10(d), 6),
+                min=a,
+                max=b,
+                step=_step(a, b),
+                hint=f"{p.description} (log scale: {low:g} … {hi:g})",
+            )
         lo = max(lo, low)
-    return Control(f"{prefix}p_{p.name}", label, f"params.{p.name}", d, min=lo, max=hi, step=_step(lo, hi),
-                   hint=p.description or None)
+    return Control(
+        f"{prefix}p_{p.name}",
+        label,
+        f"params.{p.name}",
+        d,
+        min=lo,
+        max=hi,
+        step=_step(lo, hi),
+        hint=p.description or None,
+    )
 
 
 def initial_control(name: str, default: float, prefix: str) -> Control:
     span = max(3.0 * abs(default), 2.0)
-    return Control(f"{prefix}i_{name}", f"{name}(0)", f"initial.{name}", default,
-                   min=default - span, max=default + span, step=_step(0, 2 * span))
+    return Control(
+        f"{prefix}i_{name}",
+        f"{name}(0)",
+        f"initial.{name}",
+        default,
+        min=default - span,
+        max=default + span,
+        step=_step(0, 2 * span),
+    )
 
 
 def generic_controls(core, prefix: str) -> tuple[Control, ...]:
@@ -62,30 +85,60 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
     info = core.info(core.default_variant)
     out = []
     if len(core.variants) > 1:
-        out.append(Control(f"{prefix}variant", core.option.capitalize(), "variant", core.default_variant,
-                           kind="dropdown", options=tuple(core.variants)))
+        out.append(
+            Control(
+                f"{prefix}variant",
+                core.option.capitalize(),
+                "variant",
+                core.default_variant,
+                kind="dropdown",
+                options=tuple(core.variants),
+            )
+        )
     integ = core.default_integrator if core.default_integrator in INTEGRATORS else INTEGRATORS[0]
     out.append(Control(f"{prefix}integrator", "Integrator", "integrator", integ, kind="dropdown", options=INTEGRATORS))
-    out.append(Control(f"{prefix}projection", "Projection", "projection", "none", kind="dropdown",
-                       options=tuple(PRESETS)))
+    out.append(
+        Control(f"{prefix}projection", "Projection", "projection", "none", kind="dropdown", options=tuple(PRESETS))
+    )
     if info.nonholonomic:
-        out.append(Control(f"{prefix}gamma", "Γ (nonholonomic)", "gamma", core.default_gamma,
-                           min=-50.0, max=10.0, step=0.5))
+        out.append(
+            Control(f"{prefix}gamma", "Γ (nonholonomic)", "gamma", core.default_gamma, min=-50.0, max=10.0, step=0.5)
+        )
     if info.holonomic:
-        out.append(Control(f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", core.default_gamma1,
-                           min=-50.0, max=10.0, step=0.5))
-        out.append(Control(f"{prefix}gamma2", "Γ2 (holonomic) [1/s²]", "gamma2", core.default_gamma2,
-                           min=-500.0, max=50.0, step=5.0))
+        out.append(
+            Control(
+                f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", core.default_gamma1, min=-50.0, max=10.0, step=0.5
+            )
+        )
+        out.append(
+            Control(
+                f"{prefix}gamma2",
+                "Γ2 (holonomic) [1/s²]",
+                "gamma2",
+                core.default_gamma2,
+                min=-500.0,
+                max=50.0,
+                step=5.0,
+            )
+        )
     log_dt = min(max(math.log10(core.default_dt), -4.0), math.log10(0.2))
     out.append(log_dt_control(f"{prefix}log_dt", "log₁₀ Δt [s]", round(log_dt, 2)))
     tf = core.default_t_final
-    out.append(Control(f"{prefix}t_final", "Final time [s]", "t_final", tf, min=min(1.0, tf), max=max(5 * tf, 10.0),
-                       step=_step(0, max(5 * tf, 10.0))))
+    out.append(
+        Control(
+            f"{prefix}t_final",
+            "Final time [s]",
+            "t_final",
+            tf,
+            min=min(1.0, tf),
+            max=max(5 * tf, 10.0),
+            step=_step(0, max(5 * tf, 10.0)),
+        )
+    )
     for name in core.independent:
         out.append(initial_control(name, float(core.default_initial.get(name, 0.0)), prefix))
     names = core.state_names
-    out.append(Control(f"{prefix}plot", "Plotted coordinate", "option.plot", names[0], kind="dropdown",
-                       options=names))
+    out.append(Control(f"{prefix}plot", "Plotted coordinate", "option.plot", names[0], kind="dropdown", options=names))
     return tuple(out)
 
 
@@ -107,22 +160,25 @@ class GenericView(SystemView):
         self.params_attr = f"{prefix}params"
         self.controls = generic_controls(core, prefix)
         self._param_controls = tuple(parameter_control(p, prefix) for p in core.parameters)
-        self.plots = (("energy", "Energy drift ΔE(t)"), ("violation", "log₁₀ |constraint violation|"),
-                      ("coord", "Plotted coordinate"))
+        self.plots = (
+            ("energy", "Energy drift ΔE(t)"),
+            ("violation", "log₁₀ |constraint violation|"),
+            ("coord", "Plotted coordinate"),
+        )
         super().__init__(scene)
         self.declared = DeclaredScene(scene, core)
         self.root = self.declared.root
         self.plot_name = core.state_names[0]
         self.k = 0
         self.fit_pending = True
-        self.fixed_target = None             # the whole motion fits in view: the camera stays put
+        self.fixed_target = None  # the whole motion fits in view: the camera stays put
         self.offset = None
 
     @property
     def param_controls(self) -> tuple[Control, ...]:
         return self._param_controls
 
-    def matrices_variants(self) -> tuple[str, ...]:          # instance-level: the system is per view
+    def matrices_variants(self) -> tuple[str, ...]:  # instance-level: the system is per view
         core = self.core
         return (core.default_variant, *(v for v in core.variants if v != core.default_variant))
 
@@ -140,9 +196,11 @@ class GenericView(SystemView):
         names = list(run.violation) or ["(no constraints)"]
         ys = [pl.log10_abs(run.violation[c]) for c in run.violation] or [np.full(len(t), math.log10(pl.LOG_FLOOR))]
         name = self.plot_name if self.plot_name in run.state else next(iter(run.state))
-        return {"energy": pl.curves(t, [dE / factor], [f"ΔE [{unit}]"]),
-                "violation": pl.curves(t, ys, names),
-                "coord": pl.curves(t, [run.state[name]], [name])}
+        return {
+            "energy": pl.curves(t, [dE / factor], [f"ΔE [{unit}]"]),
+            "violation": pl.curves(t, ys, names),
+            "coord": pl.curves(t, [run.state[name]], [name]),
+        }
 
     def series_style(self, key: str, i: int, traj) -> dict:
         return {"stroke": COLORS[i % len(COLORS)]}
@@ -192,8 +250,12 @@ class GenericView(SystemView):
         if cv is None or self.declared.sizes_for is None:
             return 0.5
         sizes = cv.sizes(dict(self.declared.sizes_for))
-        big = [abs(float(v)) for s in cv.shapes if s["kind"] in ("box", "cylinder", "sphere")
-               for v in sizes[s["size"][0]:s["size"][0] + s["size"][1]]]
+        big = [
+            abs(float(v))
+            for s in cv.shapes
+            if s["kind"] in ("box", "cylinder", "sphere")
+            for v in sizes[s["size"][0] : s["size"][0] + s["size"][1]]
+        ]
         return max(big, default=0.5)
 
     def camera_target(self, row: dict | None, view: str) -> np.ndarray:

@@ -29,10 +29,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-PULLEY_CLEARANCE = 2.0      # m, pulleys above the load's (or wheel's) highest start point
-LOAD_RADIUS = 0.35          # m, the load P drawn as a ball (the paper's P is a particle)
-BAR_OFFSET = -0.22          # m, P's guide bar runs just behind the thread (local y)
-MEMBER = 0.18               # m, thickness of the frame's members
+PULLEY_CLEARANCE = 2.0  # m, pulleys above the load's (or wheel's) highest start point
+LOAD_RADIUS = 0.35  # m, the load P drawn as a ball (the paper's P is a particle)
+BAR_OFFSET = -0.22  # m, P's guide bar runs just behind the thread (local y)
+MEMBER = 0.18  # m, thickness of the frame's members
 
 
 # --------------------------------------------------------------------------- rotations
@@ -46,7 +46,7 @@ def spin_wxyz(phi: float) -> tuple[float, float, float, float]:
     return (math.cos(phi / 2), 0.0, math.sin(phi / 2), 0.0)
 
 
-AXIS_Z_TO_Y = (math.cos(-math.pi / 4), math.sin(-math.pi / 4), 0.0, 0.0)   # cylinders' axis → +y
+AXIS_Z_TO_Y = (math.cos(-math.pi / 4), math.sin(-math.pi / 4), 0.0, 0.0)  # cylinders' axis → +y
 
 
 def quat_z_to(v) -> tuple[float, float, float, float]:
@@ -54,9 +54,9 @@ def quat_z_to(v) -> tuple[float, float, float, float]:
     v = np.asarray(v, float)
     v = v / np.linalg.norm(v)
     w = 1.0 + v[2]
-    if w < 1e-9:                                  # v = −z: half turn about x
+    if w < 1e-9:  # v = −z: half turn about x
         return (0.0, 1.0, 0.0, 0.0)
-    q = np.array([w, -v[1], v[0], 0.0])           # (1 + z·v, z × v)
+    q = np.array([w, -v[1], v[0], 0.0])  # (1 + z·v, z × v)
     q /= np.linalg.norm(q)
     return tuple(float(c) for c in q)
 
@@ -64,17 +64,25 @@ def quat_z_to(v) -> tuple[float, float, float, float]:
 def rotate(wxyz, v) -> np.ndarray:
     """v rotated by the unit quaternion wxyz."""
     w, x, y, z = wxyz
-    R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                  [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                  [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    R = np.array(
+        [
+            [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+        ]
+    )
     return R @ np.asarray(v, float)
 
 
 def quat_mul(p, q) -> tuple[float, float, float, float]:
     w1, x1, y1, z1 = p
     w2, x2, y2, z2 = q
-    return (w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-            w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2)
+    return (
+        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
+    )
 
 
 # --------------------------------------------------------------------------- Appell–Hamel
@@ -88,7 +96,7 @@ class Layout:
     z0: float
 
     @classmethod
-    def of(cls, params: dict) -> "Layout":
+    def of(cls, params: dict) -> Layout:
         return cls(float(params["a"]), float(params["b"]), float(params["rho"]), float(params["z0"]))
 
     # heights and offsets ------------------------------------------------------------
@@ -133,17 +141,17 @@ class Layout:
         yl, yr = self.fork_y
         leg_x = -0.6
         spread = max(3.0, 0.15 * h)
-        P = lambda *c: np.array(c, float)           # noqa: E731
+        P = lambda *c: np.array(c, float)  # noqa: E731
         return {
-            "beam": (P(-rho - 0.4, yl, h), P(0.4, yl, h)),                  # carries the pulleys
-            "fork_left": (P(-rho, yl, self.a), P(-rho, yl, h)),             # holds the axle
+            "beam": (P(-rho - 0.4, yl, h), P(0.4, yl, h)),  # carries the pulleys
+            "fork_left": (P(-rho, yl, self.a), P(-rho, yl, h)),  # holds the axle
             "fork_right": (P(-rho, yr, self.a), P(-rho, yr, h)),
-            "fork_top": (P(-rho, yl, h), P(-rho, yr, h)),                   # pulley 1's axle
+            "fork_top": (P(-rho, yl, h), P(-rho, yr, h)),  # pulley 1's axle
             "pulley2_axle": (P(-self.b, yl, h), P(-self.b, 0.15, h)),
-            "bar": (P(0.0, BAR_OFFSET, bottom), P(0.0, BAR_OFFSET, h)),     # P's guide
+            "bar": (P(0.0, BAR_OFFSET, bottom), P(0.0, BAR_OFFSET, h)),  # P's guide
             "bar_arm": (P(0.0, BAR_OFFSET, h), P(0.4, yl, h)),
-            "leg_left": (P(leg_x, yl, h), P(leg_x, yl - spread, 0.0)),       # the two legs that
-            "leg_right": (P(leg_x, yl, h), P(leg_x, yl + spread, 0.0)),      # slide on the plane
+            "leg_left": (P(leg_x, yl, h), P(leg_x, yl - spread, 0.0)),  # the two legs that
+            "leg_right": (P(leg_x, yl, h), P(leg_x, yl + spread, 0.0)),  # slide on the plane
             "axle": (P(-rho, yl, self.a), P(-rho, yr, self.a)),
         }
 
@@ -158,10 +166,10 @@ class Layout:
         polyline (N, 3) in the body frame (it does not move relative to the frame)."""
         (p1x, p1y, h), (p2x, _, _) = self.pulleys
         b, a = self.b, self.a
-        pts = [(-self.rho - b, p1y, a), (-self.rho - b, p1y, h)]               # off the drum's rear
-        for ang in np.linspace(math.pi, math.pi / 2, arc_points)[1:]:          # over pulley 1
+        pts = [(-self.rho - b, p1y, a), (-self.rho - b, p1y, h)]  # off the drum's rear
+        for ang in np.linspace(math.pi, math.pi / 2, arc_points)[1:]:  # over pulley 1
             pts.append((p1x + b * math.cos(ang), p1y, h + b * math.sin(ang)))
-        for ang in np.linspace(math.pi / 2, 0.0, arc_points):                  # over pulley 2
+        for ang in np.linspace(math.pi / 2, 0.0, arc_points):  # over pulley 2
             pts.append((p2x + b * math.cos(ang), 0.0, h + b * math.sin(ang)))
         return np.array(pts, float)
 
@@ -194,9 +202,10 @@ def pit_bottom(z_min: float) -> float:
 def trace_segments(x: np.ndarray, y: np.ndarray, limit: int = 2000, height: float = 0.03) -> np.ndarray:
     """P's intercept on the plane (the paper's Fig. 7) as line segments, at most ``limit``."""
     idx = decimate(len(x), limit)
-    big = 1e7                                     # keep float32 finite for runaway runs
-    pts = np.column_stack([np.clip(x[idx], -big, big), np.clip(y[idx], -big, big),
-                           np.full(len(idx), height)]).astype(np.float32)
+    big = 1e7  # keep float32 finite for runaway runs
+    pts = np.column_stack([np.clip(x[idx], -big, big), np.clip(y[idx], -big, big), np.full(len(idx), height)]).astype(
+        np.float32
+    )
     if len(pts) < 2:
         pts = np.vstack([pts, pts]) if len(pts) else np.zeros((2, 3), np.float32)
     return segments(pts)
@@ -212,7 +221,7 @@ def particle_bowl(l0: float, half_width: float, depth: float = 0.5, n: int = 64)
     """The surface ψ = 0 as a trough mesh (vertices, faces) in a lane's frame (x, lane, −y)."""
     xs = np.linspace(-half_width, half_width, n)
     zs = bowl_height(xs, l0)
-    verts = np.array([(xv, lane, zv) for lane in (-depth, depth) for xv, zv in zip(xs, zs)], np.float32)
+    verts = np.array([(xv, lane, zv) for lane in (-depth, depth) for xv, zv in zip(xs, zs, strict=True)], np.float32)
     faces = []
     for i in range(n - 1):
         a, b, c, d = i, i + 1, n + i, n + i + 1

@@ -47,10 +47,10 @@ class Panel:
 
     system: str
     variant: str
-    images: dict[str, np.ndarray]       # name -> RGBA uint8
-    where: np.ndarray | None            # the n_k definitions, RGBA uint8 (None if none)
-    latex: dict[str, str]               # name -> LaTeX source of the whole matrix
-    intro: str                          # markdown above the images
+    images: dict[str, np.ndarray]  # name -> RGBA uint8
+    where: np.ndarray | None  # the n_k definitions, RGBA uint8 (None if none)
+    latex: dict[str, str]  # name -> LaTeX source of the whole matrix
+    intro: str  # markdown above the images
 
 
 _cache: dict[tuple[str, str], Panel] = {}
@@ -100,14 +100,19 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
         env = dict(os.environ)
         root = str(Path(__file__).resolve().parents[1])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        from nmkane_core import plugins               # the child knows the systems plugged in here (--systems)
+        from nmkane_core import plugins  # the child knows the systems plugged in here (--systems)
 
         specs = [s for s in env.get(plugins.ENV_VAR, "").split(os.pathsep) if s.strip()]
         specs += [k for k in plugins.loaded_specs() if k not in specs]
         if specs:
             env[plugins.ENV_VAR] = os.pathsep.join(specs)
-        child = subprocess.Popen([sys.executable, "-m", "web.matrices", system, variant, tmp], env=env,
-                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        child = subprocess.Popen(
+            [sys.executable, "-m", "web.matrices", system, variant, tmp],
+            env=env,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         with _guard:
             _children.add(child)
         try:
@@ -117,7 +122,9 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
                 _children.discard(child)
         p = _load(Path(tmp))
         if child.returncode != 0 or p is None:
-            raise RuntimeError(f"deriving the matrices failed: {(err or '').strip().splitlines()[-1:] or child.returncode}")
+            raise RuntimeError(
+                f"deriving the matrices failed: {(err or '').strip().splitlines()[-1:] or child.returncode}"
+            )
         _store(path, p)
         return p
     finally:
@@ -140,7 +147,7 @@ def _disk_path(system: str, variant: str) -> Path | None:
         h = hashlib.sha256(f"{key}\0{matplotlib.__version__}".encode())
         h.update(Path(__file__).read_bytes())
         return cache_root() / "web-matrices" / f"{system}-{variant}-{h.hexdigest()[:16]}.pickle"
-    except Exception:                 # no cache: compute every time
+    except Exception:  # no cache: compute every time
         return None
 
 
@@ -181,7 +188,7 @@ def _nice(e):
     try:
         c = sp.cancel(sp.expand_trig(s))
         forms += [c, sp.factor(c)]
-    except Exception:                              # pragma: no cover - sympy corner cases
+    except Exception:  # pragma: no cover - sympy corner cases
         pass
     return min(forms, key=lambda f: (sp.count_ops(f), len(str(f))))
 
@@ -199,9 +206,9 @@ def _abbreviate(mats: dict):
                 if base.is_Add and base not in found:
                     found.append(base)
     names = [sp.Symbol(f"n_{i + 1}") for i in range(len(found))]
-    subs = dict(zip(found, names))
+    subs = dict(zip(found, names, strict=True))
     short = {k: M.applyfunc(lambda e: sp.factor_terms(sp.together(e)).subs(subs)) for k, M in mats.items()}
-    return short, list(zip(names, found))
+    return short, list(zip(names, found, strict=True))
 
 
 def _build(system: str, variant: str) -> Panel:
@@ -212,15 +219,21 @@ def _build(system: str, variant: str) -> Panel:
     d = get_system(system).derivation(variant)
     mats = {name: d.matrix(name).applyfunc(_nice) for name in MATRICES}
     short, defs = _abbreviate(mats)
-    tex = lambda e: sp.latex(e, fold_func_brackets=True).replace(r"\frac", r"\dfrac")   # noqa: E731
-    images = {name: _matrix_image(TITLES[name], [[tex(short[name][i, j]) for j in range(short[name].cols)]
-                                                  for i in range(short[name].rows)])
-              for name in MATRICES if short[name].rows and short[name].cols}
+    tex = lambda e: sp.latex(e, fold_func_brackets=True).replace(r"\frac", r"\dfrac")  # noqa: E731
+    images = {
+        name: _matrix_image(
+            TITLES[name], [[tex(short[name][i, j]) for j in range(short[name].cols)] for i in range(short[name].rows)]
+        )
+        for name in MATRICES
+        if short[name].rows and short[name].cols
+    }
     where = _lines_image([f"{tex(n)} = {tex(e)}" for n, e in defs]) if defs else None
     latex = {name: f"{TITLES[name]} = {sp.latex(mats[name])}" for name in MATRICES}
-    intro = (f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
-             f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
-             f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}); {SPEED_NAMES.get(system, '')}.")
+    intro = (
+        f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
+        f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
+        f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}); {SPEED_NAMES.get(system, '')}."
+    )
     return Panel(system, variant, images, where, latex, intro)
 
 
@@ -235,7 +248,7 @@ def _tex_image(tex: str, fontsize: int = FONT_SIZE) -> np.ndarray:
     math_to_image(f"${tex}$", buf, prop=FontProperties(size=fontsize), dpi=DPI, format="png")
     buf.seek(0)
     img = imread(buf)
-    ink = 1.0 - img[..., :3].mean(axis=-1)           # black on white → ink
+    ink = 1.0 - img[..., :3].mean(axis=-1)  # black on white → ink
     if img.shape[-1] == 4:
         ink = ink * img[..., 3]
     return ink.astype(np.float32)
@@ -243,12 +256,12 @@ def _tex_image(tex: str, fontsize: int = FONT_SIZE) -> np.ndarray:
 
 def _blit(canvas: np.ndarray, ink: np.ndarray, top: int, left: int) -> None:
     h, w = ink.shape
-    canvas[top:top + h, left:left + w] = np.maximum(canvas[top:top + h, left:left + w], ink)
+    canvas[top : top + h, left : left + w] = np.maximum(canvas[top : top + h, left : left + w], ink)
 
 
 def _to_rgba(ink: np.ndarray, color=(20, 20, 30)) -> np.ndarray:
     """Ink on an opaque white background (readable in light and dark panels alike)."""
-    out = np.empty(ink.shape + (4,), np.uint8)
+    out = np.empty((*ink.shape, 4), np.uint8)
     a = np.clip(ink, 0.0, 1.0)[..., None]
     rgb = (1 - a) * 255 + a * np.array(color, float)
     out[..., :3] = rgb.clip(0, 255).astype(np.uint8)
@@ -264,17 +277,17 @@ def _matrix_image(title: str, cells: list[list[str]], pad: int = 10, gap: int = 
     col_w = [max(inks[r][c].shape[1] for r in range(rows)) for c in range(cols)]
     grid_h = sum(row_h) + vgap * (rows - 1)
     grid_w = sum(col_w) + gap * (cols - 1)
-    br = 10                                          # bracket width
+    br = 10  # bracket width
     H = grid_h + 2 * pad
     W = pad + name.shape[1] + 8 + br + 6 + grid_w + 6 + br + pad
     canvas = np.zeros((H, W), np.float32)
     _blit(canvas, name, (H - name.shape[0]) // 2, pad)
     x0 = pad + name.shape[1] + 8
-    for xb, hook in ((x0, 1), (x0 + br + 6 + grid_w + 6 + br - 2, -1)):   # [ and ]
-        canvas[pad - 4:pad + grid_h + 4, xb:xb + 2] = 1.0
+    for xb, hook in ((x0, 1), (x0 + br + 6 + grid_w + 6 + br - 2, -1)):  # [ and ]
+        canvas[pad - 4 : pad + grid_h + 4, xb : xb + 2] = 1.0
         xs = slice(xb, xb + br) if hook == 1 else slice(xb - br + 2, xb + 2)
-        canvas[pad - 4:pad - 2, xs] = 1.0
-        canvas[pad + grid_h + 2:pad + grid_h + 4, xs] = 1.0
+        canvas[pad - 4 : pad - 2, xs] = 1.0
+        canvas[pad + grid_h + 2 : pad + grid_h + 4, xs] = 1.0
     top = pad
     for r in range(rows):
         left = x0 + br + 6
@@ -298,8 +311,8 @@ def _lines_image(lines: list[str], pad: int = 12, vgap: int = 10) -> np.ndarray:
     return _to_rgba(canvas)
 
 
-if __name__ == "__main__":          # the child process of _compute: SYSTEM VARIANT OUT
-    from web import matrices as _module              # pickle web.matrices.Panel, not __main__.Panel
+if __name__ == "__main__":  # the child process of _compute: SYSTEM VARIANT OUT
+    from web import matrices as _module  # pickle web.matrices.Panel, not __main__.Panel
 
     _system, _variant, _out = sys.argv[1:4]
     with open(_out, "wb") as _f:

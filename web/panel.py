@@ -41,14 +41,22 @@ class PlotPanel:
         x_scale = {"x": uplot.Scale(time=False, auto=False, range=(0.0, 20.0))}
         for i, (key, title) in enumerate(view.plots):
             self.handles[(view.kind, key)] = self._add_plot(
-                gui, title, x_scale, visible=False, order=None if order is None else order + 1e-3 * i)
+                gui, title, x_scale, visible=False, order=None if order is None else order + 1e-3 * i
+            )
 
     @staticmethod
     def _add_plot(gui, title: str, x_scale: dict, visible: bool = True, order: float | None = None):
         z = np.zeros(2)
-        return gui.add_uplot(order=order,
-            data=(z, z), series=(uplot.Series(label="t [s]"), uplot.Series(label="—", stroke=COLORS[0], width=2)),
-            title=title, scales=x_scale, axes=pl.marker_axes(0.0), aspect=1.9, visible=visible)
+        return gui.add_uplot(
+            order=order,
+            data=(z, z),
+            series=(uplot.Series(label="t [s]"), uplot.Series(label="—", stroke=COLORS[0], width=2)),
+            title=title,
+            scales=x_scale,
+            axes=pl.marker_axes(0.0),
+            aspect=1.9,
+            visible=visible,
+        )
 
     def show_kind(self, kind: str) -> None:
         for (k, _), h in self.handles.items():
@@ -82,21 +90,25 @@ def summary_table(traj) -> str:
     labels = list(traj.runs)
     rows = ["| | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
     rows.append("| status | " + " | ".join(r.summary["status"] for r in traj.runs.values()) + " |")
-    rows.append("| max \\|ΔE\\| [J] | " + " | ".join(_fmt(r.summary["max_abs_energy_drift"])
-                                                   for r in traj.runs.values()) + " |")
+    rows.append(
+        "| max \\|ΔE\\| [J] | " + " | ".join(_fmt(r.summary["max_abs_energy_drift"]) for r in traj.runs.values()) + " |"
+    )
     names = []
     for r in traj.runs.values():
         names += [n for n in r.summary["max_abs_violation"] if n not in names]
     for n in names:
-        rows.append(f"| max \\|φ\\| {n} | " + " | ".join(_fmt(r.summary["max_abs_violation"].get(n))
-                                                     for r in traj.runs.values()) + " |")
+        rows.append(
+            f"| max \\|φ\\| {n} | "
+            + " | ".join(_fmt(r.summary["max_abs_violation"].get(n)) for r in traj.runs.values())
+            + " |"
+        )
     rows.append("| t_end [s] | " + " | ".join(f"{float(r.t[-1]):g}" for r in traj.runs.values()) + " |")
     return "\n".join(rows)
 
 
 def status_text(traj, installs: int) -> str:
     lines, groups = [], {}
-    for label, run in traj.runs.items():          # runs with the same outcome share a line
+    for label, run in traj.runs.items():  # runs with the same outcome share a line
         groups.setdefault((run.summary["status"], run.summary["message"]), []).append(label)
     for (status, message), labels in groups.items():
         flag = "" if status == "ok" else "⚠ "
@@ -108,9 +120,11 @@ def status_text(traj, installs: int) -> str:
         for w in s.get("warnings", []):
             lines.append(f"⚠ {label}: {w}")
     st = traj.request["settings"]
-    lines.append(f"Δt = {st['dt']:g} s · update {installs} (#{traj.seq}) in "
-                 f"{(time.perf_counter() - traj.t_request) * 1e3:.0f} ms "
-                 f"(simulation {traj.compute_s * 1e3:.0f} ms)")
+    lines.append(
+        f"Δt = {st['dt']:g} s · update {installs} (#{traj.seq}) in "
+        f"{(time.perf_counter() - traj.t_request) * 1e3:.0f} ms "
+        f"(simulation {traj.compute_s * 1e3:.0f} ms)"
+    )
     return "  \n".join(lines)
 
 
@@ -125,8 +139,9 @@ class MatricesPanel:
         self.key = None
         self.intro = gui.add_markdown("(computed in the background …)")
         blank = np.full((2, 2, 4), 255, np.uint8)
-        self.images = {name: gui.add_image(blank, label=None, format="png", visible=False)
-                       for name in (*mx.MATRICES, "where")}
+        self.images = {
+            name: gui.add_image(blank, label=None, format="png", visible=False) for name in (*mx.MATRICES, "where")
+        }
         self.latex = gui.add_markdown("", visible=False)
 
     def show(self, system: str, variant: str) -> None:
@@ -144,9 +159,9 @@ class MatricesPanel:
     def _fill(self, system: str, variant: str) -> None:
         try:
             panel = mx.panel(system, variant)
-        except Exception as e:                     # a teaching aid must never take the session down
+        except Exception as e:  # a teaching aid must never take the session down
             panel = e
-        with self.lock:                            # not while the session closes
+        with self.lock:  # not while the session closes
             if self.key != (system, variant) or not self.alive():
                 return
             if isinstance(panel, Exception):
@@ -157,15 +172,16 @@ class MatricesPanel:
     def _show(self, panel: mx.Panel) -> None:
         if not self.alive():
             return
-        self.intro.content = panel.intro + ("  \nn₁, … (last image) name the sums in denominators."
-                                            if panel.where is not None else "")
+        self.intro.content = panel.intro + (
+            "  \nn₁, … (last image) name the sums in denominators." if panel.where is not None else ""
+        )
         imgs = {name: panel.where if name == "where" else panel.images.get(name) for name in self.images}
         width = max(i.shape[1] for i in imgs.values() if i is not None)
         for name, h in self.images.items():
             img = imgs[name]
             if img is None:
                 h.visible = False
-            else:                                  # one width for all: the panel scales them alike
+            else:  # one width for all: the panel scales them alike
                 h.image = np.pad(img, ((0, 0), (0, width - img.shape[1]), (0, 0)), constant_values=255)
                 h.visible = True
         self.latex.content = "LaTeX:\n\n```latex\n" + "\n\n".join(panel.latex.values()) + "\n```"

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MAX_POINTS = 800            # per series after decimation (two per bucket: min and max)
-LOG_FLOOR = 1e-16           # |φ| below this is plotted as 1e-16 (round-off level)
+MAX_POINTS = 800  # per series after decimation (two per bucket: min and max)
+LOG_FLOOR = 1e-16  # |φ| below this is plotted as 1e-16 (round-off level)
 
 
 def envelope(t: np.ndarray, ys: list[np.ndarray], max_points: int = MAX_POINTS):
@@ -56,8 +56,8 @@ def readable(values: list[np.ndarray], unit: str) -> tuple[float, str]:
     big = max((float(np.abs(v).max()) for v in values if len(v)), default=0.0)
     if big == 0.0 or 1e-2 <= big < 1e5:
         return 1.0, unit
-    e = int(math.floor(math.log10(big)))
-    return 10.0 ** e, f"×1e{e} {unit}".strip()
+    e = math.floor(math.log10(big))
+    return 10.0**e, f"×1e{e} {unit}".strip()
 
 
 @dataclass
@@ -76,10 +76,19 @@ class Curves:
 def marker_axes(t_now: float) -> tuple[dict, ...]:
     """uPlot axes: the usual x and y axes, plus a hidden top x axis whose single grid line
     at t_now is the current-time marker."""
-    return ({"scale": "x"}, {},
-            {"scale": "x", "side": 0, "size": 0, "splits": (float(t_now),), "values": ("",),
-             "ticks": {"show": False}, "grid": {"show": True, "stroke": "#444444", "width": 1.5,
-                                                 "dash": (4.0, 3.0)}})
+    return (
+        {"scale": "x"},
+        {},
+        {
+            "scale": "x",
+            "side": 0,
+            "size": 0,
+            "splits": (float(t_now),),
+            "values": ("",),
+            "ticks": {"show": False},
+            "grid": {"show": True, "stroke": "#444444", "width": 1.5, "dash": (4.0, 3.0)},
+        },
+    )
 
 
 def curves(t, ys, labels, max_points: int = MAX_POINTS) -> Curves:

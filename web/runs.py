@@ -18,19 +18,19 @@ from nmkane_core.errors import InputError
 from . import geometry as geo
 from .worker import LatestWorker
 
-TIME_LIMIT_S = 10.0           # a run that takes longer stops with status 'timeout'
+TIME_LIMIT_S = 10.0  # a run that takes longer stops with status 'timeout'
 
 
 @dataclass
 class Trajectory:
     """What a session animates: the runs of one request, prepared for display."""
 
-    kind: str                        # the view's kind ("ah" | "pt")
+    kind: str  # the view's kind ("ah" | "pt")
     request: dict
-    runs: dict                       # label -> nmkane_core Run (first = main)
+    runs: dict  # label -> nmkane_core Run (first = main)
     params: dict
-    plots: dict                      # plot key -> plots.Curves
-    t_request: float                 # perf_counter when the controls were read
+    plots: dict  # plot key -> plots.Curves
+    t_request: float  # perf_counter when the controls were read
     compute_s: float = 0.0
     installed_at: float = 0.0
     seq: int = 0
@@ -59,16 +59,21 @@ class Runner:
     def __init__(self, session, simulate: Callable, *, sync: bool = False):
         self.session = session
         self._simulate = simulate
-        self.sim_log: list[dict] = []              # settings of every simulation (tests read them)
-        self.latencies: list[float] = []           # control change -> new trajectory installed, s
-        self.quiet = False                         # while resetting: one request at the end
+        self.sim_log: list[dict] = []  # settings of every simulation (tests read them)
+        self.latencies: list[float] = []  # control change -> new trajectory installed, s
+        self.quiet = False  # while resetting: one request at the end
         self._seq = 0
         self.worker = None if sync else LatestWorker(self.compute)
 
     def next_request(self, kind: str, settings: dict, options: dict) -> dict:
         self._seq += 1
-        return {"kind": kind, "seq": self._seq, "t_request": time.perf_counter(),
-                "settings": settings, "options": options}
+        return {
+            "kind": kind,
+            "seq": self._seq,
+            "t_request": time.perf_counter(),
+            "settings": settings,
+            "options": options,
+        }
 
     def submit(self, req: dict) -> None:
         if self.quiet or self.session.closed:
@@ -96,14 +101,15 @@ class Runner:
         except InputError as e:
             self.session.show_status(f"**input refused** — {e}  \nthe previous motion keeps playing")
             return
-        except Exception as e:                     # never a frozen panel: say what happened
+        except Exception as e:  # never a frozen panel: say what happened
             self.session.show_status(f"**failed** — {type(e).__name__}: {e}")
             raise
         params = dict(next(iter(runs.values())).settings["params"])
-        traj = Trajectory(req["kind"], req, runs, params, plots, req["t_request"],
-                          compute_s=time.perf_counter() - t0, seq=req["seq"])
+        traj = Trajectory(
+            req["kind"], req, runs, params, plots, req["t_request"], compute_s=time.perf_counter() - t0, seq=req["seq"]
+        )
         if self.superseded() or req["kind"] != self.session.current_kind():
-            return                                 # a newer request follows: show that one
+            return  # a newer request follows: show that one
         self.session.install(traj)
 
     def record_install(self, traj: Trajectory) -> None:

@@ -13,8 +13,14 @@ import os
 import shutil
 import time
 
-CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--enable-unsafe-swiftshader", "--disable-background-networking",
-                 "--disable-component-update", "--no-first-run"]
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--disable-gpu",
+    "--enable-unsafe-swiftshader",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--no-first-run",
+]
 
 
 def chromium_path() -> str | None:
@@ -25,8 +31,9 @@ def chromium_path() -> str | None:
     return "/usr/bin/chromium" if os.path.exists("/usr/bin/chromium") else None
 
 
-def open_page(browser, url: str, width: int = 1400, height: int = 900, timeout_ms: int = 60000,
-              requests: list | None = None):
+def open_page(
+    browser, url: str, width: int = 1400, height: int = 900, timeout_ms: int = 60000, requests: list | None = None
+):
     """A page connected to the app with its panel filled (the first trajectory installed);
     the URLs it requests are appended to ``requests``."""
     page = browser.new_page(viewport={"width": width, "height": height})
@@ -85,8 +92,8 @@ def capture(out_dir: str = "docs/screenshots") -> list[str]:
                 session.set_playing(False)
                 session.seek(9.0)
                 session.reset_view()
-                collapse(page, "Simulation: Appell–Hamel")   # show the plots beside the scene
-                time.sleep(3.0)                       # camera settles, plot markers refresh
+                collapse(page, "Simulation: Appell–Hamel")  # show the plots beside the scene
+                time.sleep(3.0)  # camera settles, plot markers refresh
                 close_toasts(page)
                 path = os.path.join(out_dir, "mechanism.png")
                 page.screenshot(path=path)

@@ -31,26 +31,26 @@ from urllib.parse import parse_qs, quote, urlsplit
 
 import viser
 
-from nmkane_core.simulate import simulate as core_simulate
 from nmkane_core.registry import get_system
+from nmkane_core.simulate import simulate as core_simulate
 
 from . import matrices as mx
 from .generic import warm_systems
 from .session import MechanismApp
 from .systems import VIEWS
 
-FPS = 40.0                    # poses sent per second (the target is ≥ 30)
-REFRESH_HZ = 4.0              # plot markers, scrubber, readouts
-MAX_SESSIONS = 40             # browsers served at once by default (NMKANE_MAX_SESSIONS)
+FPS = 40.0  # poses sent per second (the target is ≥ 30)
+REFRESH_HZ = 4.0  # plot markers, scrubber, readouts
+MAX_SESSIONS = 40  # browsers served at once by default (NMKANE_MAX_SESSIONS)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
-TRIM_DELAY_S = 2.0            # after a session closes, return its memory this much later
-REJECTED = 1002               # close code viser's client shows as "Connection rejected: <reason>"
+TRIM_DELAY_S = 2.0  # after a session closes, return its memory this much later
+REJECTED = 1002  # close code viser's client shows as "Connection rejected: <reason>"
 
 
 def _host_name(value: str) -> str:
     value = value.strip().lower()
     if value.startswith("["):
-        return value[1:value.find("]")] if "]" in value else value
+        return value[1 : value.find("]")] if "]" in value else value
     return value.split(":", 1)[0] if value.count(":") == 1 else value
 
 
@@ -71,7 +71,7 @@ def _reachable(host: str) -> str:
         import socket
 
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe:
-            probe.connect(("192.0.2.1", 9))          # TEST-NET-1: a route lookup, no packet sent
+            probe.connect(("192.0.2.1", 9))  # TEST-NET-1: a route lookup, no packet sent
             return probe.getsockname()[0]
     except OSError:
         return "127.0.0.1"
@@ -98,7 +98,7 @@ def _release_memory() -> None:
     larger per cycle, and ``malloc_trim(0)`` returned it all."""
     if _TRIM is not None and _trim_lock.acquire(blocking=False):
         try:
-            gc.collect()                 # a session's objects are in reference cycles: free them first
+            gc.collect()  # a session's objects are in reference cycles: free them first
             _TRIM(0)
         finally:
             _trim_lock.release()
@@ -119,9 +119,17 @@ class WebApp:
     The handle ``launch()`` returns: ``.port`` (the port actually bound) and ``.stop()``.
     """
 
-    def __init__(self, host: str = "127.0.0.1", port: int = 8080, simulate=core_simulate, *,
-                 token: str | None = None, allowed_hosts=(), max_sessions: int | None = None,
-                 scene: str | None = None):
+    def __init__(
+        self,
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        simulate=core_simulate,
+        *,
+        token: str | None = None,
+        allowed_hosts=(),
+        max_sessions: int | None = None,
+        scene: str | None = None,
+    ):
         """``token``: asked for on every connection (None: none); ``allowed_hosts``: host names
         accepted besides the loopback names and ``host``; ``max_sessions``: browsers served at once;
         ``scene``: the system new browsers open on."""
@@ -130,17 +138,17 @@ class WebApp:
         if self.max_sessions < 1:
             raise ValueError(f"max_sessions = {max_sessions!r}: an integer ≥ 1 is needed")
         self.allowed_hosts = frozenset([*LOOPBACK_NAMES, _host_name(host), *(_host_name(h) for h in allowed_hosts)])
-        self._admitted: set[int] = set()             # connections past the gate (sessions or about to be)
-        self._trim_due: float | None = None           # when to return closed sessions' memory (monotonic)
+        self._admitted: set[int] = set()  # connections past the gate (sessions or about to be)
+        self._trim_due: float | None = None  # when to return closed sessions' memory (monotonic)
         self.rejected = 0
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
-        ws = self.server._websock_server               # the gate runs before anything is sent
+        ws = self.server._websock_server  # the gate runs before anything is sent
         ws.on_client_connect(self._gate)
         ws.on_client_disconnect(self._ungate)
         self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
         self.server.scene.set_up_direction("+z")
-        self.scene = scene                           # the system new browsers open on (None: the first)
-        preset = VIEWS[0].initial_camera() if scene in (None, VIEWS[0].system) else None   # the camera's start
+        self.scene = scene  # the system new browsers open on (None: the first)
+        preset = VIEWS[0].initial_camera() if scene in (None, VIEWS[0].system) else None  # the camera's start
         if preset is not None:
             self.server.initial_camera.look_at, self.server.initial_camera.position = preset
         self.port = self.server.get_port()
@@ -193,8 +201,9 @@ class WebApp:
         if reason is None:
             with self._lock:
                 if len(self._admitted) >= self.max_sessions:
-                    reason = (f"nmkane is full ({self.max_sessions} browsers); this page retries and gets "
-                              "in when one leaves")
+                    reason = (
+                        f"nmkane is full ({self.max_sessions} browsers); this page retries and gets in when one leaves"
+                    )
                 else:
                     self._admitted.add(conn.client_id)
         if reason is not None:
@@ -211,8 +220,7 @@ class WebApp:
 
     def _connect(self, client: viser.ClientHandle) -> None:
         cid = client.client_id
-        session = MechanismApp(client, simulate=self._simulate, connected=lambda: self.connected(cid),
-                               scene=self.scene)
+        session = MechanismApp(client, simulate=self._simulate, connected=lambda: self.connected(cid), scene=self.scene)
         with self._lock:
             self.sessions[cid] = session
 
@@ -222,7 +230,7 @@ class WebApp:
         if session is not None:
             session.close()
             del session
-            self._trim_due = time.monotonic() + TRIM_DELAY_S   # once its threads have ended too
+            self._trim_due = time.monotonic() + TRIM_DELAY_S  # once its threads have ended too
 
     def _animate(self) -> None:
         period = 1.0 / FPS
@@ -235,19 +243,17 @@ class WebApp:
                 last_refresh = t0
             with self._lock:
                 sessions = list(self.sessions.values())
-            for s in sessions:                     # a session whose browser left skips itself
-                try:
+            for s in sessions:  # a session whose browser left skips itself
+                with contextlib.suppress(Exception):  # a client gone mid-frame: skip it this frame
                     s.tick(dt_wall, refresh)
-                except Exception:                  # a client gone mid-frame: skip it this frame
-                    pass
-            sessions = s = None                    # hold no closed session until the next frame
+            sessions = s = None  # hold no closed session until the next frame
             if self._trim_due is not None and time.monotonic() >= self._trim_due:
                 self._trim_due = None
                 _release_memory()
             self.frame_times.append(t0)
             self.frame_work_s.append(time.perf_counter() - t0)
             del self.frame_times[:-400], self.frame_work_s[:-400]
-            next_frame = max(next_frame + period, time.perf_counter())   # fixed rate, no drift
+            next_frame = max(next_frame + period, time.perf_counter())  # fixed rate, no drift
             self._stop.wait(max(0.0, next_frame - time.perf_counter()))
 
     def fps(self, last: int = 120) -> float:
@@ -291,8 +297,8 @@ def warm() -> None:
         shown = view.matrices_variants()
         first.append((system.name, shown[0]))
         rest += [(system.name, v) for v in shown[1:]]
-    others = warm_systems(skip={view.system for view in VIEWS})     # every other system's kernels, visuals
-    for key in first + others + rest:    # every system's first model, then the others
+    others = warm_systems(skip={view.system for view in VIEWS})  # every other system's kernels, visuals
+    for key in first + others + rest:  # every system's first model, then the others
         with contextlib.suppress(Exception):
             mx.panel(*key)
 
@@ -302,7 +308,7 @@ def launch(host: str = "127.0.0.1", port: int = 8080, scene: str | None = None, 
     ``scene``: the registered system new browsers open on (default: the first); ``options``:
     ``token``, ``allowed_hosts``, ``max_sessions`` (see :class:`WebApp`)."""
     if scene is not None:
-        get_system(scene, "scene")                   # unknown: InputError naming the choices
+        get_system(scene, "scene")  # unknown: InputError naming the choices
     return WebApp(host=host, port=port, scene=scene, **options)
 
 
@@ -323,7 +329,7 @@ def main() -> None:
     ap.add_argument("--port", type=int, default=8080)
     ap.add_argument("--scene", default=None, help="the system new browsers open on")
     args = ap.parse_args()
-    stopping: list[int] = []               # no lock in a signal handler (see backend.serve)
+    stopping: list[int] = []  # no lock in a signal handler (see backend.serve)
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda signum, _frame: stopping.append(signum))
     app = launch(args.host, args.port, scene=args.scene)

@@ -25,7 +25,7 @@ from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
 from .systems import VIEWS, AppellHamelView, scene_choices
 
-CAMERA_VIEWS = tuple(AppellHamelView.camera_views)      # the camera-target dropdown
+CAMERA_VIEWS = tuple(AppellHamelView.camera_views)  # the camera-target dropdown
 
 
 class MechanismApp:
@@ -40,8 +40,15 @@ class MechanismApp:
     Each view's controls are attributes by their ``attr`` (``app.gamma``, ``app.pt_gamma1``)
     and its parameter sliders a dict (``app.params``, ``app.pt_params``)."""
 
-    def __init__(self, target, *, simulate=core_simulate, sync: bool = False,
-                 connected: Callable[[], bool] | None = None, scene: str | None = None):
+    def __init__(
+        self,
+        target,
+        *,
+        simulate=core_simulate,
+        sync: bool = False,
+        connected: Callable[[], bool] | None = None,
+        scene: str | None = None,
+    ):
         self.target = target
         self.client = target if isinstance(target, viser.ClientHandle) else None
         self.gui, self.scene = target.gui, target.scene
@@ -55,8 +62,8 @@ class MechanismApp:
         self._writing_time = False
         self._shown_t = None
         self.views = {cls.kind: cls(self.scene) for cls in VIEWS}
-        self.system_view = next(iter(self.views.values()))    # the chosen system's view
-        self.choices = scene_choices()                         # dropdown title -> system name
+        self.system_view = next(iter(self.views.values()))  # the chosen system's view
+        self.choices = scene_choices()  # dropdown title -> system name
         self.mechanism = self.views["ah"].mechanism
         self.particle = self.views["pt"].particle
         self.camera = CameraRig(self.client, self.alive)
@@ -66,7 +73,7 @@ class MechanismApp:
             self.client.camera.on_update(lambda cam: self.camera.on_report(self.system_view, cam))
         first = next((t for t, n in self.choices.items() if n == scene), None) if scene else None
         if first is not None and first != self.scene_choice.value:
-            self.scene_choice.value = first          # its callback shows the system and simulates
+            self.scene_choice.value = first  # its callback shows the system and simulates
             return
         self._aim_camera(reset=True)
         self.request()
@@ -89,7 +96,7 @@ class MechanismApp:
             self.view_reset = gui.add_button("Reset view")
             self.fit_view = gui.add_button("Fit view")
 
-        self.sim_controls: dict[str, dict] = {}        # kind -> {Control: handle}
+        self.sim_controls: dict[str, dict] = {}  # kind -> {Control: handle}
         self.folders, self.resets = {}, {}
         for i, view in enumerate(self.views.values()):
             self._add_view_gui(view, visible=i == 0)
@@ -125,7 +132,7 @@ class MechanismApp:
             with gui.add_folder(view.params_folder, expand_by_default=False):
                 params = {c.attr: self.controls.add(c) for c in view.param_controls}
             self.resets[view.kind] = gui.add_button(view.reset_label)
-        if not view.kind.startswith("gen:"):             # the hand-made views' handles by name (tests)
+        if not view.kind.startswith("gen:"):  # the hand-made views' handles by name (tests)
             for c, h in handles.items():
                 setattr(self, c.attr, h)
             setattr(self, view.params_attr, params)
@@ -192,7 +199,7 @@ class MechanismApp:
                 self._refresh(force=True)
 
     def _on_time(self) -> None:
-        if not self._writing_time:                 # a person (or a test) moved the scrubber
+        if not self._writing_time:  # a person (or a test) moved the scrubber
             self.seek(float(self.controls.value(self.time)))
 
     def reset_to_paper(self) -> None:
@@ -239,7 +246,7 @@ class MechanismApp:
         """Show a new trajectory: geometry that depends on it, trace, plots, summary."""
         view = self.views[traj.kind]
         with self.lock:
-            if not self.alive():                   # the browser left while this was computed
+            if not self.alive():  # the browser left while this was computed
                 return
             with self._atomic():
                 view.install(traj)
@@ -247,7 +254,7 @@ class MechanismApp:
                 self.traj = traj
                 self.t_now = min(self.t_now, traj.t_end)
                 if getattr(view, "fit_pending", False) and traj.kind == self.kind:
-                    view.fit_pending = False         # first sight of this system: frame it
+                    view.fit_pending = False  # first sight of this system: frame it
                     self.show_time(self.t_now)
                     self._aim_camera(reset=True)
                 self._writing_time = True
@@ -261,7 +268,7 @@ class MechanismApp:
                 self._refresh(force=True)
                 self.runner.record_install(traj)
                 self.status.content = status_text(traj, self._installs)
-        self.target.flush()                        # out now, not at the next 1/60 s window
+        self.target.flush()  # out now, not at the next 1/60 s window
 
     @contextlib.contextmanager
     def _atomic(self):

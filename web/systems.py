@@ -32,19 +32,19 @@ DASH = {"dash": (6.0, 4.0)}
 class SystemView:
     """One system on the page (subclasses fill in the data and the scene)."""
 
-    kind = ""                        # short key: plot handles are keyed (kind, plot)
-    system = ""                      # the nmkane_core system name
-    title = ""                       # the scene dropdown's entry
-    folder = ""                      # the simulation folder's title
+    kind = ""  # short key: plot handles are keyed (kind, plot)
+    system = ""  # the nmkane_core system name
+    title = ""  # the scene dropdown's entry
+    folder = ""  # the simulation folder's title
     controls: tuple[Control, ...] = ()
     params_folder = "Physical parameters"
-    params_attr = "params"           # the session's dict of parameter sliders
+    params_attr = "params"  # the session's dict of parameter sliders
     reset_label = "Reset to the paper's values"
-    plots: tuple[tuple[str, str], ...] = ()      # (key, title)
-    speed = 1.0                      # playback speed when the scene is chosen
-    follows = False                  # the camera can follow a target (the view dropdown applies)
-    camera_views: ClassVar[dict] = {}    # view name -> camera offset (in the body frame when following)
-    fixed_camera = None              # (look_at, position) when not following
+    plots: tuple[tuple[str, str], ...] = ()  # (key, title)
+    speed = 1.0  # playback speed when the scene is chosen
+    follows = False  # the camera can follow a target (the view dropdown applies)
+    camera_views: ClassVar[dict] = {}  # view name -> camera offset (in the body frame when following)
+    fixed_camera = None  # (look_at, position) when not following
 
     def __init__(self, scene):
         self.scene = scene
@@ -84,7 +84,7 @@ class SystemView:
         return
 
     # ---------------------------------------------------------------- scene
-    root = None                      # the scene node shown only while this system is chosen
+    root = None  # the scene node shown only while this system is chosen
 
     def install(self, traj) -> None:
         """Geometry that depends on the trajectory (sizes, traces)."""
@@ -105,12 +105,21 @@ class SystemView:
 
 
 # --------------------------------------------------------------------------- Appell–Hamel
-AH_PARAM_RANGES = {"a": (0.2, 3.0, 0.05), "b": (0.05, 2.0, 0.05), "rho": (1.0, 15.0, 0.1),
-                   "m": (0.1, 20.0, 0.1), "M": (0.5, 50.0, 0.5), "I": (0.1, 50.0, 0.1),
-                   "g": (0.0, 20.0, 0.01), "z0": (0.0, 100.0, 1.0)}
-VIEW_OFFSET = {"whole mechanism": np.array([-0.5, 0.85, 0.2]) * 42.0,     # in the body frame:
-               "wheel": np.array([-0.55, 0.75, 0.36]) * 9.0,               # behind, drum side, above
-               "load P": np.array([-0.45, 0.8, 0.4]) * 12.0}
+AH_PARAM_RANGES = {
+    "a": (0.2, 3.0, 0.05),
+    "b": (0.05, 2.0, 0.05),
+    "rho": (1.0, 15.0, 0.1),
+    "m": (0.1, 20.0, 0.1),
+    "M": (0.5, 50.0, 0.5),
+    "I": (0.1, 50.0, 0.1),
+    "g": (0.0, 20.0, 0.01),
+    "z0": (0.0, 100.0, 1.0),
+}
+VIEW_OFFSET = {
+    "whole mechanism": np.array([-0.5, 0.85, 0.2]) * 42.0,  # in the body frame:
+    "wheel": np.array([-0.55, 0.75, 0.36]) * 9.0,  # behind, drum side, above
+    "load P": np.array([-0.45, 0.8, 0.4]) * 12.0,
+}
 VIEW_TARGET = {"whole mechanism": "mechanism", "wheel": "wheel", "load P": "load"}
 
 
@@ -121,22 +130,32 @@ class AppellHamelView(SystemView):
     title, folder = "Appell–Hamel mechanism", "Simulation: Appell–Hamel"
     # the paper's Example 1 (no stabilization)
     controls = (
-        Control("model", "Constraint model", "variant", "nonlinear", kind="dropdown",
-                options=("nonlinear", "linear")),
+        Control("model", "Constraint model", "variant", "nonlinear", kind="dropdown", options=("nonlinear", "linear")),
         Control("integrator", "Integrator", "integrator", "kutta-merson", kind="dropdown", options=INTEGRATORS),
         Control("gamma", "Γ (nonholonomic)", "gamma", 0.0, min=-50.0, max=10.0, step=0.5),
         Control("gamma1", "Γ1 (holonomic) [1/s]", "gamma1", 0.0, min=-50.0, max=10.0, step=0.5),
         Control("gamma2", "Γ2 (holonomic) [1/s²]", "gamma2", 0.0, min=-500.0, max=50.0, step=5.0),
-        log_dt_control("log_dt", "log₁₀ Δt [s]", -2.0,
-                       hint="step size on a log scale: −4 → 1e−4 s … −0.7 → 0.2 s"),
+        log_dt_control("log_dt", "log₁₀ Δt [s]", -2.0, hint="step size on a log scale: −4 → 1e−4 s … −0.7 → 0.2 s"),
         Control("t_final", "Final time [s]", "t_final", 20.0, min=1.0, max=200.0, step=1.0),
         Control("theta_dot0", "θ̇0 [rad/s]", "initial.u1", 1.0, min=-3.0, max=3.0, step=0.05),
-        Control("phi_dot0", "φ̇0 [rad/s]", "initial.u2", 1.0, min=-3.0, max=3.0, step=0.05,
-                hint="ẋ0, ẏ0, ż0 are completed by the constraint solve"),
+        Control(
+            "phi_dot0",
+            "φ̇0 [rad/s]",
+            "initial.u2",
+            1.0,
+            min=-3.0,
+            max=3.0,
+            step=0.05,
+            hint="ẋ0, ẏ0, ż0 are completed by the constraint solve",
+        ),
         Control("compare", "Compare: ghost of the other model", "option.compare", False, kind="checkbox"),
     )
-    plots = (("energy", "Energy drift ΔE(t)"), ("violation", "log₁₀ |constraint violation|"),
-             ("theta", "θ(t)"), ("phidot", "φ̇(t)"))
+    plots = (
+        ("energy", "Energy drift ΔE(t)"),
+        ("violation", "log₁₀ |constraint violation|"),
+        ("theta", "θ(t)"),
+        ("phidot", "φ̇(t)"),
+    )
     speed, follows = 1.0, True
     camera_views = VIEW_OFFSET
 
@@ -162,25 +181,26 @@ class AppellHamelView(SystemView):
         out = {}
         dEs = {lab: np.interp(t, r.t, r.energy - r.energy[0]) for lab, r in runs.items()}
         factor, unit = pl.readable(list(dEs.values()), "J")
-        out["energy"] = pl.curves(t, [dEs[lab] / factor for lab in labels],
-                                  [f"ΔE {lab} [{unit}]" for lab in labels])
+        out["energy"] = pl.curves(t, [dEs[lab] / factor for lab in labels], [f"ΔE {lab} [{unit}]" for lab in labels])
         ys, names = [], []
         for lab, r in runs.items():
             for c, v in r.violation.items():
                 ys.append(pl.log10_abs(np.interp(t, r.t, v)))
                 names.append(f"{c}" if lab == labels[0] else f"{c} ({lab})")
         out["violation"] = pl.curves(t, ys, names)
-        out["theta"] = pl.curves(t, [np.interp(t, r.t, r.state["theta"]) for r in runs.values()],
-                                 [f"θ {lab} [rad]" for lab in labels])
-        out["phidot"] = pl.curves(t, [np.interp(t, r.t, r.state["u2"]) for r in runs.values()],
-                                  [f"φ̇ {lab} [rad/s]" for lab in labels])
+        out["theta"] = pl.curves(
+            t, [np.interp(t, r.t, r.state["theta"]) for r in runs.values()], [f"θ {lab} [rad]" for lab in labels]
+        )
+        out["phidot"] = pl.curves(
+            t, [np.interp(t, r.t, r.state["u2"]) for r in runs.values()], [f"φ̇ {lab} [rad/s]" for lab in labels]
+        )
         return out
 
     def series_style(self, key: str, i: int, traj) -> dict:
-        if key == "violation":                        # one colour per constraint; other model dashed
+        if key == "violation":  # one colour per constraint; other model dashed
             per_model = len(traj.main.violation)
             return {"stroke": COLORS[i % per_model], **(DASH if i >= per_model else {})}
-        return {"stroke": COLORS[min(i, 1)], **(DASH if i else {})}   # main solid, compare dashed
+        return {"stroke": COLORS[min(i, 1)], **(DASH if i else {})}  # main solid, compare dashed
 
     def install(self, traj) -> None:
         z_min = min(float(r.state["z"].min()) for r in traj.runs.values())
@@ -215,7 +235,7 @@ class AppellHamelView(SystemView):
 
 # --------------------------------------------------------------------------- sliding particle
 PT_PARAM_RANGES = {"l0": (0.2, 3.0, 0.05), "m": (0.1, 10.0, 0.1), "g": (0.0, 20.0, 0.01)}
-PT_ORDER = ("N", "DN", "M")   # series order in the particle plots
+PT_ORDER = ("N", "DN", "M")  # series order in the particle plots
 
 
 class ParticleView(SystemView):
@@ -235,10 +255,14 @@ class ParticleView(SystemView):
     )
     params_folder, params_attr = "Physical parameters ", "pt_params"
     reset_label = "Reset to the paper's values "
-    plots = (("energy", "Energy drift ΔE(t) "), ("violation", "log₁₀ |ψ| (surface) "),
-             ("x", "x(t) "), ("y", "y(t) (down) "))
+    plots = (
+        ("energy", "Energy drift ΔE(t) "),
+        ("violation", "log₁₀ |ψ| (surface) "),
+        ("x", "x(t) "),
+        ("y", "y(t) (down) "),
+    )
     speed = 5.0
-    fixed_camera = (np.array([1.2, 0.0, -0.2]), np.array([1.2, -8.3, 2.3]))   # look_at, position
+    fixed_camera = (np.array([1.2, 0.0, -0.2]), np.array([1.2, -8.3, 2.3]))  # look_at, position
 
     def __init__(self, scene):
         super().__init__(scene)
@@ -251,10 +275,11 @@ class ParticleView(SystemView):
 
     def runs(self, settings: dict, options: dict) -> dict[str, dict]:
         base = {k: v for k, v in settings.items() if k not in ("gamma1", "gamma2")}
-        return {"M": {**base, "formulation": "minimal"},
-                "N": {**base, "formulation": "nonminimal"},
-                "DN": {**base, "formulation": "nonminimal",
-                       "gamma1": settings["gamma1"], "gamma2": settings["gamma2"]}}
+        return {
+            "M": {**base, "formulation": "minimal"},
+            "N": {**base, "formulation": "nonminimal"},
+            "DN": {**base, "formulation": "nonminimal", "gamma1": settings["gamma1"], "gamma2": settings["gamma2"]},
+        }
 
     def curves(self, runs: dict) -> dict:
         t = runs["N"].t
@@ -262,18 +287,22 @@ class ParticleView(SystemView):
         dEs = {lab: np.interp(t, runs[lab].t, runs[lab].energy - runs[lab].energy[0]) for lab in order}
         factor, unit = pl.readable(list(dEs.values()), "J")
         return {
-            "energy": pl.curves(t, [dEs[lab] / factor for lab in order],
-                                [f"ΔE {lab} [{unit}]" for lab in order]),
-            "violation": pl.curves(t, [pl.log10_abs(np.interp(t, runs[lab].t, runs[lab].violation["surface"]))
-                                       for lab in order], [f"{lab}" for lab in order]),
-            "x": pl.curves(t, [np.interp(t, runs[lab].t, runs[lab].state["x"]) for lab in order],
-                           [f"x {lab} [m]" for lab in order]),
-            "y": pl.curves(t, [np.interp(t, runs[lab].t, runs[lab].state["y"]) for lab in order],
-                           [f"y {lab} [m]" for lab in order]),
+            "energy": pl.curves(t, [dEs[lab] / factor for lab in order], [f"ΔE {lab} [{unit}]" for lab in order]),
+            "violation": pl.curves(
+                t,
+                [pl.log10_abs(np.interp(t, runs[lab].t, runs[lab].violation["surface"])) for lab in order],
+                [f"{lab}" for lab in order],
+            ),
+            "x": pl.curves(
+                t, [np.interp(t, runs[lab].t, runs[lab].state["x"]) for lab in order], [f"x {lab} [m]" for lab in order]
+            ),
+            "y": pl.curves(
+                t, [np.interp(t, runs[lab].t, runs[lab].state["y"]) for lab in order], [f"y {lab} [m]" for lab in order]
+            ),
         }
 
     def series_style(self, key: str, i: int, traj) -> dict:
-        return {"stroke": LANE_COLORS[PT_ORDER[i]]}       # one colour per lane: M, N, DN
+        return {"stroke": LANE_COLORS[PT_ORDER[i]]}  # one colour per lane: M, N, DN
 
     def matrices_variant(self, settings: dict) -> str:
         return "nonminimal"
@@ -313,7 +342,7 @@ def scene_choices() -> dict[str, str]:
             continue
         try:
             title = get_system(name).title or name
-        except Exception:                            # a broken plug-in: listed by name, reported when chosen
+        except Exception:  # a broken plug-in: listed by name, reported when chosen
             title = name
         out[title if title not in out else f"{title} ({name})"] = name
     return out

@@ -12,7 +12,8 @@ from __future__ import annotations
 import threading
 import time
 import traceback
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 
 class LatestWorker:
@@ -42,14 +43,14 @@ class LatestWorker:
                     return
                 self.busy = True
             if self.debounce:
-                time.sleep(self.debounce)          # let a burst settle; the newest is kept
+                time.sleep(self.debounce)  # let a burst settle; the newest is kept
             with self.cv:
                 request, self.pending = self.pending, None
             try:
                 if request is not None:
                     self.fn(request)
                     self.runs += 1
-            except Exception:                      # a display worker must survive anything
+            except Exception:  # a display worker must survive anything
                 traceback.print_exc()
             finally:
                 with self.cv:

@@ -24,8 +24,11 @@ __all__ = ["Command", "main", "entry", "format_summary", "notice_if_slow"]
 
 
 def _build_parser(commands: dict[str, Command]) -> Parser:
-    parser = Parser(prog=PROG, description="Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005): "
-                    "simulate, serve the REST API and 3D web app, benchmark, reproduce the paper.")
+    parser = Parser(
+        prog=PROG,
+        description="Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005): "
+        "simulate, serve the REST API and 3D web app, benchmark, reproduce the paper.",
+    )
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
     for cmd in commands.values():
         cmd.add_arguments(sub.add_parser(cmd.name, help=cmd.help))
@@ -47,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
-    except BrokenPipeError:      # output piped into `head` and closed: not an error of ours
+    except BrokenPipeError:  # output piped into `head` and closed: not an error of ours
         sys.stderr.close()
         return 0
 
@@ -64,7 +67,7 @@ def entry() -> None:
     args = sys.argv[1:]
     try:
         code = main(args)
-    except SystemExit as e:                 # argparse: --help, usage errors
+    except SystemExit as e:  # argparse: --help, usage errors
         code = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
         if isinstance(e.code, str):
             print(e.code, file=sys.stderr)
@@ -74,6 +77,6 @@ def entry() -> None:
     try:
         sys.stdout.flush()
         sys.stderr.flush()
-    except (BrokenPipeError, ValueError):   # a closed pipe or stream: nothing left to flush
+    except (BrokenPipeError, ValueError):  # a closed pipe or stream: nothing left to flush
         pass
     os._exit(code)

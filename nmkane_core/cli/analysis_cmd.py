@@ -15,11 +15,18 @@ def _common(p: argparse.ArgumentParser) -> None:
     add_systems_option(p)
     p.add_argument("--model")
     p.add_argument("--formulation")
-    p.add_argument("--at", type=assignment, action="append", default=[], metavar="NAME=VALUE",
-                   help="the state: independent values (the others taken from the system's default state, "
-                        "the dependent ones completed from the constraints) or every coordinate and speed")
-    p.add_argument("--set", type=assignment, action="append", default=[], metavar="NAME=VALUE",
-                   help="a physical parameter")
+    p.add_argument(
+        "--at",
+        type=assignment,
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="the state: independent values (the others taken from the system's default state, "
+        "the dependent ones completed from the constraints) or every coordinate and speed",
+    )
+    p.add_argument(
+        "--set", type=assignment, action="append", default=[], metavar="NAME=VALUE", help="a physical parameter"
+    )
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -39,7 +46,7 @@ def _state(args):
 
         try:
             _, state = initial_state(system, system.check_variant(variant), system.resolve_params(params), given)
-        except InputError as e:            # name the option of this command, not `run --init`
+        except InputError as e:  # name the option of this command, not `run --init`
             field = e.field.replace("initial.", "--at ", 1) if e.field.startswith("initial.") else e.field
             raise InputError(field.replace("initial", "--at", 1), e.value, e.allowed, e.reason) from None
     else:
@@ -62,9 +69,14 @@ def _accelerations(args: argparse.Namespace) -> int:
 
 def _add_linearize(p: argparse.ArgumentParser) -> None:
     _common(p)
-    p.add_argument("--keep", action="append", default=None, metavar="NAME",
-                   help="an independent coordinate or speed to keep in the linearized state (repeatable; "
-                        "default: all independent ones)")
+    p.add_argument(
+        "--keep",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="an independent coordinate or speed to keep in the linearized state (repeatable; "
+        "default: all independent ones)",
+    )
     p.add_argument("--step", type=finite, default=1e-3, help="relative perturbation of the differences")
 
 
@@ -87,7 +99,10 @@ def _linearize(args: argparse.Namespace) -> int:
     return 0
 
 
-ACCELERATIONS = Command("accelerations", "du/dt of every speed at a full consistent state", _common,
-                        _accelerations)
-LINEARIZE = Command("linearize", "the linearized equations of the independent coordinates and speeds "
-                    "about a state, with eigenvalues", _add_linearize, _linearize)
+ACCELERATIONS = Command("accelerations", "du/dt of every speed at a full consistent state", _common, _accelerations)
+LINEARIZE = Command(
+    "linearize",
+    "the linearized equations of the independent coordinates and speeds about a state, with eigenvalues",
+    _add_linearize,
+    _linearize,
+)

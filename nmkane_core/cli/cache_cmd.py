@@ -10,11 +10,18 @@ from .common import finite
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("action", choices=("info", "clear", "prune"),
-                   help="info: size and entries; clear: remove everything; "
-                        "prune: remove kernels whose sources changed and kernels nothing uses")
-    p.add_argument("--unused-days", type=finite, dest="unused_days",
-                   help="prune: also remove kernels not loaded for this many days")
+    p.add_argument(
+        "action",
+        choices=("info", "clear", "prune"),
+        help="info: size and entries; clear: remove everything; "
+        "prune: remove kernels whose sources changed and kernels nothing uses",
+    )
+    p.add_argument(
+        "--unused-days",
+        type=finite,
+        dest="unused_days",
+        help="prune: also remove kernels not loaded for this many days",
+    )
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
@@ -58,8 +65,10 @@ def _run(args: argparse.Namespace) -> int:
     else:
         for e in done["entries"]:
             print(f"removed {e['system']} / {e['variant']} ({e['reason']})")
-        print(f"pruned {len(done['entries'])} index entries and {len(done['kernels'])} kernels, "
-              f"{_mb(done['bytes'])} freed")
+        print(
+            f"pruned {len(done['entries'])} index entries and {len(done['kernels'])} kernels, "
+            f"{_mb(done['bytes'])} freed"
+        )
     return 0
 
 

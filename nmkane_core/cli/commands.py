@@ -17,11 +17,11 @@ ENTRY_POINT_GROUP = "nmkane.commands"
 
 def _unavailable(name: str, error: Exception) -> Command:
     """A contributed command whose package cannot be imported: say which extra installs it."""
+
     def run(_args) -> int:
         from ..errors import NmkaneError
 
-        raise NmkaneError(f"'{name}' is not available here ({error}); install it with "
-                          f"pip install 'nmkane[all]'")
+        raise NmkaneError(f"'{name}' is not available here ({error}); install it with pip install 'nmkane[all]'")
 
     def add_arguments(p) -> None:
         p.add_argument("rest", nargs="*")
@@ -45,8 +45,17 @@ def contributed() -> list[Command]:
 def builtin() -> list[Command]:
     from . import analysis_cmd, bench_cmd, cache_cmd, figures_cmd, matrices_cmd, run_cmd, sweep_cmd, tune_cmd
 
-    return [run_cmd.COMMAND, matrices_cmd.COMMAND, analysis_cmd.ACCELERATIONS, analysis_cmd.LINEARIZE,
-            sweep_cmd.COMMAND, tune_cmd.COMMAND, bench_cmd.COMMAND, figures_cmd.COMMAND, cache_cmd.COMMAND]
+    return [
+        run_cmd.COMMAND,
+        matrices_cmd.COMMAND,
+        analysis_cmd.ACCELERATIONS,
+        analysis_cmd.LINEARIZE,
+        sweep_cmd.COMMAND,
+        tune_cmd.COMMAND,
+        bench_cmd.COMMAND,
+        figures_cmd.COMMAND,
+        cache_cmd.COMMAND,
+    ]
 
 
 @lru_cache(maxsize=1)

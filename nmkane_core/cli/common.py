@@ -15,11 +15,25 @@ from ..errors import InputError
 PROG = "nmkane"
 
 # settings field -> the option a user typed (errors name what the user wrote)
-FIELD_TO_OPTION = {"t_final": "--t-final", "dt": "--dt", "every": "--every", "gamma": "--gamma",
-                   "gamma1": "--gamma1", "gamma2": "--gamma2", "integrator": "--integrator",
-                   "model": "--model", "formulation": "--formulation", "projection": "--projection",
-                   "rtol": "--rtol", "atol": "--atol", "rcond_min": "--rcond-min", "out": "--out",
-                   "rcond_switch": "--rcond-switch", "system": "SYSTEM", "initial": "--init"}
+FIELD_TO_OPTION = {
+    "t_final": "--t-final",
+    "dt": "--dt",
+    "every": "--every",
+    "gamma": "--gamma",
+    "gamma1": "--gamma1",
+    "gamma2": "--gamma2",
+    "integrator": "--integrator",
+    "model": "--model",
+    "formulation": "--formulation",
+    "projection": "--projection",
+    "rtol": "--rtol",
+    "atol": "--atol",
+    "rcond_min": "--rcond-min",
+    "out": "--out",
+    "rcond_switch": "--rcond-switch",
+    "system": "SYSTEM",
+    "initial": "--init",
+}
 
 
 class Parser(argparse.ArgumentParser):
@@ -98,15 +112,19 @@ def notice_if_slow(message: str, enabled: bool = True, after: float = 1.0, strea
         if timer is not None:
             timer.cancel()
         if said.is_set():
-            print(f"{PROG}: ready in {time.perf_counter() - t0:.1f} s (cached for later runs)", file=stream,
-                  flush=True)
+            print(f"{PROG}: ready in {time.perf_counter() - t0:.1f} s (cached for later runs)", file=stream, flush=True)
 
 
 def add_systems_option(p: argparse.ArgumentParser) -> None:
     """``--systems PATH_OR_MODULE`` (repeatable): plug-in systems to load first."""
-    p.add_argument("--systems", action="append", default=[], metavar="PATH_OR_MODULE",
-                   help="a systems file (.py) or module to load first (repeatable; runs as Python code); "
-                        "also $NMKANE_SYSTEMS and the nmkane.systems entry points")
+    p.add_argument(
+        "--systems",
+        action="append",
+        default=[],
+        metavar="PATH_OR_MODULE",
+        help="a systems file (.py) or module to load first (repeatable; runs as Python code); "
+        "also $NMKANE_SYSTEMS and the nmkane.systems entry points",
+    )
 
 
 def load_plugged_systems(args: argparse.Namespace, strict: bool = True) -> None:

@@ -27,8 +27,12 @@ def _run(args: argparse.Namespace) -> int:
     system = get_system(args.system)
     other = "formulation" if system.option == "model" else "model"
     if getattr(args, other):
-        raise InputError(other, getattr(args, other), f"{system.option}: {' | '.join(system.variants)}",
-                         f"{system.name} has no {other}")
+        raise InputError(
+            other,
+            getattr(args, other),
+            f"{system.option}: {' | '.join(system.variants)}",
+            f"{system.name} has no {other}",
+        )
     variant = system.check_variant(getattr(args, system.option), system.option)
     d = system.derivation(variant)
     names = args.matrix or ["J1", "J2", "A1", "A2", "T"]

@@ -21,10 +21,16 @@ from .sweep_cmd import add_sweep_options
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:
     add_run_options(p)
-    p.add_argument("--points", type=positive_int, default=10, help="candidates per gain axis (default 10; "
-                   "Γ1 × Γ2 is a grid)")
-    p.add_argument("--energy-factor", dest="energy_factor", type=finite, default=10.0,
-                   help="allowed max energy drift as a multiple of the unstabilized run's (default 10)")
+    p.add_argument(
+        "--points", type=positive_int, default=10, help="candidates per gain axis (default 10; Γ1 × Γ2 is a grid)"
+    )
+    p.add_argument(
+        "--energy-factor",
+        dest="energy_factor",
+        type=finite,
+        default=10.0,
+        help="allowed max energy drift as a multiple of the unstabilized run's (default 10)",
+    )
     p.add_argument("--plot", metavar="FILE.png", help="draw the trade-off: violation against energy drift")
     add_sweep_options(p)
 
@@ -43,37 +49,57 @@ def report(res, system: str, energy_factor: float) -> str:
     from ..sweep.tune import rank
 
     ref = res.reference
-    lines = [f"{system}: {res.integrator}, dt = {res.dt:g} s",
-             f"stability   {res.integrator}'s real-axis interval is [{res.interval:.4f}, 0] (from its stability "
-             f"polynomial): Γ·Δt ≥ {res.interval:.4f}, i.e. Γ ≥ {res.interval / res.dt:.4g} s⁻¹; every error "
-             "eigenvalue λ (Γ; roots of s² − Γ1·s − Γ2) must have |R(λΔt)| ≤ 1",
-             f"reference   Γ = Γ1 = Γ2 = 0: {ref['status']}, max |violation| "
-             + ", ".join(f"{k} {v:.3e}" for k, v in ref["max_abs_violation"].items())
-             + f"; max |ΔE| {_fmt(ref['max_abs_energy_drift'])} (allowed ×{energy_factor:g})"]
+    lines = [
+        f"{system}: {res.integrator}, dt = {res.dt:g} s",
+        f"stability   {res.integrator}'s real-axis interval is [{res.interval:.4f}, 0] (from its stability "
+        f"polynomial): Γ·Δt ≥ {res.interval:.4f}, i.e. Γ ≥ {res.interval / res.dt:.4g} s⁻¹; every error "
+        "eigenvalue λ (Γ; roots of s² − Γ1·s − Γ2) must have |R(λΔt)| ≤ 1",
+        f"reference   Γ = Γ1 = Γ2 = 0: {ref['status']}, max |violation| "
+        + ", ".join(f"{k} {v:.3e}" for k, v in ref["max_abs_violation"].items())
+        + f"; max |ΔE| {_fmt(ref['max_abs_energy_drift'])} (allowed ×{energy_factor:g})",
+    ]
     for stage, cands in res.stages.items():
         feas = sum(c.feasible for c in cands)
         stable = sum(c.stable for c in cands)
         best = res.chosen.get(stage)
         skipped = res.outside.get(stage, 0)
-        head = (f"{stage:<11} {len(cands) + skipped} candidates, {skipped} outside the stability region (not run), "
-                f"{len(cands) - stable} unstable, {feas} qualify: ")
+        head = (
+            f"{stage:<11} {len(cands) + skipped} candidates, {skipped} outside the stability region (not run), "
+            f"{len(cands) - stable} unstable, {feas} qualify: "
+        )
         if best is None:
             lines.append(head + "none qualifies")
         else:
-            lines.append(head + f"{_gains(best.gains)} → max |violation| {best.violation:.3e}, "
-                         f"max |ΔE| {_fmt(best.energy)}")
+            lines.append(
+                head + f"{_gains(best.gains)} → max |violation| {best.violation:.3e}, max |ΔE| {_fmt(best.energy)}"
+            )
         g = res.given.get(stage)
         if g is not None:
             place = rank(res, stage)
-            where = f"ranks {place[0]} of {place[1]} qualifying" if place else \
-                ("does not qualify: " + ("unstable for this step" if not g.stable else
-                                         f"status {g.status}" if g.status != "ok" else "energy drift too large"))
-            lines.append(f"{'given':<11} {_gains(g.gains)} → max |violation| {_fmt(g.violation)}, "
-                         f"max |ΔE| {_fmt(g.energy)}; {where}")
+            where = (
+                f"ranks {place[0]} of {place[1]} qualifying"
+                if place
+                else (
+                    "does not qualify: "
+                    + (
+                        "unstable for this step"
+                        if not g.stable
+                        else f"status {g.status}"
+                        if g.status != "ok"
+                        else "energy drift too large"
+                    )
+                )
+            )
+            lines.append(
+                f"{'given':<11} {_gains(g.gains)} → max |violation| {_fmt(g.violation)}, "
+                f"max |ΔE| {_fmt(g.energy)}; {where}"
+            )
     f = res.final
-    lines.append(f"chosen      {_gains(res.gains)}: {f['status']}, max |violation| "
-                 + ", ".join(f"{k} {v:.3e}" for k, v in f["max_abs_violation"].items())
-                 + f"; max |ΔE| {_fmt(f['max_abs_energy_drift'])}")
+    lines.append(
+        f"chosen      {_gains(res.gains)}: {f['status']}, max |violation| "
+        + ", ".join(f"{k} {v:.3e}" for k, v in f["max_abs_violation"].items())
+        + f"; max |ΔE| {_fmt(f['max_abs_energy_drift'])}"
+    )
     return "\n".join(lines)
 
 
@@ -120,8 +146,9 @@ def _run(args: argparse.Namespace) -> int:
         raise InputError("--plot", args.plot, "a file name ending in .png, .svg or .pdf", "unknown format")
     load_plugged_systems(args)
     base = validate_settings(settings_from_args(args)).model_dump(exclude_none=True)
-    with make_executor(args.dask, args.workers, systems=tuple(args.systems), warm=(base,),
-                       time_limit=args.time_limit) as ex:
+    with make_executor(
+        args.dask, args.workers, systems=tuple(args.systems), warm=(base,), time_limit=args.time_limit
+    ) as ex:
         res = tune(base, points=args.points, energy_factor=args.energy_factor, executor=ex)
     print(report(res, args.system, args.energy_factor))
     if args.plot:
@@ -130,5 +157,6 @@ def _run(args: argparse.Namespace) -> int:
     return 0 if all(c is not None for c in res.chosen.values()) else 1
 
 
-COMMAND = Command("tune", "choose Γ (Γ1, Γ2) for a step size and integrator within its stability region",
-                  _add_arguments, _run)
+COMMAND = Command(
+    "tune", "choose Γ (Γ1, Γ2) for a step size and integrator within its stability region", _add_arguments, _run
+)

@@ -38,14 +38,26 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-_HOMES = {"FAIL": "claims", "INFO": "claims", "NOT_RUN": "claims", "PASS": "claims", "Claim": "claims",
-          "evaluate_claims": "claims", "FigureResult": "figure_specs", "make_figures": "make",
-          "Report": "report", "cli_command": "rerun", "rest_body": "rerun", "Runs": "runs",
-          "collect_runs": "runs", "run_plan": "runs"}
+_HOMES = {
+    "FAIL": "claims",
+    "INFO": "claims",
+    "NOT_RUN": "claims",
+    "PASS": "claims",
+    "Claim": "claims",
+    "evaluate_claims": "claims",
+    "FigureResult": "figure_specs",
+    "make_figures": "make",
+    "Report": "report",
+    "cli_command": "rerun",
+    "rest_body": "rerun",
+    "Runs": "runs",
+    "collect_runs": "runs",
+    "run_plan": "runs",
+}
 __all__ = sorted(_HOMES)
 
 
-def __getattr__(name: str) -> Any:   # PEP 562: `nmkane figures --help` loads none of the run machinery
+def __getattr__(name: str) -> Any:  # PEP 562: `nmkane figures --help` loads none of the run machinery
     if name in _HOMES:
         return getattr(importlib.import_module(f".{_HOMES[name]}", __name__), name)
     raise AttributeError(name)

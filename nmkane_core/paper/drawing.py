@@ -7,6 +7,7 @@ figure list with captions and texts is :mod:`.figure_specs`.
 
 from __future__ import annotations
 
+import itertools
 import re
 from typing import TYPE_CHECKING
 
@@ -19,8 +20,17 @@ from .text import plain_caption
 if TYPE_CHECKING:
     from .figure_specs import FigureSpec
 
-__all__ = ["draw_figure", "draw_ah", "draw_ex2", "draw_fig4", "draw_fig6", "draw_fig7", "draw_fig9", "draw_fig16",
-           "draw_fig18"]
+__all__ = [
+    "draw_figure",
+    "draw_ah",
+    "draw_ex2",
+    "draw_fig4",
+    "draw_fig6",
+    "draw_fig7",
+    "draw_fig9",
+    "draw_fig16",
+    "draw_fig18",
+]
 
 C_NC, C_LC, C_REF = "#1f4e9c", "#e07b00", "#222222"
 C_M, C_N, C_DN = "#2a7d2a", "#c0392b", "#1f4e9c"
@@ -39,8 +49,15 @@ def _ah_series(ax, runs, name, ylabel, scale=1.0):
         drawn = True
     if "state" in oracle:
         k = max(len(oracle["t"]) // 25, 1)
-        ax.plot(oracle["t"][::k], oracle["state"][name][::k] * scale, "o", ms=3.5, mfc="none", color=C_REF,
-                label="Kane's minimal eqs. (KanesMethod)")
+        ax.plot(
+            oracle["t"][::k],
+            oracle["state"][name][::k] * scale,
+            "o",
+            ms=3.5,
+            mfc="none",
+            color=C_REF,
+            label="Kane's minimal eqs. (KanesMethod)",
+        )
     ax.set_xlabel("t (s)")
     ax.set_ylabel(ylabel)
     if drawn:
@@ -50,6 +67,7 @@ def _ah_series(ax, runs, name, ylabel, scale=1.0):
 def draw_ah(name, ylabel):
     def draw(fig, runs):
         _ah_series(fig.add_subplot(111), runs, name, ylabel)
+
     return draw
 
 
@@ -72,10 +90,15 @@ def draw_fig7(fig, runs):
             ax.plot(r.state["x"], r.state["y"], color=color, ls=ls, lw=lw, label=label)
     if runs.ok("ah-nonlinear"):
         r = runs["ah-nonlinear"]
-        marks = [i for i in range(0, len(r.t), max(len(r.t) // 4, 1))]
+        marks = list(range(0, len(r.t), max(len(r.t) // 4, 1)))
         for i in marks[1:]:
-            ax.annotate(f"t = {r.t[i]:g} s", (r.state["x"][i], r.state["y"][i]), textcoords="offset points",
-                        xytext=(8, -4), fontsize=8)
+            ax.annotate(
+                f"t = {r.t[i]:g} s",
+                (r.state["x"][i], r.state["y"][i]),
+                textcoords="offset points",
+                xytext=(8, -4),
+                fontsize=8,
+            )
             ax.plot(r.state["x"][i], r.state["y"][i], "o", color=C_NC, ms=4)
     ax.set_aspect("equal", adjustable="datalim")
     ax.set_xlabel("x (m)")
@@ -86,8 +109,10 @@ def draw_fig7(fig, runs):
 
 def draw_fig9(fig, runs):
     ax = fig.add_subplot(111)
-    for key, color, ls, lw, label in (("ah-linear", C_LC, "-", 1.6, "LC (linear constraints)"),
-                                      ("ah-nonlinear", C_NC, "-", 2.0, "NC (nonlinear constraints)")):
+    for key, color, ls, lw, label in (
+        ("ah-linear", C_LC, "-", 1.6, "LC (linear constraints)"),
+        ("ah-nonlinear", C_NC, "-", 2.0, "NC (nonlinear constraints)"),
+    ):
         if runs.ok(key):
             r = runs[key]
             ax.plot(r.t, drift(r), color=color, ls=ls, lw=lw, label=label)
@@ -101,6 +126,7 @@ def draw_fig9(fig, runs):
 def draw_ex2(key, what, bound=None):
     """Figs. 11–15, 17: one run, φ or ΔE vs t (as the paper plots it), and below it the
     envelope of |·| on a log axis; ``bound`` = (value, label) draws the paper's bound."""
+
     def draw(fig, runs):
         gs = fig.add_gridspec(2, 1, height_ratios=(3, 2), hspace=0.08)
         ax = fig.add_subplot(gs[0])
@@ -130,13 +156,14 @@ def draw_ex2(key, what, bound=None):
         _log_ticks(ax2)
         ax2.set_xlabel("t (s)")
         ax2.legend(fontsize=8, loc="lower right")
+
     return draw
 
 
 def _envelope(t, a, n):
     edges = np.linspace(0, len(a), n + 1).astype(int)
     tt, mm = [], []
-    for i, j in zip(edges[:-1], edges[1:]):
+    for i, j in itertools.pairwise(edges):
         if j > i:
             tt.append(t[(i + j - 1) // 2])
             mm.append(a[i:j].max())
@@ -146,7 +173,7 @@ def _envelope(t, a, n):
 def _window_range(t, v, n):
     edges = np.linspace(0, len(v), n + 1).astype(int)
     tt, lo, hi = [], [], []
-    for i, j in zip(edges[:-1], edges[1:]):
+    for i, j in itertools.pairwise(edges):
         if j > i:
             tt.append(t[(i + j - 1) // 2])
             lo.append(v[i:j].min())
@@ -159,18 +186,20 @@ def draw_fig16(fig, runs):
     ax = fig.add_subplot(gs[0])
     ax2 = fig.add_subplot(gs[1])
     # left: the whole hour as the range of y per 30 s window (the swings are too fast to draw)
-    for key, color, label in (("sp-1h-minimal", C_M, "M minimal"),
-                              ("sp-1h-damped", C_DN, "DN damped nonminimal (Γ1 = −20, Γ2 = −100)"),
-                              ("sp-1h-nonminimal", C_N, "N nonminimal (Γ1 = Γ2 = 0)")):
+    for key, color, label in (
+        ("sp-1h-minimal", C_M, "M minimal"),
+        ("sp-1h-damped", C_DN, "DN damped nonminimal (Γ1 = −20, Γ2 = −100)"),
+        ("sp-1h-nonminimal", C_N, "N nonminimal (Γ1 = Γ2 = 0)"),
+    ):
         if runs.ok(key):
             r = runs[key]
             tt, lo, hi = _window_range(r.t, r.state["y"], 120)
-            if key == "sp-1h-damped":     # hatched, so that M's band shows through
-                ax.fill_between(tt / 60, lo, hi, facecolor="none", edgecolor=color, hatch="////", lw=0,
-                                label=label)
+            if key == "sp-1h-damped":  # hatched, so that M's band shows through
+                ax.fill_between(tt / 60, lo, hi, facecolor="none", edgecolor=color, hatch="////", lw=0, label=label)
             else:
-                ax.fill_between(tt / 60, lo, hi, color=color, alpha=0.3 if key == "sp-1h-minimal" else 0.8,
-                                lw=0, label=label)
+                ax.fill_between(
+                    tt / 60, lo, hi, color=color, alpha=0.3 if key == "sp-1h-minimal" else 0.8, lw=0, label=label
+                )
             ax.plot(tt / 60, hi, color=color, lw=1.0)
             ax.plot(tt / 60, lo, color=color, lw=1.0)
     ax.axhline(0, color="0.4", lw=0.6, ls=":")
@@ -186,8 +215,14 @@ def draw_fig16(fig, runs):
     if runs.ok("sp-1h-reference"):
         ref = runs["sp-1h-reference"]
         w = ref.t >= t1 - 8
-        ax2.plot(ref.t[w], ref.state["y"][w], color=C_REF, lw=2.6, alpha=0.3,
-                 label=f"reference: minimal, Δt = {ref.settings['dt']:g} s")
+        ax2.plot(
+            ref.t[w],
+            ref.state["y"][w],
+            color=C_REF,
+            lw=2.6,
+            alpha=0.3,
+            label=f"reference: minimal, Δt = {ref.settings['dt']:g} s",
+        )
     for key, color, label in (("sp-1h-minimal", C_M, "M (Δt = 0.1 s)"), ("sp-1h-damped", C_DN, "DN (Δt = 0.1 s)")):
         if runs.ok(key):
             r = runs[key]
@@ -205,9 +240,11 @@ def draw_fig18(fig, runs):
     gs = fig.add_gridspec(2, 1, height_ratios=(3, 2), hspace=0.1)
     ax = fig.add_subplot(gs[0])
     ax2 = fig.add_subplot(gs[1], sharex=ax)
-    series = (("sp-fig18-baumgarte", "#1f4e9c", '"1" Baumgarte (Γ1 = −20, Γ2 = −100)'),
-              ("sp-fig18-blajer", "#c0392b", '"2" Blajer (projection preset)'),
-              ("sp-fig18-yoon", "#2a7d2a", '"3" Yoon et al. (projection preset)'))
+    series = (
+        ("sp-fig18-baumgarte", "#1f4e9c", '"1" Baumgarte (Γ1 = −20, Γ2 = −100)'),
+        ("sp-fig18-blajer", "#c0392b", '"2" Blajer (projection preset)'),
+        ("sp-fig18-yoon", "#2a7d2a", '"3" Yoon et al. (projection preset)'),
+    )
     floor = 1e-17
     missing = []
     window = float("nan")
@@ -220,18 +257,31 @@ def draw_fig18(fig, runs):
         env_t, env = _envelope(r.t, a, 250)
         window = r.t[-1] / 250
         ax.semilogy(env_t, env, color=color, lw=1.6, label=label)
-        ax2.plot(r.t, drift(r), color=color, lw=1.2 if "blajer" not in key else 2.2, label=label.split(" (")[0],
-                 zorder=3 if "blajer" in key else 2)
+        ax2.plot(
+            r.t,
+            drift(r),
+            color=color,
+            lw=1.2 if "blajer" not in key else 2.2,
+            label=label.split(" (")[0],
+            zorder=3 if "blajer" in key else 2,
+        )
     for key, color, marker in (("sp-fig18-blajer", "#c0392b", "x"), ("sp-fig18-yoon", "#2a7d2a", "+")):
         pre = runs.extra.get(f"precorrection:{key}")
         if pre:
             name = "Blajer" if "blajer" in key else "Yoon et al."
-            ax.semilogy(pre["t"], np.maximum(pre["values"], floor), marker, color=color, ms=3, alpha=0.6,
-                        label=f"{name}: |φ| one step before the correction (sampled)")
+            ax.semilogy(
+                pre["t"],
+                np.maximum(pre["values"], floor),
+                marker,
+                color=color,
+                ms=3,
+                alpha=0.6,
+                label=f"{name}: |φ| one step before the correction (sampled)",
+            )
     ax.axhline(2.22e-16, color="0.5", lw=0.8, ls=":", label="machine ε = 2.2e−16")
     ax.set_ylabel(r"$|\phi|$ (m)" + f"\nmax per {window:.2g} s window")
     top = max([float(np.max(line.get_ydata())) for line in ax.get_lines() if len(line.get_ydata())] + [1e-12])
-    ax.set_ylim(floor / 2, top * 3e4)          # room above the curves for the legend
+    ax.set_ylim(floor / 2, top * 3e4)  # room above the curves for the legend
     _log_ticks(ax)
     ax.tick_params(labelbottom=False)
     ax.legend(fontsize=6.5, loc="upper center", ncol=2, framealpha=0.95)
@@ -306,8 +356,11 @@ def draw_figure(spec: FigureSpec, runs: Runs, path: str) -> None:
     from matplotlib.figure import Figure
 
     wide = spec.number == 16
-    fig = Figure(figsize=(10.0 if wide else 7.0, 4.8 if spec.number in (11, 12, 13, 14, 15, 17, 18) else 4.4),
-                 dpi=130, layout="constrained")
+    fig = Figure(
+        figsize=(10.0 if wide else 7.0, 4.8 if spec.number in (11, 12, 13, 14, 15, 17, 18) else 4.4),
+        dpi=130,
+        layout="constrained",
+    )
     spec.draw(fig, runs)
     for ax in fig.axes:
         ax.grid(True, which="major", alpha=0.3)

@@ -19,8 +19,7 @@ from .runs import Runs, collect_runs
 __all__ = ["make_figures"]
 
 
-def make_figures(out_dir: str, progress: bool | None = None, quick: bool = False,
-                 runs: Runs | None = None) -> Report:
+def make_figures(out_dir: str, progress: bool | None = None, quick: bool = False, runs: Runs | None = None) -> Report:
     """Run everything, draw Figures 2–9 and 11–18 into ``out_dir`` and write the report there.
 
     ``progress=None`` shows progress bars when stderr is a terminal.  ``quick`` shortens the
@@ -60,15 +59,19 @@ def make_figures(out_dir: str, progress: bool | None = None, quick: bool = False
     figures_s = time.perf_counter() - t_fig
 
     run_docs = {key: run_doc(key, runs) for key in runs.settings}
-    timings = {"runs_s": runs_s,
-               "integration_s (sum over runs, 2 threads)": float(sum(r.summary["wall_time_s"]
-                                                                     for r in runs.results.values())),
-               "oracle_s": float(runs.extra.get("oracle", {}).get("wall_s", 0.0)),
-               "figures_s": figures_s}
+    timings = {
+        "runs_s": runs_s,
+        "integration_s (sum over runs, 2 threads)": float(sum(r.summary["wall_time_s"] for r in runs.results.values())),
+        "oracle_s": float(runs.extra.get("oracle", {}).get("wall_s", 0.0)),
+        "figures_s": figures_s,
+    }
     report = Report(out_dir, quick, results, claims, run_docs, timings)
     report.timings["total_s"] = time.perf_counter() - t0
-    paths = {"md": os.path.join(out_dir, "report.md"), "html": os.path.join(out_dir, "report.html"),
-             "json": os.path.join(out_dir, "report.json")}
+    paths = {
+        "md": os.path.join(out_dir, "report.md"),
+        "html": os.path.join(out_dir, "report.html"),
+        "json": os.path.join(out_dir, "report.json"),
+    }
     _write(paths["md"], report.to_markdown())
     _write(paths["html"], report.to_html())
     _write(paths["json"], json.dumps(report.to_json(), indent=1, default=_json_default, ensure_ascii=False))
@@ -85,13 +88,15 @@ def _figure(spec: FigureSpec, runs: Runs, claims: list, measured: dict, out_dir:
         draw_figure(spec, runs, path)
     except Exception as e:  # one broken figure must not lose the others or the report
         err = f"{type(e).__name__}: {e}"
-        if os.path.exists(path):       # never show a stale image from an earlier run
+        if os.path.exists(path):  # never show a stale image from an earlier run
             os.remove(path)
     fig_claims = [c for c in claims if spec.number in c.figures]
     explain = _explain(spec.explain, measured)
-    if spec.number != 18 and any(c.status == FAIL for c in fig_claims):   # Fig. 18's text follows the numbers
-        explain = ("[A claim of this figure FAILS now (see the table); the text below describes what "
-                   "the paper expects.] " + explain)
+    if spec.number != 18 and any(c.status == FAIL for c in fig_claims):  # Fig. 18's text follows the numbers
+        explain = (
+            "[A claim of this figure FAILS now (see the table); the text below describes what "
+            "the paper expects.] " + explain
+        )
     return FigureResult(spec.number, fname, spec.caption, explain, list(spec.runs), fig_claims, spec.note, err)
 
 

@@ -13,13 +13,29 @@ from .runs import RUN_LABELS, Runs
 __all__ = ["cli_command", "rest_body", "rest_command", "run_doc"]
 
 #: run settings that ``nmkane run`` takes as options, and the options' names
-_CLI_OPTIONS = (("model", "--model"), ("formulation", "--formulation"), ("gamma", "--gamma"),
-                ("gamma1", "--gamma1"), ("gamma2", "--gamma2"), ("projection", "--projection"),
-                ("integrator", "--integrator"), ("dt", "--dt"), ("t_final", "--t-final"), ("every", "--every"))
+_CLI_OPTIONS = (
+    ("model", "--model"),
+    ("formulation", "--formulation"),
+    ("gamma", "--gamma"),
+    ("gamma1", "--gamma1"),
+    ("gamma2", "--gamma2"),
+    ("projection", "--projection"),
+    ("integrator", "--integrator"),
+    ("dt", "--dt"),
+    ("t_final", "--t-final"),
+    ("every", "--every"),
+)
 
 #: the run summary's fields the report quotes
-_SUMMARY_FIELDS = ("status", "message", "steps", "wall_time_s", "max_abs_violation", "max_abs_energy_drift",
-                   "final_energy_drift")
+_SUMMARY_FIELDS = (
+    "status",
+    "message",
+    "steps",
+    "wall_time_s",
+    "max_abs_violation",
+    "max_abs_energy_drift",
+    "final_energy_drift",
+)
 
 
 def _fmt(v) -> str:
@@ -51,8 +67,9 @@ def rest_body(settings: dict) -> str:
 
 def rest_command(settings: dict) -> str:
     """A ``curl`` line that sends these settings to a local REST service."""
-    return ("curl -s -X POST http://127.0.0.1:8000/api/runs -H 'Content-Type: application/json' "
-            f"-d '{rest_body(settings)}'")
+    return (
+        f"curl -s -X POST http://127.0.0.1:8000/api/runs -H 'Content-Type: application/json' -d '{rest_body(settings)}'"
+    )
 
 
 def _rest_note(settings: dict) -> str | None:
@@ -62,16 +79,22 @@ def _rest_note(settings: dict) -> str | None:
     max_steps, max_rows = REST_DEFAULT_LIMITS["max_steps"], REST_DEFAULT_LIMITS["max_rows"]
     if steps <= max_steps and rows <= max_rows:
         return None
-    return (f"{steps:,} steps, {rows:,} output rows: above the REST service's default limits "
-            f"({max_steps:,} steps, {max_rows:,} rows); start it with "
-            f"NMKANE_MAX_STEPS={max(steps, max_steps)} NMKANE_MAX_ROWS={max(rows, max_rows)}")
+    return (
+        f"{steps:,} steps, {rows:,} output rows: above the REST service's default limits "
+        f"({max_steps:,} steps, {max_rows:,} rows); start it with "
+        f"NMKANE_MAX_STEPS={max(steps, max_steps)} NMKANE_MAX_ROWS={max(rows, max_rows)}"
+    )
 
 
 def run_doc(key: str, runs: Runs) -> dict:
     """The report's record of one run: label, settings, CLI and REST lines, summary or error."""
     settings = runs.settings[key]
-    doc = {"label": RUN_LABELS.get(key, key), "settings": settings,
-           "cli": cli_command(settings, out=f"{key}.json"), "rest": rest_command(settings)}
+    doc = {
+        "label": RUN_LABELS.get(key, key),
+        "settings": settings,
+        "cli": cli_command(settings, out=f"{key}.json"),
+        "rest": rest_command(settings),
+    }
     note = _rest_note(settings)
     if note:
         doc["rest_note"] = note

@@ -18,15 +18,15 @@ from ..registry import get_system
 __all__ = ["Runs", "collect_runs", "run_plan", "RUN_LABELS"]
 
 #: Horizons and steps (s).  The package docstring gives the reasons.
-T_AH = 20.0          # Example 1, Figs. 2–9 (not stated in the paper)
+T_AH = 20.0  # Example 1, Figs. 2–9 (not stated in the paper)
 DT_AH = 0.01
-T_EX2 = 500.0        # Figs. 11–15, 17 (paper)
+T_EX2 = 500.0  # Figs. 11–15, 17 (paper)
 T_FIG18_QUICK = 100.0  # Fig. 18 in quick mode
-T_FIG16 = 3600.0     # Fig. 16 (paper: 1 h)
-T_FIG18 = 500.0      # Fig. 18 (not stated in the paper)
-DT_FIG16_REF = 0.001        # Fig. 16's fine-step reference, minimal equation (137)
+T_FIG16 = 3600.0  # Fig. 16 (paper: 1 h)
+T_FIG18 = 500.0  # Fig. 18 (not stated in the paper)
+DT_FIG16_REF = 0.001  # Fig. 16's fine-step reference, minimal equation (137)
 DT_FIG16_REF_QUICK = 0.005  # the same in quick mode
-GAINS = {"gamma1": -20.0, "gamma2": -100.0}     # the paper's Γ1 (s⁻¹), Γ2 (s⁻²)
+GAINS = {"gamma1": -20.0, "gamma2": -100.0}  # the paper's Γ1 (s⁻¹), Γ2 (s⁻²)
 KM = "kutta-merson"
 PRECORRECTION_SAMPLES = 500  # states of a projection run re-stepped without correction (Fig. 18)
 
@@ -43,23 +43,47 @@ def run_plan(quick: bool = False) -> dict[str, dict]:
         "ah-linear": {**ah, "model": "linear"},
         "sp-undamped-dt0.01": {**sp, "formulation": "nonminimal", "dt": 0.01, "t_final": t_short, "every": 2},
         "sp-undamped-dt0.001": {**sp, "formulation": "nonminimal", "dt": 0.001, "t_final": t_short, "every": 20},
-        "sp-damped-dt0.001": {**sp, "formulation": "nonminimal", **GAINS, "dt": 0.001, "t_final": T_EX2,
-                              "every": 20},
+        "sp-damped-dt0.001": {**sp, "formulation": "nonminimal", **GAINS, "dt": 0.001, "t_final": T_EX2, "every": 20},
         "sp-1h-minimal": {**sp, "formulation": "minimal", "dt": 0.1, "t_final": T_FIG16, "every": 1},
         "sp-1h-nonminimal": {**sp, "formulation": "nonminimal", "dt": 0.1, "t_final": T_FIG16, "every": 1},
         "sp-1h-damped": {**sp, "formulation": "nonminimal", **GAINS, "dt": 0.1, "t_final": T_FIG16, "every": 1},
-        "sp-1h-reference": {**sp, "formulation": "minimal", "dt": DT_FIG16_REF_QUICK if quick else DT_FIG16_REF,
-                            "t_final": T_FIG16, "every": 20 if quick else 100},
+        "sp-1h-reference": {
+            **sp,
+            "formulation": "minimal",
+            "dt": DT_FIG16_REF_QUICK if quick else DT_FIG16_REF,
+            "t_final": T_FIG16,
+            "every": 20 if quick else 100,
+        },
         "sp-fig18-baumgarte": {**sp, "formulation": "nonminimal", **GAINS, "dt": 0.01, "t_final": t18, "every": 1},
-        "sp-fig18-blajer": {**sp, "formulation": "nonminimal", "projection": "blajer", "dt": 0.01,
-                            "t_final": t18, "every": 1},
-        "sp-fig18-yoon": {**sp, "formulation": "nonminimal", "projection": "yoon", "dt": 0.01,
-                          "t_final": t18, "every": 1},
+        "sp-fig18-blajer": {
+            **sp,
+            "formulation": "nonminimal",
+            "projection": "blajer",
+            "dt": 0.01,
+            "t_final": t18,
+            "every": 1,
+        },
+        "sp-fig18-yoon": {
+            **sp,
+            "formulation": "nonminimal",
+            "projection": "yoon",
+            "dt": 0.01,
+            "t_final": t18,
+            "every": 1,
+        },
         # the weakest member of the projection family: one Newton step with the Jacobian at the
         # uncorrected point, no energy correction (does the conclusion depend on the switches?)
-        "sp-fig18-oneshot": {**sp, "formulation": "nonminimal", "projection": "yoon", "projection_iterations": 1,
-                             "projection_jacobian": "frozen", "projection_energy": False, "dt": 0.01,
-                             "t_final": t18, "every": 1},
+        "sp-fig18-oneshot": {
+            **sp,
+            "formulation": "nonminimal",
+            "projection": "yoon",
+            "projection_iterations": 1,
+            "projection_jacobian": "frozen",
+            "projection_energy": False,
+            "dt": 0.01,
+            "t_final": t18,
+            "every": 1,
+        },
     }
 
 
@@ -86,9 +110,9 @@ class Runs:
     """The runs of :func:`run_plan`, their results, and the runs that could not be made."""
 
     settings: dict[str, dict]
-    results: dict = field(default_factory=dict)          # key -> simulate.Run
+    results: dict = field(default_factory=dict)  # key -> simulate.Run
     errors: dict[str, str] = field(default_factory=dict)  # key -> why it was not run
-    extra: dict = field(default_factory=dict)             # derived measurements (oracle, pre-correction)
+    extra: dict = field(default_factory=dict)  # derived measurements (oracle, pre-correction)
     quick: bool = False
     wall_s: float = 0.0
 
@@ -121,7 +145,7 @@ def collect_runs(quick: bool = False, progress: bool | None = None, keys=None) -
         except NmkaneError as e:
             runs.errors[key] = f"{type(e).__name__}: {e}"
     done = simulate_many(list(plans.values()), workers=min(2, os.cpu_count() or 1), progress=progress)
-    runs.results = dict(zip(plans, done))
+    runs.results = dict(zip(plans, done, strict=True))
     for key, run in runs.results.items():
         if run.status != "ok":
             runs.errors.setdefault(key, f"status {run.status}: {run.summary['message']}")
@@ -146,11 +170,10 @@ def _oracle(runs: Runs) -> dict:
 
         t_start = time.perf_counter()
         run = runs["ah-nonlinear"]
-        names = _state_names("appell-hamel")      # the oracle's order: q, then u
+        names = _state_names("appell-hamel")  # the oracle's order: q, then u
         s0 = np.array([run.state[n][0] for n in names])
         rhs = appell_hamel_minimal_rhs(**run.settings["params"])
-        sol = solve_ivp(rhs, (0.0, float(run.t[-1])), s0, method="DOP853", rtol=1e-11, atol=1e-11,
-                        t_eval=run.t)
+        sol = solve_ivp(rhs, (0.0, float(run.t[-1])), s0, method="DOP853", rtol=1e-11, atol=1e-11, t_eval=run.t)
         if not sol.success:
             return {"error": f"solve_ivp: {sol.message}"}
         state = {n: sol.y[i] for i, n in enumerate(names)}
@@ -172,12 +195,26 @@ def _precorrection(run, settings: dict) -> dict:
     names = _state_names(settings["system"])
     vals = np.empty(idx.size)
     for j, i in enumerate(idx):
-        one = simulate({"system": settings["system"], "formulation": settings["formulation"],
-                        "integrator": settings["integrator"], "dt": dt, "t_final": dt,
-                        "initial": {n: float(run.state[n][i]) for n in names}}, progress=False)
+        one = simulate(
+            {
+                "system": settings["system"],
+                "formulation": settings["formulation"],
+                "integrator": settings["integrator"],
+                "dt": dt,
+                "t_final": dt,
+                "initial": {n: float(run.state[n][i]) for n in names},
+            },
+            progress=False,
+        )
         vals[j] = one.summary["max_abs_violation"]["surface"]
-    return {"max": float(vals.max()), "median": float(np.median(vals)), "samples": int(idx.size),
-            "stride": stride * int(settings.get("every", 1)), "t": run.t[idx] + dt, "values": vals}
+    return {
+        "max": float(vals.max()),
+        "median": float(np.median(vals)),
+        "samples": int(idx.size),
+        "stride": stride * int(settings.get("every", 1)),
+        "t": run.t[idx] + dt,
+        "values": vals,
+    }
 
 
 def _state_names(system: str) -> tuple[str, ...]:

@@ -20,11 +20,20 @@ def fig_label(figs) -> str:
 
 def plain_caption(c: str) -> str:
     """A figure caption with its mathtext spans written as plain Unicode."""
-    rep = {r"$\dot{\theta}$": "θ̇", r"$\dot{\phi}$": "φ̇", r"$\theta$": "θ", r"$\phi$": "φ", r"$\Delta E$": "ΔE",
-           r"$\Gamma_1 = \Gamma_2 = 0$": "Γ1 = Γ2 = 0", r"$\Gamma_1 = -20$": "Γ1 = −20",
-           r"$\Gamma_2 = -100$": "Γ2 = −100", r"$\Delta t = 0.01$": "Δt = 0.01",
-           r"$\Delta t = 0.001$": "Δt = 0.001",
-           r"$\Delta t = 0.1$": "Δt = 0.1", r"$y$": "y"}
+    rep = {
+        r"$\dot{\theta}$": "θ̇",
+        r"$\dot{\phi}$": "φ̇",
+        r"$\theta$": "θ",
+        r"$\phi$": "φ",
+        r"$\Delta E$": "ΔE",
+        r"$\Gamma_1 = \Gamma_2 = 0$": "Γ1 = Γ2 = 0",
+        r"$\Gamma_1 = -20$": "Γ1 = −20",
+        r"$\Gamma_2 = -100$": "Γ2 = −100",
+        r"$\Delta t = 0.01$": "Δt = 0.01",
+        r"$\Delta t = 0.001$": "Δt = 0.001",
+        r"$\Delta t = 0.1$": "Δt = 0.1",
+        r"$y$": "y",
+    }
     for k, v in rep.items():
         c = c.replace(k, v)
     return c

@@ -17,14 +17,14 @@ from .runner import SweepResult, run_sweep
 from .spec import Axis, SweepSpec, apply_point, parse_axis, parse_sample, point_key, sweep_spec
 
 __all__ = [
-           "Axis",
-           "SweepResult",
-           "SweepSpec",
-           "apply_point",
-           "parse_axis",
-           "parse_sample",
-           "point_key",
-           "read_rows",
-           "run_sweep",
-           "sweep_spec",
+    "Axis",
+    "SweepResult",
+    "SweepSpec",
+    "apply_point",
+    "parse_axis",
+    "parse_sample",
+    "point_key",
+    "read_rows",
+    "run_sweep",
+    "sweep_spec",
 ]

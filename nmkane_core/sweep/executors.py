@@ -25,7 +25,7 @@ import contextlib
 import math
 import multiprocessing
 import os
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Iterable, Iterator
 
 from ..errors import InputError, NmkaneError
 from .spec import apply_point
@@ -55,7 +55,7 @@ def init_worker(systems: tuple[str, ...] = (), warm: tuple[dict, ...] = ()) -> N
 
     load_systems(list(systems), strict=True)
     for settings in warm:
-        with contextlib.suppress(InputError):    # a combination the sweep reports as invalid
+        with contextlib.suppress(InputError):  # a combination the sweep reports as invalid
             prepare(resolve(settings))
     _READY.add(key)
 
@@ -80,13 +80,22 @@ def run_point(base: dict, point: dict, time_limit: float | None = None) -> dict:
     row.update(status=s["status"], message=s["message"])
     for name, v in s["max_abs_violation"].items():
         row[f"max_abs_violation.{name}"] = v
-    row.update(max_abs_energy_drift=s["max_abs_energy_drift"], final_energy_drift=s["final_energy_drift"],
-               steps=s["steps"], wall_time_s=s["wall_time_s"])
+    row.update(
+        max_abs_energy_drift=s["max_abs_energy_drift"],
+        final_energy_drift=s["final_energy_drift"],
+        steps=s["steps"],
+        wall_time_s=s["wall_time_s"],
+    )
     return row
 
 
-def run_batch(systems: tuple[str, ...], base: dict, points: list[dict], warm: tuple[dict, ...] = (),
-              time_limit: float | None = None) -> list[dict]:
+def run_batch(
+    systems: tuple[str, ...],
+    base: dict,
+    points: list[dict],
+    warm: tuple[dict, ...] = (),
+    time_limit: float | None = None,
+) -> list[dict]:
     """Run ``points`` (each {name: value}) over ``base`` settings; one row each (a worker's task)."""
     init_worker(systems, warm)
     return [run_point(base, p, time_limit) for p in points]
@@ -146,8 +155,12 @@ class ProcessExecutor(_Executor):
     def __init__(self, workers: int | None = None, **kw):
         super().__init__(**kw)
         self.workers = workers or os.cpu_count() or 1
-        self.pool = cf.ProcessPoolExecutor(self.workers, mp_context=multiprocessing.get_context("spawn"),
-                                           initializer=init_worker, initargs=(self.systems, self.warm))
+        self.pool = cf.ProcessPoolExecutor(
+            self.workers,
+            mp_context=multiprocessing.get_context("spawn"),
+            initializer=init_worker,
+            initargs=(self.systems, self.warm),
+        )
 
     def rows(self, base, points, size):
         pending: set = set()
@@ -198,19 +211,25 @@ class DaskExecutor(_Executor):
 
             # the statistical profiler samples the task thread every 10 ms: CPU a busy machine lacks
             with dask.config.set({"distributed.worker.profile.enabled": False}):
-                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                            dashboard_address=None, silence_logs=logging.ERROR)
+                self.cluster = LocalCluster(
+                    n_workers=n,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    silence_logs=logging.ERROR,
+                )
             self.client = Client(self.cluster)
         elif "://" in where:
             try:
                 self.client = Client(where, timeout="10s")
             except (OSError, TimeoutError) as e:
-                raise InputError("--dask", where, "the address of a running Dask scheduler",
-                                 f"cannot connect: {e}") from None
+                raise InputError(
+                    "--dask", where, "the address of a running Dask scheduler", f"cannot connect: {e}"
+                ) from None
         else:
             raise InputError("--dask", where, "local, local:N or tcp://HOST:PORT", "unknown form")
         self.workers = max(1, sum(self._threads().values()))
-        self.client.run(init_worker, self.systems, self.warm)     # every worker loads the kernels now
+        self.client.run(init_worker, self.systems, self.warm)  # every worker loads the kernels now
 
     def _threads(self) -> dict:
         return self.client.nthreads()
@@ -221,8 +240,18 @@ class DaskExecutor(_Executor):
         it = _batches(points, size)
         # base and options travel once per worker, not once per task
         base_f = self.client.scatter(base, broadcast=True)
-        submit: Callable = lambda b: self.client.submit(run_batch, self.systems, base_f, b, self.warm,  # noqa: E731
-                                                        self.time_limit, pure=False)
+
+        def submit(b):
+            return self.client.submit(
+                run_batch,
+                self.systems,
+                base_f,
+                b,
+                self.warm,
+                self.time_limit,
+                pure=False,
+            )
+
         first = [submit(b) for _, b in zip(range(2 * self.workers), it, strict=False)]
         ac = as_completed(first)
         for f in ac:

@@ -69,8 +69,9 @@ def _pyarrow():
     try:
         import pyarrow.parquet as pq
     except ImportError:
-        raise InputError("--out", "FILE.parquet", "FILE.csv (or install pyarrow for .parquet)",
-                         "pyarrow is not installed") from None
+        raise InputError(
+            "--out", "FILE.parquet", "FILE.csv (or install pyarrow for .parquet)", "pyarrow is not installed"
+        ) from None
     return pq
 
 
@@ -98,8 +99,12 @@ class SweepWriter:
                 _cut_partial_line(self.path)
             header, old_rows = read_rows(self.path)
             if header != self.columns:
-                raise InputError("--out", self.path, f"an output of this sweep (columns {', '.join(self.columns)})",
-                                 "the file exists with other columns; choose another file or remove it")
+                raise InputError(
+                    "--out",
+                    self.path,
+                    f"an output of this sweep (columns {', '.join(self.columns)})",
+                    "the file exists with other columns; choose another file or remove it",
+                )
             self.done = {point_key(r, self.names) for r in old_rows}
         if self.parquet:
             self._open_parquet(old_rows)
@@ -170,4 +175,3 @@ def _cut_partial_line(path: str) -> None:
         data = f.read()
         if data and not data.endswith(b"\n"):
             f.truncate(data.rfind(b"\n") + 1)
-

@@ -23,8 +23,9 @@ def metric_values(rows: list[dict], metric: str, columns: list[str]) -> list[flo
     log = metric.startswith("log10_")
     base = metric[6:] if log else metric
     if base != "max_violation" and base not in columns:
-        allowed = ", ".join(["max_violation", *[c for c in columns if c.startswith(("max_abs", "final", "steps",
-                                                                                     "wall"))]])
+        allowed = ", ".join(
+            ["max_violation", *[c for c in columns if c.startswith(("max_abs", "final", "steps", "wall"))]]
+        )
         raise InputError("--metric", metric, f"{allowed} (or log10_ before any)", "unknown metric")
     out = []
     for r in rows:
@@ -39,12 +40,19 @@ def metric_values(rows: list[dict], metric: str, columns: list[str]) -> list[flo
     return out
 
 
-def plot_sweep(rows: list[dict], columns: list[str], names: list[str], path: str,
-               metric: str = DEFAULT_METRIC, title: str | None = None) -> None:
+def plot_sweep(
+    rows: list[dict],
+    columns: list[str],
+    names: list[str],
+    path: str,
+    metric: str = DEFAULT_METRIC,
+    title: str | None = None,
+) -> None:
     """Draw ``metric`` over the sweep's one or two varied ``names`` into ``path`` (PNG, SVG, PDF)."""
     if len(names) not in (1, 2):
-        raise InputError("--plot", path, "a sweep of one varied name (lines) or two (heatmap)",
-                         f"{len(names)} names vary")
+        raise InputError(
+            "--plot", path, "a sweep of one varied name (lines) or two (heatmap)", f"{len(names)} names vary"
+        )
     values = metric_values(rows, metric, columns)
     try:
         import matplotlib
@@ -68,16 +76,19 @@ def plot_sweep(rows: list[dict], columns: list[str], names: list[str], path: str
     else:
         xs = sorted({r[names[0]] for r in rows}, key=_sortable)
         ys = sorted({r[names[1]] for r in rows}, key=_sortable)
-        if len(xs) * len(ys) <= 4 * len(rows):           # a grid: a heatmap
+        if len(xs) * len(ys) <= 4 * len(rows):  # a grid: a heatmap
             z = np.full((len(ys), len(xs)), np.nan)
             ix, iy = {x: i for i, x in enumerate(xs)}, {y: i for i, y in enumerate(ys)}
             for r, v in zip(rows, values, strict=True):
                 z[iy[r[names[1]]], ix[r[names[0]]]] = v
             im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
-            ax.set_xticks(range(len(xs)), [f"{x:.3g}" if isinstance(x, float) else str(x) for x in xs],
-                          rotation=45 if len(xs) > 6 else 0)
+            ax.set_xticks(
+                range(len(xs)),
+                [f"{x:.3g}" if isinstance(x, float) else str(x) for x in xs],
+                rotation=45 if len(xs) > 6 else 0,
+            )
             ax.set_yticks(range(len(ys)), [f"{y:.3g}" if isinstance(y, float) else str(y) for y in ys])
-        else:                                            # scattered samples
+        else:  # scattered samples
             im = ax.scatter([r[names[0]] for r in rows], [r[names[1]] for r in rows], c=values, cmap="viridis")
         fig.colorbar(im, ax=ax, label=metric)
         ax.set_xlabel(names[0])

@@ -18,7 +18,7 @@ from .spec import SweepSpec, apply_point, point_key
 
 __all__ = ["SweepResult", "check_spec", "constraint_columns", "run_sweep"]
 
-VALIDATE_VALUES = 64        # an axis with more values is checked at its ends and a few inside
+VALIDATE_VALUES = 64  # an axis with more values is checked at its ends and a few inside
 _VARIANT_FIELDS = ("model", "formulation")
 
 
@@ -85,10 +85,20 @@ def constraint_columns(base: dict, spec: SweepSpec) -> list[str]:
     return out
 
 
-def run_sweep(base: dict, spec: SweepSpec, out, *, systems=(), dask: str | None = None,
-              workers: int | None = None, progress: bool | None = None, time_limit: float | None = None,
-              resume: bool = True, on_rows: Callable[[list[dict]], None] | None = None,
-              executor=None) -> SweepResult:
+def run_sweep(
+    base: dict,
+    spec: SweepSpec,
+    out,
+    *,
+    systems=(),
+    dask: str | None = None,
+    workers: int | None = None,
+    progress: bool | None = None,
+    time_limit: float | None = None,
+    resume: bool = True,
+    on_rows: Callable[[list[dict]], None] | None = None,
+    executor=None,
+) -> SweepResult:
     """Run every point of ``spec`` over ``base`` run settings, rows streamed to ``out``: a file
     name (:class:`SweepWriter`) or any object with ``done`` (keys already there) and
     ``write(rows)``, e.g. the service's store.
@@ -103,7 +113,7 @@ def run_sweep(base: dict, spec: SweepSpec, out, *, systems=(), dask: str | None 
 
     check_spec(base, spec)
     warm = _variants(base, spec)
-    for s in warm:                       # compile (first use) here, once, not in every worker
+    for s in warm:  # compile (first use) here, once, not in every worker
         prepare(resolve(s))
     constraints = constraint_columns(base, spec)
     names = spec.names

@@ -38,14 +38,33 @@ __all__ = [
 ]
 
 #: Run-settings fields a sweep may vary (besides ``params.NAME`` and ``initial.NAME``).
-SETTINGS_FIELDS = ("gamma", "gamma1", "gamma2", "dt", "t_final", "integrator", "model", "formulation",
-                   "projection", "projection_weight", "projection_iterations", "projection_jacobian",
-                   "rtol", "atol", "rcond_min", "rcond_switch", "every")
+SETTINGS_FIELDS = (
+    "gamma",
+    "gamma1",
+    "gamma2",
+    "dt",
+    "t_final",
+    "integrator",
+    "model",
+    "formulation",
+    "projection",
+    "projection_weight",
+    "projection_iterations",
+    "projection_jacobian",
+    "rtol",
+    "atol",
+    "rcond_min",
+    "rcond_switch",
+    "every",
+)
 _WORD_FIELDS = ("integrator", "model", "formulation", "projection", "projection_weight", "projection_jacobian")
 _INT_FIELDS = ("projection_iterations", "every")
 MAX_POINTS = 10_000_000
-FORMS = {"grid": "NAME=START:STOP:NUM or NAME=V1,V2,...", "log-grid": "NAME=START:STOP:NUM (START, STOP of one "
-         "sign, not 0)", "sample": "NAME=LOW:HIGH with LOW < HIGH"}
+FORMS = {
+    "grid": "NAME=START:STOP:NUM or NAME=V1,V2,...",
+    "log-grid": "NAME=START:STOP:NUM (START, STOP of one sign, not 0)",
+    "sample": "NAME=LOW:HIGH with LOW < HIGH",
+}
 
 
 @dataclass(frozen=True)
@@ -101,8 +120,9 @@ def _check_name(name: str, option: str, text: str) -> str:
     head, _, tail = name.partition(".")
     if (head in ("params", "initial") and tail) or name in SETTINGS_FIELDS:
         return name
-    raise InputError(option, text, f"NAME one of {', '.join(SETTINGS_FIELDS)}, params.NAME or initial.NAME",
-                     f"unknown name {name!r}")
+    raise InputError(
+        option, text, f"NAME one of {', '.join(SETTINGS_FIELDS)}, params.NAME or initial.NAME", f"unknown name {name!r}"
+    )
 
 
 def _number(text: str, option: str, whole: str, name: str):
@@ -148,7 +168,7 @@ def parse_axis(text: str, log: bool = False) -> Axis:
                 raise InputError(option, text, FORMS["log-grid"], "START and STOP must be nonzero, of one sign")
             sign = 1.0 if start > 0 else -1.0
             vals = sign * np.logspace(math.log10(abs(start)), math.log10(abs(stop)), num)
-            vals[0], vals[-1] = start, stop          # the ends exactly as written
+            vals[0], vals[-1] = start, stop  # the ends exactly as written
         else:
             vals = np.linspace(start, stop, num)
         values = tuple(float(v) for v in vals)
@@ -176,8 +196,9 @@ def parse_sample(text: str) -> tuple[str, tuple[float, float]]:
         raise InputError("--sample", text, FORMS["sample"], "no '='")
     name = _check_name(name, "--sample", text)
     if name in _WORD_FIELDS or name in _INT_FIELDS:
-        raise InputError("--sample", text, "a real-valued NAME (use --grid for words and integers)",
-                         f"{name} is not real-valued")
+        raise InputError(
+            "--sample", text, "a real-valued NAME (use --grid for words and integers)", f"{name} is not real-valued"
+        )
     parts = rest.split(":")
     if len(parts) != 2:
         raise InputError("--sample", text, FORMS["sample"], f"{len(parts)} fields between ':'")
@@ -187,8 +208,9 @@ def parse_sample(text: str) -> tuple[str, tuple[float, float]]:
     return name, (lo, hi)
 
 
-def sweep_spec(grid=(), log_grid=(), sample=(), samples: int | None = None, seed: int | None = None,
-               max_points: int = MAX_POINTS) -> SweepSpec:
+def sweep_spec(
+    grid=(), log_grid=(), sample=(), samples: int | None = None, seed: int | None = None, max_points: int = MAX_POINTS
+) -> SweepSpec:
     """A :class:`SweepSpec` from the texts of ``--grid``, ``--log-grid`` and ``--sample`` options."""
     spec = SweepSpec()
     for text in grid:

@@ -79,8 +79,8 @@ class Candidate:
 
     gains: dict
     status: str
-    violation: float | None          # max over the stage's constraints of max |violation|
-    energy: float | None             # max |ΔE|
+    violation: float | None  # max over the stage's constraints of max |violation|
+    energy: float | None  # max |ΔE|
     stable: bool
     feasible: bool = False
 
@@ -98,7 +98,7 @@ class TuneResult:
     chosen: dict[str, Candidate | None] = field(default_factory=dict)
     given: dict[str, Candidate] = field(default_factory=dict)
     final: dict = field(default_factory=dict)
-    outside: dict[str, int] = field(default_factory=dict)     # grid points outside the stability region
+    outside: dict[str, int] = field(default_factory=dict)  # grid points outside the stability region
     energy_factor: float = 10.0
 
 
@@ -112,11 +112,18 @@ def _candidates(row_list, names, constraints, tab, dt, stage, e_limit):
     out = []
     for r in row_list:
         gains = {n: r[n] for n in names}
-        st = stable_gains(tab, dt, G=gains.get("gamma"), G1=gains.get("gamma1"), G2=gains.get("gamma2")) \
-            if stage == "holonomic" or "gamma" in gains else True
+        st = (
+            stable_gains(tab, dt, G=gains.get("gamma"), G1=gains.get("gamma1"), G2=gains.get("gamma2"))
+            if stage == "holonomic" or "gamma" in gains
+            else True
+        )
         c = Candidate(gains, r["status"], _metric(r, constraints), r.get("max_abs_energy_drift"), st)
-        c.feasible = (c.status == "ok" and c.stable and c.violation is not None
-                      and (e_limit is None or (c.energy is not None and c.energy <= e_limit)))
+        c.feasible = (
+            c.status == "ok"
+            and c.stable
+            and c.violation is not None
+            and (e_limit is None or (c.energy is not None and c.energy <= e_limit))
+        )
         out.append(c)
     return out
 
@@ -143,8 +150,12 @@ def tune(base: dict, *, points: int = 10, energy_factor: float = 10.0, executor=
     plan = resolve(base)
     tab = plan.integrator
     if not isinstance(tab, Tableau) or tab.adaptive:
-        raise InputError("integrator", getattr(tab, "name", tab), "a fixed-step method: rk4 | kutta-merson",
-                         "the gains are tuned for a fixed step size")
+        raise InputError(
+            "integrator",
+            getattr(tab, "name", tab),
+            "a fixed-step method: rk4 | kutta-merson",
+            "the gains are tuned for a fixed step size",
+        )
     info = plan.info
     nh, h = list(info.nonholonomic), list(info.holonomic)
     if not nh and not h:
@@ -156,7 +167,7 @@ def tune(base: dict, *, points: int = 10, energy_factor: float = 10.0, executor=
     e_limit = energy_factor * e_ref if e_ref is not None and e_ref > 0 else None
     res = TuneResult(tab.name, dt, x, ref, energy_factor=energy_factor)
     ex = executor or SerialExecutor()
-    top = abs(x) / dt                              # |Γ| at the edge of the real stability interval
+    top = abs(x) / dt  # |Γ| at the edge of the real stability interval
     given = {k: plan.settings.get(k) for k in ("gamma", "gamma1", "gamma2")}
     current = {"gamma": given["gamma"] or 0.0, "gamma1": given["gamma1"] or 0.0, "gamma2": given["gamma2"] or 0.0}
 
@@ -181,8 +192,11 @@ def tune(base: dict, *, points: int = 10, energy_factor: float = 10.0, executor=
         grid = [{"gamma1": float(a), "gamma2": float(b)} for a in g1 for b in g2]
         pts = [p for p in grid if stable_gains(tab, dt, G1=p["gamma1"], G2=p["gamma2"])]
         res.outside["holonomic"] = len(grid) - len(pts)
-        mine = {"gamma1": float(given["gamma1"] or 0.0), "gamma2": float(given["gamma2"] or 0.0)} \
-            if given["gamma1"] or given["gamma2"] else None
+        mine = (
+            {"gamma1": float(given["gamma1"] or 0.0), "gamma2": float(given["gamma2"] or 0.0)}
+            if given["gamma1"] or given["gamma2"]
+            else None
+        )
         cands = run(pts + ([mine] if mine and mine not in pts else []), ["gamma1", "gamma2"], h, "holonomic")
         _take_given(res, "holonomic", cands, mine, mine in pts)
         res.chosen["holonomic"] = best = _pick(cands)

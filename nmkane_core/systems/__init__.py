@@ -2,8 +2,7 @@
 the paper's two examples and a catalogue of classic nonholonomic systems.
 :mod:`nmkane_core.registry` registers :data:`BUILTIN`."""
 
-from . import (appell_hamel, chaplygin_sleigh, knife_edge, odometer_puck, rolling_disk, sliding_particle,
-               whipple_bicycle)
+from . import appell_hamel, chaplygin_sleigh, knife_edge, odometer_puck, rolling_disk, sliding_particle, whipple_bicycle
 
 BUILTIN = {
     "appell-hamel": appell_hamel.appell_hamel,

@@ -30,11 +30,24 @@ def blade_model(name: str, with_offset: bool):
     G = P.locatenew("G", a * B.x)
     G.v2pt_theory(P, N, B)
     body = me.RigidBody("body", G, B, m, (me.inertia(B, 0, 0, I), G))
-    kd = [x.diff() - (u1 * sp.cos(th) - u2 * sp.sin(th)), y.diff() - (u1 * sp.sin(th) + u2 * sp.cos(th)),
-          th.diff() - u3]
+    kd = [
+        x.diff() - (u1 * sp.cos(th) - u2 * sp.sin(th)),
+        y.diff() - (u1 * sp.sin(th) + u2 * sp.cos(th)),
+        th.diff() - u3,
+    ]
     params = (m, I, a) if with_offset else (m, I)
-    energy = m / 2 * (u1 ** 2 + (u2 + a * u3) ** 2) + I / 2 * u3 ** 2
+    energy = m / 2 * (u1**2 + (u2 + a * u3) ** 2) + I / 2 * u3**2
     return MechanicalModel.from_mechanics(
-        name, q=[x, y, th], u=[u1, u2, u3], kd_eqs=kd, bodies=[body], loads=[], frame=N, params=params,
-        nonholonomic={"no_side_slip": u2}, u_independent=(u1, u3), energy=energy,
-        description="a blade that cannot slip sideways (u2 = 0)")
+        name,
+        q=[x, y, th],
+        u=[u1, u2, u3],
+        kd_eqs=kd,
+        bodies=[body],
+        loads=[],
+        frame=N,
+        params=params,
+        nonholonomic={"no_side_slip": u2},
+        u_independent=(u1, u3),
+        energy=energy,
+        description="a blade that cannot slip sideways (u2 = 0)",
+    )

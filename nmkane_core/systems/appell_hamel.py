@@ -39,21 +39,22 @@ def _holonomic_equations():
     u = me.dynamicsymbols("u1:6")
     a, b, rho, m, M, I, g, z0 = sp.symbols("a b rho m M I g z0", real=True)
     N = me.ReferenceFrame("N")
-    H = N.orientnew("H", "Axis", (th, N.z))          # heading frame: wheel plane at θ to x
-    W = H.orientnew("W", "Axis", (ph, H.y))          # the wheel spins by φ about its axle H.y
-    W.set_ang_vel(N, u[0] * N.z + u[1] * H.y)        # (82)
+    H = N.orientnew("H", "Axis", (th, N.z))  # heading frame: wheel plane at θ to x
+    W = H.orientnew("W", "Axis", (ph, H.y))  # the wheel spins by φ about its axle H.y
+    W.set_ang_vel(N, u[0] * N.z + u[1] * H.y)  # (82)
     O = me.Point("O")
     O.set_vel(N, 0)
     Pp = O.locatenew("P", x * N.x + y * N.y + z * N.z)
-    Pp.set_vel(N, u[2] * N.x + u[3] * N.y + u[4] * N.z)   # (77)
+    Pp.set_vel(N, u[2] * N.x + u[3] * N.y + u[4] * N.z)  # (77)
     o = Pp.locatenew("o", -rho * H.x + a * N.z - z * N.z)  # wheel centre, height a
-    o.set_vel(N, Pp.vel(N).dot(N.x) * N.x + Pp.vel(N).dot(N.y) * N.y
-              + rho * u[0] * (sp.sin(th) * N.x - sp.cos(th) * N.y))   # (84)
+    o.set_vel(
+        N, Pp.vel(N).dot(N.x) * N.x + Pp.vel(N).dot(N.y) * N.y + rho * u[0] * (sp.sin(th) * N.x - sp.cos(th) * N.y)
+    )  # (84)
     wheel = me.RigidBody("W", o, W, M, (me.inertia(W, I, I, I), o))
     load = me.Particle("Pm", Pp, m)
     loads = [(Pp, -m * g * N.z), (o, -M * g * N.z)]
     q = [th, ph, x, y, z]
-    kd = [qi.diff(me.dynamicsymbols._t) - ui for qi, ui in zip(q, u)]
+    kd = [qi.diff(me.dynamicsymbols._t) - ui for qi, ui in zip(q, u, strict=True)]
     params = (a, b, rho, m, M, I, g, z0)
     return dict(q=q, u=u, kd_eqs=kd, bodies=[wheel, load], loads=loads, frame=N, params=params)
 
@@ -71,30 +72,39 @@ def _model(name: str):
     if name == "nonlinear":
         nonholonomic = {
             # (57) |v_o|² = a² φ̇²
-            "rolling_speed": (u3 + rho * u1 * sp.sin(th)) ** 2 + (u4 - rho * u1 * sp.cos(th)) ** 2
-            - a ** 2 * u2 ** 2,
+            "rolling_speed": (u3 + rho * u1 * sp.sin(th)) ** 2 + (u4 - rho * u1 * sp.cos(th)) ** 2 - a**2 * u2**2,
             # (58) no side slip of the wheel
             "no_side_slip": u3 * sp.sin(th) - u4 * sp.cos(th) + rho * u1,
         }
     else:
         nonholonomic = {
-            "rolling_x": a * u2 * sp.cos(th) - u3 - rho * u1 * sp.sin(th),   # (101)
-            "rolling_y": a * u2 * sp.sin(th) - u4 + rho * u1 * sp.cos(th),   # (102)
+            "rolling_x": a * u2 * sp.cos(th) - u3 - rho * u1 * sp.sin(th),  # (101)
+            "rolling_y": a * u2 * sp.sin(th) - u4 + rho * u1 * sp.cos(th),  # (102)
         }
-    energy = (I / 2 * (u1 ** 2 + u2 ** 2)                                     # (103)
-              + M / 2 * ((u3 + rho * u1 * sp.sin(th)) ** 2 + (u4 - rho * u1 * sp.cos(th)) ** 2)
-              + M / 2 * g * a + m / 2 * (u3 ** 2 + u4 ** 2 + u5 ** 2) + m * g * z)
+    energy = (
+        I / 2 * (u1**2 + u2**2)  # (103)
+        + M / 2 * ((u3 + rho * u1 * sp.sin(th)) ** 2 + (u4 - rho * u1 * sp.cos(th)) ** 2)
+        + M / 2 * g * a
+        + m / 2 * (u3**2 + u4**2 + u5**2)
+        + m * g * z
+    )
     tq = me.dynamicsymbols("theta phi x y z")
     tu = me.dynamicsymbols("u1:6")
-    to_dyn = dict(zip((th, ph, x, y, z, u1, u2, u3, u4, u5), list(tq) + list(tu)))
+    to_dyn = dict(zip((th, ph, x, y, z, u1, u2, u3, u4, u5), list(tq) + list(tu), strict=True))
     return MechanicalModel.from_mechanics(
-        name, **mech,
+        name,
+        **mech,
         nonholonomic={k: v.subs(to_dyn) for k, v in nonholonomic.items()},
-        holonomic={"thread": (z + b * ph - z0).subs(to_dyn)},               # (59)
-        u_independent=(tu[0], tu[1]),                                       # (63)
-        energy=energy.subs(to_dyn), q_dependent=(tq[4],),
-        description=("nonlinear nonholonomic constraints (57)–(59)" if name == "nonlinear"
-                     else "linear nonholonomic constraints (101), (102), (59)"))
+        holonomic={"thread": (z + b * ph - z0).subs(to_dyn)},  # (59)
+        u_independent=(tu[0], tu[1]),  # (63)
+        energy=energy.subs(to_dyn),
+        q_dependent=(tq[4],),
+        description=(
+            "nonlinear nonholonomic constraints (57)–(59)"
+            if name == "nonlinear"
+            else "linear nonholonomic constraints (101), (102), (59)"
+        ),
+    )
 
 
 def appell_hamel() -> System:
@@ -105,8 +115,18 @@ def appell_hamel() -> System:
         variants={"nonlinear": lambda: _model("nonlinear"), "linear": lambda: _model("linear")},
         default_variant="nonlinear",
         parameters=PARAMETERS,
-        default_initial={"theta": 0.0, "phi": 0.0, "x": 0.0, "y": 0.0, "z": 30.0,
-                         "u1": 1.0, "u2": 1.0, "u3": 1.0, "u4": 5.0, "u5": -0.5},
+        default_initial={
+            "theta": 0.0,
+            "phi": 0.0,
+            "x": 0.0,
+            "y": 0.0,
+            "z": 30.0,
+            "u1": 1.0,
+            "u2": 1.0,
+            "u3": 1.0,
+            "u4": 5.0,
+            "u5": -0.5,
+        },
         completion_variant="linear",
         # near φ̇ = 0 the nonlinear model's J2 is singular; the linear model is equivalent there
         equivalents={"nonlinear": ("linear",)},
@@ -114,6 +134,5 @@ def appell_hamel() -> System:
         default_dt=0.01,
         default_t_final=20.0,
         default_integrator="kutta-merson",
-        description="Frame, wheel and hanging load; constraints modeled nonlinear (NC) or linear (LC) "
-                    "in the speeds.",
+        description="Frame, wheel and hanging load; constraints modeled nonlinear (NC) or linear (LC) in the speeds.",
     )

@@ -13,10 +13,12 @@ from __future__ import annotations
 from ..system import Parameter, System
 from ._planar import blade_model
 
-WHAT_TO_TRY = ("Start it spinning (u3) with little forward speed: the spin dies away and the sleigh ends up "
-               "sliding straight ahead at the speed √(2E/m) — energy is converted, not lost. Put the mass "
-               "centre behind the blade (a < 0): the straight motion backwards is the one that survives. With a "
-               "= 0 it is a knife edge again and turns for ever.")
+WHAT_TO_TRY = (
+    "Start it spinning (u3) with little forward speed: the spin dies away and the sleigh ends up "
+    "sliding straight ahead at the speed √(2E/m) — energy is converted, not lost. Put the mass "
+    "centre behind the blade (a < 0): the straight motion backwards is the one that survives. With a "
+    "= 0 it is a knife edge again and turns for ever."
+)
 
 
 def _model():
@@ -34,23 +36,33 @@ def _visuals():
     G = (x + a * sp.cos(th), y + a * sp.sin(th), sp.Float(0.25))
     return Visuals(
         frames=(Frame("sleigh", (x, y, 0), rot_z(th)),),
-        shapes=(ground(0),
-                box("blade", "sleigh", (0.5, 0.03, 0.1), (0, 0, 0.05), color=(90, 100, 115)),
-                box("deck", "sleigh", (sp.Abs(a) + 1.0, 0.6, 0.06), (a / 2, 0, 0.13), color=(170, 110, 60)),
-                box("runner_l", "sleigh", (sp.Abs(a) + 1.0, 0.04, 0.04), (a / 2, 0.3, 0.02), color=(120, 80, 40)),
-                box("runner_r", "sleigh", (sp.Abs(a) + 1.0, 0.04, 0.04), (a / 2, -0.3, 0.02), color=(120, 80, 40)),
-                sphere("mass_centre", 0.1, at=G, color=(220, 60, 40)),
-                trace("blade_path", (x, y, sp.Float(0.005))),
-                trace("centre_path", (G[0], G[1], sp.Float(0.006)), color=(40, 120, 220))))
+        shapes=(
+            ground(0),
+            box("blade", "sleigh", (0.5, 0.03, 0.1), (0, 0, 0.05), color=(90, 100, 115)),
+            box("deck", "sleigh", (sp.Abs(a) + 1.0, 0.6, 0.06), (a / 2, 0, 0.13), color=(170, 110, 60)),
+            box("runner_l", "sleigh", (sp.Abs(a) + 1.0, 0.04, 0.04), (a / 2, 0.3, 0.02), color=(120, 80, 40)),
+            box("runner_r", "sleigh", (sp.Abs(a) + 1.0, 0.04, 0.04), (a / 2, -0.3, 0.02), color=(120, 80, 40)),
+            sphere("mass_centre", 0.1, at=G, color=(220, 60, 40)),
+            trace("blade_path", (x, y, sp.Float(0.005))),
+            trace("centre_path", (G[0], G[1], sp.Float(0.006)), color=(40, 120, 220)),
+        ),
+    )
 
 
 def chaplygin_sleigh() -> System:
     return System(
-        name="chaplygin-sleigh", title="Chaplygin sleigh", variants=_model,
-        parameters={"m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
-                    "I": Parameter(0.1, 0.0, 10.0, "kg·m²", "moment of inertia about the mass centre"),
-                    "a": Parameter(0.5, -2.0, 2.0, "m", "mass centre ahead of the blade", min_inclusive=True)},
+        name="chaplygin-sleigh",
+        title="Chaplygin sleigh",
+        variants=_model,
+        parameters={
+            "m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
+            "I": Parameter(0.1, 0.0, 10.0, "kg·m²", "moment of inertia about the mass centre"),
+            "a": Parameter(0.5, -2.0, 2.0, "m", "mass centre ahead of the blade", min_inclusive=True),
+        },
         default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 0.1, "u3": 2.0},
-        default_dt=0.01, default_t_final=20.0,
+        default_dt=0.01,
+        default_t_final=20.0,
         description="A blade behind the mass centre: spin is converted into straight motion.",
-        visuals=_visuals, what_to_try=WHAT_TO_TRY)
+        visuals=_visuals,
+        what_to_try=WHAT_TO_TRY,
+    )

@@ -10,9 +10,11 @@ from __future__ import annotations
 from ..system import Parameter, System
 from ._planar import blade_model
 
-WHAT_TO_TRY = ("Set the turning rate u3 to zero: the skate runs straight. Any other value draws a circle of "
-               "radius u1/u3 — change u1 and u3 and watch the radius follow. The constraint force keeps the "
-               "blade from slipping but does no work: the energy drift stays at round-off.")
+WHAT_TO_TRY = (
+    "Set the turning rate u3 to zero: the skate runs straight. Any other value draws a circle of "
+    "radius u1/u3 — change u1 and u3 and watch the radius follow. The constraint force keeps the "
+    "blade from slipping but does no work: the energy drift stays at round-off."
+)
 
 
 def _model():
@@ -28,19 +30,29 @@ def _visuals():
     x, y, th = plain_symbols("x y theta")
     return Visuals(
         frames=(Frame("blade", (x, y, 0), rot_z(th)),),
-        shapes=(ground(0),
-                box("blade", "blade", (0.8, 0.03, 0.12), (0, 0, 0.06), color=(90, 100, 115)),
-                box("boot", "blade", (0.5, 0.22, 0.25), (-0.05, 0, 0.245), color=(40, 90, 200)),
-                sphere("toe", 0.06, "blade", (0.4, 0, 0.12), color=(230, 180, 40)),
-                trace("path", (x, y, sp.Float(0.005)))))
+        shapes=(
+            ground(0),
+            box("blade", "blade", (0.8, 0.03, 0.12), (0, 0, 0.06), color=(90, 100, 115)),
+            box("boot", "blade", (0.5, 0.22, 0.25), (-0.05, 0, 0.245), color=(40, 90, 200)),
+            sphere("toe", 0.06, "blade", (0.4, 0, 0.12), color=(230, 180, 40)),
+            trace("path", (x, y, sp.Float(0.005))),
+        ),
+    )
 
 
 def knife_edge() -> System:
     return System(
-        name="knife-edge", title="Knife edge (skate)", variants=_model,
-        parameters={"m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
-                    "I": Parameter(0.1, 0.0, 10.0, "kg·m²", "moment of inertia about the vertical")},
+        name="knife-edge",
+        title="Knife edge (skate)",
+        variants=_model,
+        parameters={
+            "m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
+            "I": Parameter(0.1, 0.0, 10.0, "kg·m²", "moment of inertia about the vertical"),
+        },
         default_initial={"x": 0.0, "y": 0.0, "theta": 0.0, "u1": 1.0, "u3": 0.5},
-        default_dt=0.01, default_t_final=20.0,
+        default_dt=0.01,
+        default_t_final=20.0,
         description="A blade that cannot slip sideways: it runs on a circle of radius v/ω.",
-        visuals=_visuals, what_to_try=WHAT_TO_TRY)
+        visuals=_visuals,
+        what_to_try=WHAT_TO_TRY,
+    )

@@ -14,9 +14,11 @@ from __future__ import annotations
 
 from ..system import Parameter, System
 
-WHAT_TO_TRY = ("With J = 0 the orbit is a fixed ellipse. Raise the flywheel's inertia J: the puck gets heavier "
-               "along its path only, so the ellipse precesses and changes shape while the energy stays "
-               "constant. Speeds near zero make the constraint's gradient blow up — start with a good push.")
+WHAT_TO_TRY = (
+    "With J = 0 the orbit is a fixed ellipse. Raise the flywheel's inertia J: the puck gets heavier "
+    "along its path only, so the ellipse precesses and changes shape while the energy stays "
+    "constant. Speeds near zero make the constraint's gradient blow up — start with a good push."
+)
 
 
 def _model():
@@ -28,12 +30,18 @@ def _model():
     u1, u2, u3 = plain_symbols("u1 u2 u3")
     m, J, rho, k = sp.symbols("m J rho k", positive=True)
     return MechanicalModel(
-        q=(x, y, s), u=(u1, u2, u3), params=(m, J, rho, k), C=sp.eye(3), D=sp.zeros(3, 1),
-        Q=sp.diag(m, m, J), P=sp.Matrix([-k * x, -k * y, 0]),
-        nonholonomic={"odometer": rho * u3 - sp.sqrt(u1 ** 2 + u2 ** 2)},
+        q=(x, y, s),
+        u=(u1, u2, u3),
+        params=(m, J, rho, k),
+        C=sp.eye(3),
+        D=sp.zeros(3, 1),
+        Q=sp.diag(m, m, J),
+        P=sp.Matrix([-k * x, -k * y, 0]),
+        nonholonomic={"odometer": rho * u3 - sp.sqrt(u1**2 + u2**2)},
         u_independent=(u1, u2),
-        energy=m / 2 * (u1 ** 2 + u2 ** 2) + J / 2 * u3 ** 2 + k / 2 * (x ** 2 + y ** 2),
-        description="flywheel speed = path speed / ρ (nonlinear in the speeds)")
+        energy=m / 2 * (u1**2 + u2**2) + J / 2 * u3**2 + k / 2 * (x**2 + y**2),
+        description="flywheel speed = path speed / ρ (nonlinear in the speeds)",
+    )
 
 
 def _visuals():
@@ -45,24 +53,34 @@ def _visuals():
     x, y, s = plain_symbols("x y s")
     return Visuals(
         frames=(Frame("puck", (x, y, 0), None), Frame("flywheel", (x, y, sp.Float(0.16)), rot_z(s))),
-        shapes=(ground(0),
-                cylinder("puck", "puck", 0.2, 0.1, offset=(0, 0, 0.05), color=(40, 90, 200)),
-                cylinder("flywheel", "flywheel", 0.16, 0.04, color=(200, 160, 40)),
-                box("flywheel_mark", "flywheel", (0.16, 0.03, 0.05), (0.08, 0, 0), color=(60, 60, 70)),
-                cylinder("anchor", None, 0.05, 0.3, offset=(0, 0, 0.15), color=(90, 90, 90)),
-                segments("spring", [((0, 0, sp.Float(0.08)), (x, y, sp.Float(0.08)))], color=(150, 40, 30)),
-                sphere("anchor_top", 0.07, None, (0, 0, 0.3), color=(90, 90, 90)),
-                trace("path", (x, y, sp.Float(0.005)))))
+        shapes=(
+            ground(0),
+            cylinder("puck", "puck", 0.2, 0.1, offset=(0, 0, 0.05), color=(40, 90, 200)),
+            cylinder("flywheel", "flywheel", 0.16, 0.04, color=(200, 160, 40)),
+            box("flywheel_mark", "flywheel", (0.16, 0.03, 0.05), (0.08, 0, 0), color=(60, 60, 70)),
+            cylinder("anchor", None, 0.05, 0.3, offset=(0, 0, 0.15), color=(90, 90, 90)),
+            segments("spring", [((0, 0, sp.Float(0.08)), (x, y, sp.Float(0.08)))], color=(150, 40, 30)),
+            sphere("anchor_top", 0.07, None, (0, 0, 0.3), color=(90, 90, 90)),
+            trace("path", (x, y, sp.Float(0.005))),
+        ),
+    )
 
 
 def odometer_puck() -> System:
     return System(
-        name="odometer-puck", title="Puck with an odometer flywheel (nonlinear constraint)", variants=_model,
-        parameters={"m": Parameter(1.0, 0.0, 100.0, "kg", "mass of the puck"),
-                    "J": Parameter(0.02, 0.0, 1.0, "kg·m²", "flywheel's moment of inertia", min_inclusive=True),
-                    "rho": Parameter(0.1, 0.0, 1.0, "m", "measuring wheel's radius"),
-                    "k": Parameter(1.0, 0.0, 100.0, "N/m", "spring stiffness")},
+        name="odometer-puck",
+        title="Puck with an odometer flywheel (nonlinear constraint)",
+        variants=_model,
+        parameters={
+            "m": Parameter(1.0, 0.0, 100.0, "kg", "mass of the puck"),
+            "J": Parameter(0.02, 0.0, 1.0, "kg·m²", "flywheel's moment of inertia", min_inclusive=True),
+            "rho": Parameter(0.1, 0.0, 1.0, "m", "measuring wheel's radius"),
+            "k": Parameter(1.0, 0.0, 100.0, "N/m", "spring stiffness"),
+        },
         default_initial={"x": 1.0, "y": 0.0, "s": 0.0, "u1": 0.0, "u2": 0.8, "u3": 8.0},
-        default_dt=0.005, default_t_final=30.0,
+        default_dt=0.005,
+        default_t_final=30.0,
         description="ṡ = |v|/ρ: a constraint nonlinear in the speeds that does no work.",
-        visuals=_visuals, what_to_try=WHAT_TO_TRY)
+        visuals=_visuals,
+        what_to_try=WHAT_TO_TRY,
+    )

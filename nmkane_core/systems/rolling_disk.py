@@ -16,10 +16,12 @@ from __future__ import annotations
 
 from ..system import Parameter, System
 
-WHAT_TO_TRY = ("Roll it upright (θ = 0) with spin φ̇ and a tiny lean rate θ̇: above the speed √(g r/3) "
-               "(φ̇ > 1.81 rad/s for r = 0.3 m) it wobbles and stays up, below it falls over. Lean it and give "
-               "it a yaw rate: it turns on a circle. The contact point never slips (its violation is round-off) "
-               "and no energy is lost.")
+WHAT_TO_TRY = (
+    "Roll it upright (θ = 0) with spin φ̇ and a tiny lean rate θ̇: above the speed √(g r/3) "
+    "(φ̇ > 1.81 rad/s for r = 0.3 m) it wobbles and stays up, below it falls over. Lean it and give "
+    "it a yaw rate: it turns on a circle. The contact point never slips (its violation is round-off) "
+    "and no energy is lost."
+)
 
 
 def _model():
@@ -38,21 +40,29 @@ def _model():
     D.set_ang_vel(N, u[2] * N.z + u[3] * A.x + u[4] * B.y)
     O = me.Point("O")
     O.set_vel(N, 0)
-    P = O.locatenew("P", x * N.x + y * N.y)          # the contact point on the plane
+    P = O.locatenew("P", x * N.x + y * N.y)  # the contact point on the plane
     P.set_vel(N, u[0] * N.x + u[1] * N.y)
-    C = P.locatenew("C", r * B.z)                    # the disk's centre
+    C = P.locatenew("C", r * B.z)  # the disk's centre
     C.set_vel(N, P.vel(N) + (C.pos_from(P)).dt(N).subs({qi.diff(): ui for qi, ui in zip(q, u, strict=True)}))
-    disk = me.RigidBody("disk", C, D, m, (me.inertia(B, m * r ** 2 / 4, m * r ** 2 / 2, m * r ** 2 / 4), C))
+    disk = me.RigidBody("disk", C, D, m, (me.inertia(B, m * r**2 / 4, m * r**2 / 2, m * r**2 / 4), C))
     # velocity of the disk's material point at the contact: v_C + ω × (P − C)
     v_contact = C.vel(N) + D.ang_vel_in(N).cross(-r * B.z)
     kd = [qi.diff() - ui for qi, ui in zip(q, u, strict=True)]
     energy = disk.kinetic_energy(N) + m * g * r * sp.cos(th)
     return MechanicalModel.from_mechanics(
-        "default", q=list(q), u=list(u), kd_eqs=kd, bodies=[disk], loads=[(C, -m * g * N.z)], frame=N,
+        "default",
+        q=list(q),
+        u=list(u),
+        kd_eqs=kd,
+        bodies=[disk],
+        loads=[(C, -m * g * N.z)],
+        frame=N,
         params=(m, r, g),
         nonholonomic={"roll_x": v_contact.dot(N.x), "roll_y": v_contact.dot(N.y)},
-        u_independent=(u[2], u[3], u[4]), energy=energy,
-        description="rolling without slipping: the contact point's velocity is zero")
+        u_independent=(u[2], u[3], u[4]),
+        energy=energy,
+        description="rolling without slipping: the contact point's velocity is zero",
+    )
 
 
 def _visuals():
@@ -67,21 +77,30 @@ def _visuals():
     centre = sp.Matrix([x, y, 0]) + Rb * sp.Matrix([0, 0, r])
     return Visuals(
         frames=(Frame("disk", tuple(centre), Rb * rot_y(ph)),),
-        shapes=(ground(0),
-                cylinder("disk", "disk", r, 0.08 * r, axis="y", color=(200, 160, 40)),
-                box("stripe", "disk", (0.95 * r, 0.1 * r, 0.15 * r), (0.475 * r, 0, 0), color=(60, 60, 70)),
-                cylinder("hub", "disk", 0.15 * r, 0.12 * r, axis="y", color=(120, 120, 130)),
-                trace("contact_path", (x, y, sp.Float(0.003)))))
+        shapes=(
+            ground(0),
+            cylinder("disk", "disk", r, 0.08 * r, axis="y", color=(200, 160, 40)),
+            box("stripe", "disk", (0.95 * r, 0.1 * r, 0.15 * r), (0.475 * r, 0, 0), color=(60, 60, 70)),
+            cylinder("hub", "disk", 0.15 * r, 0.12 * r, axis="y", color=(120, 120, 130)),
+            trace("contact_path", (x, y, sp.Float(0.003))),
+        ),
+    )
 
 
 def rolling_disk() -> System:
     return System(
-        name="rolling-disk", title="Rolling disk (coin)", variants=_model,
-        parameters={"m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
-                    "r": Parameter(0.3, 0.0, 3.0, "m", "radius"),
-                    "g": Parameter(9.81, 0.0, 30.0, "m/s²", "gravitational acceleration", min_inclusive=True)},
-        default_initial={"x": 0.0, "y": 0.0, "psi": 0.0, "theta": 0.2, "phi": 0.0,
-                         "u3": -1.5, "u4": 0.0, "u5": 6.0},
-        default_dt=0.005, default_t_final=10.0,
+        name="rolling-disk",
+        title="Rolling disk (coin)",
+        variants=_model,
+        parameters={
+            "m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
+            "r": Parameter(0.3, 0.0, 3.0, "m", "radius"),
+            "g": Parameter(9.81, 0.0, 30.0, "m/s²", "gravitational acceleration", min_inclusive=True),
+        },
+        default_initial={"x": 0.0, "y": 0.0, "psi": 0.0, "theta": 0.2, "phi": 0.0, "u3": -1.5, "u4": 0.0, "u5": 6.0},
+        default_dt=0.005,
+        default_t_final=10.0,
         description="A coin rolling without slipping: steady turning, wobbling, falling.",
-        visuals=_visuals, what_to_try=WHAT_TO_TRY)
+        visuals=_visuals,
+        what_to_try=WHAT_TO_TRY,
+    )

@@ -29,14 +29,19 @@ def _nonminimal():
     l0, m, g = sp.symbols("l0 m g", real=True)
     return MechanicalModel(
         name="nonminimal",
-        q=(x, y), u=(u1, u2), params=(l0, m, g),
-        C=sp.eye(2), D=sp.zeros(2, 1),
-        Q=m * sp.eye(2), P=sp.Matrix([0, m * g]),          # (118) holonomic system
-        holonomic={"surface": y + x ** 2 / l0 - l0},         # (114)
+        q=(x, y),
+        u=(u1, u2),
+        params=(l0, m, g),
+        C=sp.eye(2),
+        D=sp.zeros(2, 1),
+        Q=m * sp.eye(2),
+        P=sp.Matrix([0, m * g]),  # (118) holonomic system
+        holonomic={"surface": y + x**2 / l0 - l0},  # (114)
         u_independent=(u1,),
-        energy=m / 2 * (u1 ** 2 + u2 ** 2) + m * g * (l0 - y),   # (123)
+        energy=m / 2 * (u1**2 + u2**2) + m * g * (l0 - y),  # (123)
         q_dependent=(y,),
-        description="nonminimal equations (119)–(126)")
+        description="nonminimal equations (119)–(126)",
+    )
 
 
 def _minimal():
@@ -51,18 +56,25 @@ def _minimal():
     N = me.ReferenceFrame("N")
     O = me.Point("O")
     O.set_vel(N, 0)
-    y_of_x = l0 - x ** 2 / l0                            # (114) solved for y
-    Pp = O.locatenew("P", x * N.x + y_of_x * N.y)        # (127)
+    y_of_x = l0 - x**2 / l0  # (114) solved for y
+    Pp = O.locatenew("P", x * N.x + y_of_x * N.y)  # (127)
     Pp.set_vel(N, u1 * N.x + y_of_x.diff(x) * u1 * N.y)  # (129)
     u2_of = y_of_x.diff(x) * u1
-    energy = m / 2 * (u1 ** 2 + u2_of ** 2) + m * g * (l0 - y_of_x)
+    energy = m / 2 * (u1**2 + u2_of**2) + m * g * (l0 - y_of_x)
     return MechanicalModel.from_mechanics(
-        "minimal", q=[x], u=[u1], kd_eqs=[x.diff(me.dynamicsymbols._t) - u1],
-        bodies=[me.Particle("Pm", Pp, m)], loads=[(Pp, m * g * N.y)], frame=N,
-        params=(l0, m, g), energy=energy,
+        "minimal",
+        q=[x],
+        u=[u1],
+        kd_eqs=[x.diff(me.dynamicsymbols._t) - u1],
+        bodies=[me.Particle("Pm", Pp, m)],
+        loads=[(Pp, m * g * N.y)],
+        frame=N,
+        params=(l0, m, g),
+        energy=energy,
         outputs={"y": y_of_x, "u2": u2_of},
-        monitors={"surface": sp.simplify(y_of_x + x ** 2 / l0 - l0)},
-        description="Kane's minimal equation (137)")
+        monitors={"surface": sp.simplify(y_of_x + x**2 / l0 - l0)},
+        description="Kane's minimal equation (137)",
+    )
 
 
 def sliding_particle() -> System:

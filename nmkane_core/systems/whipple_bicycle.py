@@ -69,9 +69,24 @@ PARAM_NAMES = tuple(PARAMETERS)
 #: upright and unsteered the steer axis is at λ from vertical, so the pitch q5 = λ for any
 #: geometry; u1 = v, u6 = −v/rR, u8 = −v/rF (other parameters: completed from u6)
 DEFAULT_SPEED = 5.0
-DEFAULT_INITIAL = {"q1": 0.0, "q2": 0.0, "q3": 0.0, "q4": 0.0, "q5": LAM, "q6": 0.0, "q7": 0.0, "q8": 0.0,
-                   "u1": DEFAULT_SPEED, "u2": 0.0, "u3": 0.0, "u4": 0.0, "u5": 0.0,
-                   "u6": -DEFAULT_SPEED / 0.3, "u7": 0.0, "u8": -DEFAULT_SPEED / 0.35}
+DEFAULT_INITIAL = {
+    "q1": 0.0,
+    "q2": 0.0,
+    "q3": 0.0,
+    "q4": 0.0,
+    "q5": LAM,
+    "q6": 0.0,
+    "q7": 0.0,
+    "q8": 0.0,
+    "u1": DEFAULT_SPEED,
+    "u2": 0.0,
+    "u3": 0.0,
+    "u4": 0.0,
+    "u5": 0.0,
+    "u6": -DEFAULT_SPEED / 0.3,
+    "u7": 0.0,
+    "u8": -DEFAULT_SPEED / 0.35,
+}
 
 
 def _model():
@@ -84,8 +99,34 @@ def _model():
     u = me.dynamicsymbols("u1:9")
     t = me.dynamicsymbols._t
     par = sp.symbols(" ".join(PARAM_NAMES), real=True)
-    (w, c, lam, g, rR, mR, IRxx, IRyy, xB, zB, mB, IBxx, IByy, IBzz, IBxz,
-     xH, zH, mH, IHxx, IHyy, IHzz, IHxz, rF, mF, IFxx, IFyy) = par
+    (
+        w,
+        c,
+        lam,
+        g,
+        rR,
+        mR,
+        IRxx,
+        IRyy,
+        xB,
+        zB,
+        mB,
+        IBxx,
+        IByy,
+        IBzz,
+        IBxz,
+        xH,
+        zH,
+        mH,
+        IHxx,
+        IHyy,
+        IHzz,
+        IHxz,
+        rF,
+        mF,
+        IFxx,
+        IFyy,
+    ) = par
 
     # Moore's offsets in the benchmark parameters: d1 rear wheel centre → steer axis (along
     # C.x), d3 steer axis → front wheel centre (along E.x), d2 between their feet along the axis
@@ -99,34 +140,34 @@ def _model():
     l3, l4 = xH * cl - (zH + rR) * sl - d1, xH * sl + (zH + rR) * cl
 
     N = me.ReferenceFrame("N")
-    A = N.orientnew("A", "Axis", (q[2], N.z))        # yaw
-    B = A.orientnew("B", "Axis", (q[3], A.x))        # roll
-    C = B.orientnew("C", "Axis", (q[4], B.y))        # pitch: rear frame, C.z along the steer axis
-    D = C.orientnew("D", "Axis", (q[5], C.y))        # rear wheel
-    E = C.orientnew("E", "Axis", (q[6], C.z))        # steer: front frame
-    F = E.orientnew("F", "Axis", (q[7], E.y))        # front wheel
+    A = N.orientnew("A", "Axis", (q[2], N.z))  # yaw
+    B = A.orientnew("B", "Axis", (q[3], A.x))  # roll
+    C = B.orientnew("C", "Axis", (q[4], B.y))  # pitch: rear frame, C.z along the steer axis
+    D = C.orientnew("D", "Axis", (q[5], C.y))  # rear wheel
+    E = C.orientnew("E", "Axis", (q[6], C.z))  # steer: front frame
+    F = E.orientnew("F", "Axis", (q[7], E.y))  # front wheel
     A.set_ang_vel(N, u[2] * N.z)
     B.set_ang_vel(A, u[3] * A.x)
     C.set_ang_vel(B, u[4] * B.y)
     D.set_ang_vel(C, u[5] * C.y)
     E.set_ang_vel(C, u[6] * C.z)
     F.set_ang_vel(E, u[7] * E.y)
-    Cb = C.orientnew("Cb", "Axis", (-lam, C.y))      # benchmark axes of the rear frame
-    Eb = E.orientnew("Eb", "Axis", (-lam, E.y))      # benchmark axes of the front frame
+    Cb = C.orientnew("Cb", "Axis", (-lam, C.y))  # benchmark axes of the rear frame
+    Eb = E.orientnew("Eb", "Axis", (-lam, E.y))  # benchmark axes of the front frame
 
     O = me.Point("O")
     O.set_vel(N, 0)
     dn = O.locatenew("dn", q[0] * N.x + q[1] * N.y)  # rear contact point
     dn.set_vel(N, u[0] * N.x + u[1] * N.y)
-    do = dn.locatenew("do", -rR * B.z)              # rear wheel centre
+    do = dn.locatenew("do", -rR * B.z)  # rear wheel centre
     do.v2pt_theory(dn, N, B)
-    ce = do.locatenew("ce", d1 * C.x)               # on the steer axis
+    ce = do.locatenew("ce", d1 * C.x)  # on the steer axis
     ce.v2pt_theory(do, N, C)
-    bo = do.locatenew("bo", l1 * C.x + l2 * C.z)    # rear frame mass centre
+    bo = do.locatenew("bo", l1 * C.x + l2 * C.z)  # rear frame mass centre
     bo.v2pt_theory(do, N, C)
-    fo = ce.locatenew("fo", d2 * C.z + d3 * E.x)    # front wheel centre
+    fo = ce.locatenew("fo", d2 * C.z + d3 * E.x)  # front wheel centre
     fo.v2pt_theory(ce, N, E)
-    ho = ce.locatenew("ho", l3 * E.x + l4 * E.z)    # front frame mass centre
+    ho = ce.locatenew("ho", l3 * E.x + l4 * E.z)  # front frame mass centre
     ho.v2pt_theory(ce, N, E)
 
     rear = me.RigidBody("R", do, D, mR, (me.inertia(C, IRxx, IRyy, IRxx), do))
@@ -139,13 +180,15 @@ def _model():
     # contact geometry: s = E.y·A.z; the front contact lies rF from the centre along the
     # wheel plane's steepest descent (A.z − s E.y)/√(1 − s²)
     s = E.y.dot(A.z)
-    root = sp.sqrt(1 - s ** 2)
+    root = sp.sqrt(1 - s**2)
     to_front_contact = rF * (A.z - s * E.y) / root
-    v_rear = do.vel(N) + D.ang_vel_in(N).cross(rR * B.z)          # material contact points
+    v_rear = do.vel(N) + D.ang_vel_in(N).cross(rR * B.z)  # material contact points
     v_front = fo.vel(N) + F.ang_vel_in(N).cross(to_front_contact)
     nonholonomic = {
-        "rear_longitudinal": v_rear.dot(A.x), "rear_lateral": v_rear.dot(A.y),
-        "front_longitudinal": v_front.dot(A.x), "front_lateral": v_front.dot(A.y),
+        "rear_longitudinal": v_rear.dot(A.x),
+        "rear_lateral": v_rear.dot(A.y),
+        "front_longitudinal": v_front.dot(A.x),
+        "front_lateral": v_front.dot(A.y),
     }
     # (fn − dn)·A.z = 0: the front contact point on the ground
     holonomic = {"front_contact": fo.pos_from(dn).dot(A.z) + rF * root}
@@ -154,11 +197,21 @@ def _model():
     potential = -g * sum(m * p.pos_from(dn).dot(N.z) for p, m in ((do, mR), (bo, mB), (ho, mH), (fo, mF)))
     kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
     return MechanicalModel.from_mechanics(
-        "default", q=q, u=u, kd_eqs=kd, bodies=bodies, loads=loads, frame=N, params=par,
-        nonholonomic=nonholonomic, holonomic=holonomic,
-        u_independent=(u[3], u[5], u[6]), q_dependent=(q[4],),
+        "default",
+        q=q,
+        u=u,
+        kd_eqs=kd,
+        bodies=bodies,
+        loads=loads,
+        frame=N,
+        params=par,
+        nonholonomic=nonholonomic,
+        holonomic=holonomic,
+        u_independent=(u[3], u[5], u[6]),
+        q_dependent=(q[4],),
         energy=kinetic + potential,
-        description="Carvallo–Whipple bicycle, Moore's coordinates, Meijaard's benchmark parameters")
+        description="Carvallo–Whipple bicycle, Moore's coordinates, Meijaard's benchmark parameters",
+    )
 
 
 def whipple_bicycle() -> System:
@@ -172,5 +225,5 @@ def whipple_bicycle() -> System:
         default_t_final=5.0,
         default_integrator="kutta-merson",
         description="Carvallo–Whipple bicycle with the benchmark parameters of Meijaard et al. (2007): "
-                    "rolling without slip (nonholonomic), front wheel ground contact (holonomic).",
+        "rolling without slip (nonholonomic), front wheel ground contact (holonomic).",
     )
