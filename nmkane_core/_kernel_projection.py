@@ -20,12 +20,12 @@ PS_OG = PS_OD + N                # G (m×n, model column order) and r (m) of the
 PS_SIZE = PS_OG + M * N + M + N
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def make_projection_scratch():
     return np.zeros(PS_SIZE)
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def _weighted_correction(w, ps, mrows, metric, N, M, perm):
     """δ = W⁻¹Gᵀ (G W⁻¹ Gᵀ)⁻¹ r for G (mrows×n) and r stored at ps[PS_OG:].
 
@@ -86,7 +86,7 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
     return rc
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def project(t, x, p, w, ps, proj, E0, viol, perm):
     """Post-step correction of positions, then speeds (geometric elimination).
 
@@ -159,7 +159,7 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
     return 0
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def project_state(t, x, p, proj):
     """Project one state onto the constraint manifold (initial states); returns (x, code)."""
     w = make_workspace()

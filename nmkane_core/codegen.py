@@ -83,7 +83,10 @@ def _block(name: str, signature: str, kt, assignments: list[tuple],
     for e in exprs:
         used |= {s.name for s in sp.sympify(e).free_symbols}
     flags = ', inline="always"' if inline else ""
-    lines = [f"@njit(cache=True, nogil=True, fastmath=FM{flags})", f"def {name}({signature}):"]
+    # error_model="numpy": x/0 gives ±inf or NaN, as √ of a negative number does, instead of raising
+    # ZeroDivisionError from compiled code; the loops' finiteness checks then end the run with a status
+    lines = [f"@njit(cache=True, nogil=True, fastmath=FM, error_model=\"numpy\"{flags})",
+             f"def {name}({signature}):"]
     for i, s in enumerate(xs):
         if s.name in used:
             lines.append(f"    {s.name} = x[{i}]")
@@ -125,8 +128,10 @@ def generate_source(derivation) -> str:
     ]
     head += [f"{k} = {v}" for k, v in d.items()]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")
-    head.append(f"ROWDEG = np.array({(kt.row_degree or [1])!r}, dtype=np.int64)  # degree in u of each row of J")
-    head.append(f"SCALE_ROWS = {any(k > 1 for k in kt.row_degree)}")
+    head.append(f"ROWDEG = np.array({(kt.row_degree or [1])!r}, dtype=np.int64)  # degree in u of each row of J"
+                "  (0: not a polynomial)")
+    head.append(f"SCALE_ROWS = {any(k > 1 for k in kt.row_degree)}  # some rows polynomial of degree > 1 in u")
+    head.append(f"NORM_ROWS = {any(k == 0 for k in kt.row_degree)}  # some rows not polynomial in u")
     # offsets into the flat work array (see make_workspace in the generic part)
     sizes = [("OJ", M * N), ("OB", M), ("OPHIN", d["MNH"]), ("OPSID", d["MH"]), ("OPSI", d["MH"]),
              ("OQ", N * N), ("OP", N), ("OQD", N), ("OR", M * (d["PI"] + 1)),

@@ -229,6 +229,7 @@ def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     n2 = plan.x0.size
     K = np.empty((1, n2))
     rcmin = [1.0, 1.0]
+    nonfinite = [False]                       # a non-finite derivative since the last accepted step
 
     def fun(t, x):
         mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), plan.p, plan.G, plan.G1, plan.G2, K, 0, w)
@@ -238,6 +239,8 @@ def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
             raise SingularMatrix("J2", rc0, t)
         if rc1 <= plan.rcond_min:
             raise SingularMatrix("T", rc1, t)
+        if not np.all(np.isfinite(K[0])):     # e.g. √ of a negative number: an explicit solver rejects
+            nonfinite[0] = True               # the step and shrinks it; radau's LU raises (caught below)
         return K[0].copy()
 
     stats, E0, V0 = _stats0(plan, mod)
@@ -252,8 +255,9 @@ def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
         while solver.status == "running":
             msg = solver.step()
             if solver.status == "failed":
-                status, fail_msg = STATUS_FAILED, msg
+                status, fail_msg = (STATUS_DIVERGED, None) if nonfinite[0] else (STATUS_FAILED, msg)
                 break
+            nonfinite[0] = False
             y = solver.y
             if not np.all(np.isfinite(y)):
                 status = STATUS_DIVERGED
@@ -284,6 +288,9 @@ def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     except SingularMatrix as e:
         status = STATUS_J2_SINGULAR if e.matrix == "J2" else STATUS_T_SINGULAR
         nfev = 0
+    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:   # raised inside scipy's solver
+        status, nfev = STATUS_DIVERGED if nonfinite[0] else STATUS_FAILED, 0
+        fail_msg = None if nonfinite[0] else f"{plan.integrator.name} failed after t = {ts[-1]:.6g} s: {e}"
     stats[STATS_RCOND_J2], stats[STATS_RCOND_T] = rcmin
     t_arr, x_arr = np.array(ts), np.array(xs)
     E_arr, V_arr = np.empty(len(ts)), np.empty((len(ts), mod.NV))

@@ -25,27 +25,86 @@ __all__ = ["initial_state", "CHECK_TOL"]
 CHECK_TOL = 1e-8
 
 
-def _newton(residual, x, idx, label, tol=1e-13, maxit=60):
-    """Solve residual(x)[0] = 0 for x[idx]; residual returns (r, dr/dx[idx])."""
+def _newton(residual, x, idx, label, names, tol=1e-13, maxit=60):
+    """Solve residual(x)[0] = 0 for x[idx]; residual returns (r, dr/dx[idx]); ``names`` name
+    the rows of r (for messages).
+
+    Damped: a step that does not decrease |r| (or leaves the domain where r is finite — a
+    square root of a negative number) is halved until it does.  When the guess sits where the
+    Jacobian is singular (a zero guess for u1 in √(u1² + u2²) − v), Newton is restarted from
+    a small nonzero guess: first positive, then negative (a zero guess picks the positive
+    branch).  Raises :class:`ConvergenceError` naming the constraints left unsatisfied.
+    """
+    errors = []
+    for start in _starts(x, idx):
+        try:
+            return _damped_newton(residual, start, idx, label, names, tol, maxit)
+        except ConvergenceError as e:
+            errors.append(e)
+    raise errors[0]
+
+
+def _starts(x, idx):
+    """The given guess, then (if some unknowns are 0 there) the same with those set to ±δ."""
+    yield x
+    zero = [i for i in idx if x[i] == 0.0]
+    if zero:
+        delta = 0.1 * max(1.0, float(np.abs(x).max(initial=0.0)))
+        for sign in (1.0, -1.0):
+            y = x.copy()
+            y[zero] = sign * delta
+            yield y
+
+
+def _damped_newton(residual, x, idx, label, names, tol, maxit):
     x = x.copy()
-    r = np.zeros(0)
+    r, jac = residual(x)
+    norm = float(np.abs(r).max(initial=0.0))
     for _ in range(maxit):
-        r, jac = residual(x)
-        if np.all(np.abs(r) <= tol * (1.0 + np.abs(x[idx]).max(initial=0.0))):
+        if not np.isfinite(norm):
+            raise ConvergenceError(f"{label}: the constraints are not defined at the starting guess "
+                                   f"({_report(names, r)})")
+        if norm <= tol * (1.0 + np.abs(x[idx]).max(initial=0.0)):
             return x
         try:
             step = np.linalg.solve(jac, r)
         except np.linalg.LinAlgError:
-            raise ConvergenceError(f"{label}: the constraint Jacobian is singular at the guess") from None
-        x[idx] -= step
-        if not np.all(np.isfinite(x)):
-            break
-    raise ConvergenceError(f"{label}: Newton did not converge in {maxit} iterations "
-                           f"(residual {np.abs(r).max(initial=0.0):.3g})")
+            step = None
+        if step is None or not np.all(np.isfinite(step)):
+            raise ConvergenceError(f"{label}: the constraint Jacobian is singular at {_at(x, idx)} "
+                                   f"({_report(names, r)})")
+        lam = 1.0
+        for _ in range(40):                     # backtracking: accept the first step that decreases |r|
+            y = x.copy()
+            y[idx] -= lam * step
+            ry, jy = residual(y)
+            ny = float(np.abs(ry).max(initial=0.0))
+            if np.isfinite(ny) and ny < norm:
+                break
+            lam *= 0.5
+        else:
+            raise ConvergenceError(f"{label}: no step decreases the residual ({_report(names, r)}) — "
+                                   f"the constraints seem to have no solution near the guess")
+        x, r, jac, norm = y, ry, jy, ny
+    raise ConvergenceError(f"{label}: Newton did not converge in {maxit} iterations ({_report(names, r)})")
+
+
+def _report(names, r) -> str:
+    return "residual " + ", ".join(f"{k} = {v:.3g}" for k, v in zip(names, r))
+
+
+def _at(x, idx) -> str:
+    return "the guess (" + ", ".join(f"{x[i]:.6g}" for i in idx) + ")"
 
 
 def complete_state(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
-    """Solve the dependent coordinates and speeds of ``x`` (model order) from the constraints."""
+    """Solve the dependent coordinates and speeds of ``x`` (model order) from the constraints.
+
+    ``module`` is the compiled kernel, ``info`` its :class:`~nmkane_core.info.ModelInfo`, ``x`` the
+    state with the independent values set and the dependent ones holding starting guesses (which
+    pick the branch of a constraint nonlinear in the speeds), ``p`` the parameter vector.
+    Raises :class:`ConvergenceError` (naming the constraints left unsatisfied) when Newton fails.
+    """
     n = info.n
     if info.holonomic:
         qi = [info.q.index(s) for s in info.q_dependent]
@@ -54,15 +113,18 @@ def complete_state(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
             _, _, psi, psi_q, _ = module.state_terms(0.0, z, p)
             return psi, psi_q[:, qi]
 
-        x = _newton(holo, x, qi, "holonomic constraints ψ(q) = 0")
+        x = _newton(holo, x, qi, f"holonomic constraints ψ(q) = 0 solved for {', '.join(info.q_dependent)}",
+                    info.holonomic)
     if info.m:
-        ui = [n + info.u.index(s) for s in info.u if s not in info.u_independent]
+        ud = [s for s in info.u if s not in info.u_independent]
+        ui = [n + info.u.index(s) for s in ud]
 
         def vel(z):
             J, c, _, _, _ = module.state_terms(0.0, z, p)
             return c, J[:, [i - n for i in ui]]
 
-        x = _newton(vel, x, ui, "velocity constraints [φ; ψ̇] = 0")
+        x = _newton(vel, x, ui, f"velocity constraints [φ; ψ̇] = 0 solved for {', '.join(ud)}",
+                    info.nonholonomic + tuple(f"d/dt {h}" for h in info.holonomic))
     return x
 
 
@@ -122,7 +184,13 @@ def initial_state(system: System, variant: str, params: dict[str, float],
         try:
             xc = complete_state(module, info, xc, p)
         except ConvergenceError as e:
-            raise InputError("initial", given, "values for which the constraints can be solved", str(e)) from None
+            dep = [k for k in names if k not in system.independent]
+            raise InputError(
+                "initial", given,
+                f"independent values ({', '.join(system.independent)}) for which the constraints can be "
+                f"solved for the dependent ones ({', '.join(dep)}) with the parameters given — change them, "
+                f"or give a full consistent state; the system's default_initial holds the starting "
+                f"guesses of the dependent values (they pick the branch)", str(e)) from None
         for s, v in zip(info.state_names, xc):
             full[s] = float(v)
     # check against the chosen variant, and against the completion variant for states

@@ -43,7 +43,7 @@ class KernelTerms:
     outputs: sp.Matrix
     output_names: tuple
     perm: list
-    row_degree: list      # degree in u of each velocity-level constraint (condition scaling)
+    row_degree: list      # degree in u of each velocity-level constraint, 0 if not polynomial (row_degrees)
 
     @property
     def dims(self) -> dict:
@@ -74,16 +74,28 @@ def kernel_terms(d: Derivation) -> KernelTerms:
 
 
 def row_degrees(d: Derivation) -> list:
-    """Growth degree in u of each row of φ = [φ_nh; ψ̇], for the condition estimate's scaling.
+    """How each row of φ = [φ_nh; ψ̇] is scaled for the kernels' estimate of J2's condition:
+    its degree k ≥ 1 in u when it is a polynomial in u, else 0.
 
-    A row of J = ∂φ/∂u of polynomial degree k grows like |u|^(k−1): the kernels divide it
-    by max(1, |u|∞)^(k−1) before estimating J2's condition, so that a constraint quadratic
-    in the speeds (the Appell–Hamel (57)) is flagged where its gradient degenerates (φ̇ → 0,
-    cancellation) and not merely because the speeds are large.  A row that is not a
-    polynomial in u (a square root of a sum of squares — the speed along a path —,
-    trigonometric, rational or exponential functions of the speeds) is scaled by its
-    degree of homogeneity k when it is homogeneous (φ(λu) = λ^k φ(u), as √(u1² + u2²) is
-    with k = 1) and left unscaled (k = 1) otherwise.
+    The estimate is the pivot ratio min|pivot| / max|pivot| of J2's LU factors, which depends on
+    the rows' relative sizes; the kernels (``rhs_ws`` in :mod:`nmkane_core._kernel_loops`) first
+    bring the rows to comparable sizes:
+
+    * a row of polynomial degree k > 1 (its gradient grows like |u|^(k−1)) is divided by
+      max(1, |u|∞)^(k−1), so that a constraint quadratic in the speeds (the Appell–Hamel (57))
+      is flagged where its gradient degenerates (φ̇ → 0, cancellation) and not merely because
+      the speeds are large; rows of degree 1 are left as they are.  (The paper's systems have
+      only such rows: their estimates and thresholds do not depend on what follows.)
+    * a row that is not a polynomial in u (k = 0: a square root — the speed along a path
+      √(u1² + u2²) −, trigonometric, rational or exponential functions of the speeds) has no
+      natural size to compare with, so it is made scale-free: divided by its own ∞-norm over
+      the whole row [J1 J2] at the current state (the estimate is then the same for φ and c·φ
+      and for any speeds).  Its share on the dependent speeds, max_j |J2_ij| / max_j |J_ij|,
+      also bounds the estimate from above: a constraint whose gradient turns away from u_D
+      (u2 − √(a² − u1²) as u1 → a, or √(u1² + u2²) − v with u_D = u2 as u2 → 0) makes J2
+      singular even when J2 is 1×1, where the pivot ratio alone is always 1.  (A gradient that
+      is not finite — a square root's argument at or past zero, a zero denominator — is not
+      an estimate's business: the loops' finiteness checks end the run ``diverged`` there.)
     """
     return [_row_degree(e, d.u) for e in d.phi]
 
@@ -92,16 +104,7 @@ def _row_degree(e, u) -> int:
     try:
         return max(1, sp.Poly(sp.expand(e), *u).total_degree())
     except sp.PolynomialError:              # not a polynomial in u (sqrt, sin, exp, 1/u, ...)
-        pass
-    lam = sp.Dummy("lam", positive=True)
-    scaled = e.subs({ui: lam * ui for ui in u}, simultaneous=True)
-    for k in (1, 2, 3):
-        try:
-            if sp.simplify(scaled - lam ** k * e) == 0:
-                return k
-        except Exception:                   # simplification gave up: treat as not homogeneous
-            break
-    return 1
+        return 0
 
 
 def pythagorean(e):

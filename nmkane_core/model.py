@@ -43,38 +43,57 @@ def _as_matrix(value, rows: int | None = None) -> sp.Matrix:
 class MechanicalModel:
     """A constrained system: kinematics, holonomic equations, constraints, partition.
 
+    Every argument is keyword-only; all expressions are sympy expressions in ``q``, ``u``,
+    ``params`` and ``t`` (nothing else may appear in them).
+
     Parameters
     ----------
-    name:
-        A short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``...).
     q, u:
-        Generalized coordinates and speeds (plain sympy symbols).
+        Generalized coordinates and speeds, n of each (plain real sympy symbols, see
+        :func:`plain_symbols`; their names are the state names of runs).
     params:
-        Parameter symbols, in the order numeric parameter vectors use.
+        Parameter symbols, in the order numeric parameter vectors use; every symbol of the
+        expressions that is not in ``q``, ``u`` or ``t`` must be one of them.
     C, D:
-        (1) ``q̇ = C u + D``; ``C`` n×n invertible, ``D`` n×1.
+        (1) ``q̇ = C u + D``; ``C`` n×n invertible, ``D`` n×1 (``sp.eye(n)``,
+        ``sp.zeros(n, 1)`` when the speeds are the coordinates' rates).
     Q, P:
-        (42) the holonomic system ``Q u̇ = P`` (Q symmetric positive definite).
+        (42) the holonomic (unconstrained) system ``Q u̇ = P``: Q n×n symmetric positive
+        definite, P n×1 (applied and inertia forces).
     nonholonomic:
-        Named φ_i(q, u, t) = 0, possibly nonlinear in u.
+        Named constraints φ_i(q, u, t) = 0: any smooth function of the speeds —
+        linear, polynomial, or not polynomial at all (square roots such as the speed
+        along a path √(u1² + u2²) − v, trigonometric, rational, exponential).  Where a
+        constraint's expression is not defined (the argument of a square root below
+        zero, a zero denominator) a run ends with a status.
     holonomic:
         Named ψ_i(q, t) = 0.
     u_independent:
-        u_I of (16); the remaining speeds (in the order of ``u``) are u_D.
+        u_I of (16); the remaining speeds (in the order of ``u``) are u_D, solved from
+        the constraints: choose them so that J2 = ∂[φ; ψ̇]/∂u_D is invertible along the
+        motion (runs report where it is not, status ``singular``).  Required when there
+        are constraints.
     energy:
-        Total energy E(q, u) if the system defines one (diagnostics only).
+        Optional total energy E(q, u, t), reported with its drift (diagnostics only).
     outputs:
-        Extra reported quantities as expressions of q, u (e.g. the minimal
-        formulation of the sliding particle reports y and u2 that it does not
+        Optional extra reported quantities, name → expression of q, u, t (e.g. the
+        minimal formulation of the sliding particle reports y and u2 that it does not
         integrate).
     monitors:
-        Extra named quantities reported beside the constraint values, e.g. the surface
-        equation for a minimal formulation that satisfies it by construction.
+        Optional extra named quantities reported beside the constraint values, e.g. the
+        surface equation for a minimal formulation that satisfies it by construction.
     q_dependent:
         Coordinates solved from the holonomic constraints when completing an initial
-        state; chosen by pivoting on ∂ψ/∂q when not given.
+        state (one per holonomic constraint); chosen by pivoting on ∂ψ/∂q when not given.
+    name:
+        Optional short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``), shown in
+        generated code and messages; a system names its variants itself.
     t:
-        The time symbol.
+        The time symbol (default ``Symbol("t", real=True)``).
+    description:
+        Optional text about the model.
+
+    Raises :class:`ValueError` naming the field when the shapes or symbols do not fit.
     """
 
     name: str = ""

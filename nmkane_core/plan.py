@@ -77,7 +77,15 @@ def _check_float(name, value, lo, hi, lo_open=True, unit=""):
     return v
 
 
-def _gain(name: str, value, size: int, warnings: list[str], what: str) -> np.ndarray:
+def _gain(name: str, value, constraints: tuple[str, ...], warnings: list[str], kind: str, where: str) -> np.ndarray:
+    """The gain matrix ``name`` for the ``constraints`` (their names) of one kind (``kind``:
+    "nonholonomic" or "holonomic") of the model described by ``where``."""
+    size = len(constraints)
+    if size:
+        what = (f"{where} has {size} {kind} constraint{'s' if size > 1 else ''}: "
+                + ", ".join(constraints))
+    else:
+        what = f"{where} has no {kind} constraints"
     if value is None:
         return np.zeros((size, size))
     if isinstance(value, (int, float)):
@@ -139,13 +147,13 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     p = system.param_vector(variant, params)
     md = system.info(variant)
     warnings: list[str] = []
-    m_nh, m_h = len(md.nonholonomic), len(md.holonomic)
-    G = _gain("gamma", s.gamma if s.gamma is not None else system.default_gamma, m_nh, warnings,
-              f"the {variant} {system.option} has no nonholonomic constraints")
-    G1 = _gain("gamma1", s.gamma1 if s.gamma1 is not None else system.default_gamma1, m_h, warnings,
-               f"the {variant} {system.option} has no holonomic constraints")
-    G2 = _gain("gamma2", s.gamma2 if s.gamma2 is not None else system.default_gamma2, m_h, warnings,
-               f"the {variant} {system.option} has no holonomic constraints")
+    where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
+    G = _gain("gamma", s.gamma if s.gamma is not None else system.default_gamma, md.nonholonomic, warnings,
+              "nonholonomic", where)
+    G1 = _gain("gamma1", s.gamma1 if s.gamma1 is not None else system.default_gamma1, md.holonomic, warnings,
+               "holonomic", where)
+    G2 = _gain("gamma2", s.gamma2 if s.gamma2 is not None else system.default_gamma2, md.holonomic, warnings,
+               "holonomic", where)
     _warn_unstable(G, G1, G2, warnings)
     proj = projection_options(s.projection, s.projection_weight, s.projection_iterations,
                               s.projection_jacobian, s.projection_energy)
@@ -153,7 +161,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         raise InputError("projection", s.projection, "none with scipy integrators; blajer | yoon with "
                          "rk4, kutta-merson, kutta-merson-adaptive", "post-step projection needs a tableau integrator")
     if proj.name != "none" and md.m == 0:
-        warnings.append(f"projection {proj.name} has nothing to do: the {variant} {system.option} has no constraints")
+        warnings.append(f"projection {proj.name} has nothing to do: {where} has no constraints")
     correction: dict[str, float] = {}
     x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial,
                              correction=correction)

@@ -41,10 +41,15 @@ class RunSettings(BaseModel):
                               json_schema_extra={"examples": [
                                   {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}]})
 
-    system: str = Field("appell-hamel", description="appell-hamel | sliding-particle", max_length=64)
-    model: Optional[str] = Field(None, description="appell-hamel constraint model: nonlinear | linear",
+    system: str = Field("appell-hamel", description="the name of a registered system: the built-in appell-hamel and "
+                        "sliding-particle, or one loaded from a systems file (GET /api/systems lists them)",
+                        max_length=64)
+    model: Optional[str] = Field(None, description="the variant to run, for a system whose variants are models "
+                                 "(appell-hamel: nonlinear | linear); default: the system's first",
                                  max_length=64)
-    formulation: Optional[str] = Field(None, description="sliding-particle: nonminimal | minimal",
+    formulation: Optional[str] = Field(None, description="the variant to run, for a system whose variants are "
+                                       "formulations (sliding-particle: nonminimal | minimal); default: the "
+                                       "system's first",
                                        max_length=64)
     gamma: Optional[Gain] = Field(None, description="Γ for nonholonomic constraints (104): a scalar "
                                   "(Γ·I) or a matrix; stabilizing gains are negative")
@@ -62,10 +67,13 @@ class RunSettings(BaseModel):
     projection_energy: Optional[bool] = Field(
         None, description="override: rescale the speeds to restore the initial energy after the correction")
     integrator: Optional[str] = Field(None, description="rk4 | kutta-merson | kutta-merson-adaptive | "
-                                      "rk45 | dop853 | radau", max_length=64)
-    dt: Optional[float] = Field(None, gt=0, le=LIMITS["max_dt"], description="step size (fixed-step methods) or initial step and "
-                                "maximum output spacing hint (adaptive), s")
-    t_final: Optional[float] = Field(None, gt=0, le=LIMITS["max_t_final"], description="final time, s")
+                                      "rk45 | dop853 | radau; default: the system's", max_length=64)
+    dt: Optional[float] = Field(None, gt=0, le=LIMITS["max_dt"],
+                                description="the step, s, of a fixed-step method (rk4, kutta-merson); the first step "
+                                "tried by an adaptive one (kutta-merson-adaptive, rk45, dop853, radau), whose steps "
+                                "then follow rtol and atol; default: the system's")
+    t_final: Optional[float] = Field(None, gt=0, le=LIMITS["max_t_final"],
+                                     description="final time, s; default: the system's")
     every: int = Field(1, ge=1, le=LIMITS["max_steps"], description="keep every k-th step in the output (maxima use every step)")
     rtol: float = Field(1e-10, ge=1e-14, le=0.1, description="relative tolerance (adaptive methods)")
     atol: float = Field(1e-12, gt=0, le=1.0, description="absolute tolerance (adaptive methods)")
@@ -78,7 +86,8 @@ class RunSettings(BaseModel):
     project_initial: bool = Field(False, description="move a full initial state that violates the "
                                   "constraints onto the constraint manifold (the correction is reported) "
                                   "instead of refusing it")
-    params: dict[str, float] = Field(default_factory=dict, description="physical parameters")
+    params: dict[str, float] = Field(default_factory=dict, description="physical parameters by name; the system's "
+                                     "defaults for those left out (names, ranges and units: GET /api/systems)")
     initial: dict[str, float] = Field(default_factory=dict, description="initial values: independent "
                                       "ones (the rest is completed) or a full consistent state")
 
