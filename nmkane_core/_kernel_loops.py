@@ -274,6 +274,9 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
         rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)  # INLINE
         rc0 = w[ORC]
         rc1 = w[ORC + 1]
+        if rc0 <= rcond_min or rc1 <= rcond_min:
+            if not _finite_work(w):       # not singular: the model's expressions are not defined here
+                return STATUS_DIVERGED
         if rc0 < stats[STATS_RCOND_J2]:
             stats[STATS_RCOND_J2] = rc0
         if rc1 < stats[STATS_RCOND_T]:
@@ -283,6 +286,16 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
         if rc1 <= rcond_min:
             return STATUS_T_SINGULAR
     return STATUS_OK
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _finite_work(w):
+    """Whether the right-hand side's work array is finite (the cold path of a zero or tiny
+    condition estimate: a NaN pivot — √ of a negative number, 0/0 — also gives rcond 0)."""
+    for i in range(ORC):
+        if not math.isfinite(w[i]):
+            return False
+    return True
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")

@@ -220,6 +220,10 @@ def run_adaptive(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
                       evals=attempts * tab.stages, t_end=t, switches=sw.switches)
 
 
+class _NonFinite(ArithmeticError):
+    """The right-hand side is not finite at a state a scipy solver asked for."""
+
+
 def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     import scipy.integrate as si
 
@@ -229,18 +233,21 @@ def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     n2 = plan.x0.size
     K = np.empty((1, n2))
     rcmin = [1.0, 1.0]
-    nonfinite = [False]                       # a non-finite derivative since the last accepted step
 
     def fun(t, x):
         mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), plan.p, plan.G, plan.G1, plan.G2, K, 0, w)
         rc0, rc1 = w[mod.ORC], w[mod.ORC + 1]
+        if not (np.all(np.isfinite(w[:mod.ORC])) and np.all(np.isfinite(K[0]))):
+            # the model's expressions are not defined here (√ of a negative number, a zero denominator):
+            # the run ends "diverged" at the last accepted step.  (Returning NaN would let an explicit
+            # solver reject and shrink the step, but it can then creep on along the edge of the domain
+            # with ever smaller steps, off the constraint; radau's LU would raise.)
+            raise _NonFinite(t)
         rcmin[0], rcmin[1] = min(rcmin[0], rc0), min(rcmin[1], rc1)
         if rc0 <= plan.rcond_min:
             raise SingularMatrix("J2", rc0, t)
         if rc1 <= plan.rcond_min:
             raise SingularMatrix("T", rc1, t)
-        if not np.all(np.isfinite(K[0])):     # e.g. √ of a negative number: an explicit solver rejects
-            nonfinite[0] = True               # the step and shrinks it; radau's LU raises (caught below)
         return K[0].copy()
 
     stats, E0, V0 = _stats0(plan, mod)
@@ -255,9 +262,8 @@ def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
         while solver.status == "running":
             msg = solver.step()
             if solver.status == "failed":
-                status, fail_msg = (STATUS_DIVERGED, None) if nonfinite[0] else (STATUS_FAILED, msg)
+                status, fail_msg = STATUS_FAILED, msg
                 break
-            nonfinite[0] = False
             y = solver.y
             if not np.all(np.isfinite(y)):
                 status = STATUS_DIVERGED
@@ -288,9 +294,11 @@ def run_scipy(plan: Plan, mod, bar, start, time_limit, cancel) -> LoopOutput:
     except SingularMatrix as e:
         status = STATUS_J2_SINGULAR if e.matrix == "J2" else STATUS_T_SINGULAR
         nfev = 0
+    except _NonFinite:
+        status, nfev = STATUS_DIVERGED, 0
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:   # raised inside scipy's solver
-        status, nfev = STATUS_DIVERGED if nonfinite[0] else STATUS_FAILED, 0
-        fail_msg = None if nonfinite[0] else f"{plan.integrator.name} failed after t = {ts[-1]:.6g} s: {e}"
+        status, nfev = STATUS_FAILED, 0
+        fail_msg = f"{plan.integrator.name} failed after t = {ts[-1]:.6g} s: {e}"
     stats[STATS_RCOND_J2], stats[STATS_RCOND_T] = rcmin
     t_arr, x_arr = np.array(ts), np.array(xs)
     E_arr, V_arr = np.empty(len(ts)), np.empty((len(ts), mod.NV))

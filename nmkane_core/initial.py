@@ -90,7 +90,7 @@ def _damped_newton(residual, x, idx, label, names, tol, maxit):
 
 
 def _report(names, r) -> str:
-    return "residual " + ", ".join(f"{k} = {v:.3g}" for k, v in zip(names, r))
+    return "residual " + ", ".join(f"{k} = {v:.3g}" for k, v in zip(names, r, strict=True))
 
 
 def _at(x, idx) -> str:

@@ -159,8 +159,8 @@ def _speed_closed_form(t, v, g, theta0, x0=0.0, y0=0.0):
     s0 = math.asinh(math.tan(theta0))
     s = s0 - g * t / v
     th = _gd(s)
-    return dict(u1=v / np.cosh(s), u2=v * np.tanh(s), x=x0 + v * v / g * (theta0 - th),
-                y=y0 + v * v / g * (np.log(np.cosh(s0)) - np.log(np.cosh(s))))
+    return {"u1": v / np.cosh(s), "u2": v * np.tanh(s), "x": x0 + v * v / g * (theta0 - th),
+            "y": y0 + v * v / g * (np.log(np.cosh(s0)) - np.log(np.cosh(s)))}
 
 
 def _space_functions(form, p):
