@@ -156,13 +156,9 @@ def rhs_ws(t, x, p, G, G1, G2, K, row, w):
                     s += G1[ih, k] * w[OPSID + k] + G2[ih, k] * w[OPSI + k]
             w[OR + i * (PI + 1) + PI] = -w[OB + i] + s
         if SCALE_ROWS or NORM_ROWS:
-            # condition scaling of each row of J2 (and of R: same solution); see kernel_terms.row_degrees.
-            # A row polynomial of degree k > 1 in u is divided by max(1, |u|∞)^(k−1): the estimate then
-            # sees a degenerating gradient rather than large speeds.  A row not polynomial in u
-            # (ROWDEG 0: √, trigonometric, rational, exponential ...) has no natural size: it is divided
-            # by its own ∞-norm over [J1 J2] (scale-free), and the part of that norm on the dependent
-            # speeds, max_j |J2_ij| / max_j |J_ij|, bounds the estimate from above: a constraint whose
-            # gradient turns away from u_D makes J2 singular even when J2 is 1×1 (pivot ratio 1).
+            # rows of J (and R: same solution) scaled for the condition estimate (kernel_terms.row_degrees):
+            # degree k > 1 in u: by 1/max(1, |u|∞)^(k−1); not polynomial (ROWDEG 0): by 1/max_j |J_ij|,
+            # and the estimate is at most the row's share on u_D, max_j |J2_ij| / max_j |J_ij|
             un = 1.0
             for j in range(N):
                 un = max(un, abs(x[N + j]))
