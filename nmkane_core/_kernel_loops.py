@@ -13,6 +13,12 @@ The loops' status codes (``STATUS_*``), the layout of their ``stats`` array (``S
 and the adaptive step control (``STEP_*``) are the plain literals just below, defined once:
 :mod:`nmkane_core.loops` reads them from this file for the Python side.
 
+Every function is compiled with ``error_model="numpy"`` (as are the generated ones): a
+division by zero gives ±inf or NaN, as the square root of a negative number does, instead
+of raising ZeroDivisionError out of compiled code.  The loops' own finiteness checks turn
+such values into a status (``STATUS_DIVERGED``; the adaptive loop first rejects the trial
+step and shrinks it), so no exception from the model's expressions reaches the caller.
+
 ``proj`` (int64 array) = [weight (0 identity, 1 mass), position iterations, Newton (1
 updated Jacobian, 0 frozen), energy correction (0/1), N, M, MNH, MH], or None for no
 projection (numba then prunes the projection from the loop's compile).
@@ -26,27 +32,27 @@ from numba import njit
 # ---- loop constants: plain literals only (nmkane_core.loops reads them from this source) ----
 # status codes returned by the loops
 STATUS_OK = 0
-STATUS_J2_SINGULAR = 1         # J2 ill-conditioned: rcond ≤ rcond_min
-STATUS_T_SINGULAR = 2          # T ill-conditioned: rcond ≤ rcond_min
-STATUS_DIVERGED = 3            # the state (or a diagnostic) stopped being finite
-STATUS_FAILED = 4              # step size underflow (adaptive); Python drivers: any other failure
-STATUS_BUDGET = 5              # the step budget of this call is used up (adaptive): call again
-STATUS_PROJECTION_FAILED = 6   # a projection's correction matrix was singular
+STATUS_J2_SINGULAR = 1  # J2 ill-conditioned: rcond ≤ rcond_min
+STATUS_T_SINGULAR = 2  # T ill-conditioned: rcond ≤ rcond_min
+STATUS_DIVERGED = 3  # the state (or a diagnostic) stopped being finite
+STATUS_FAILED = 4  # step size underflow (adaptive); Python drivers: any other failure
+STATUS_BUDGET = 5  # the step budget of this call is used up (adaptive): call again
+STATUS_PROJECTION_FAILED = 6  # a projection's correction matrix was singular
 # stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, max|viol_i| for each violation]
 STATS_E0 = 0
 STATS_MAX_DRIFT = 1
 STATS_FINAL_DRIFT = 2
 STATS_RCOND_J2 = 3
 STATS_RCOND_T = 4
-STATS_VIOL = 5                 # first of the NV running maxima of |violation|
+STATS_VIOL = 5  # first of the NV running maxima of |violation|
 # adaptive step control: h ← h · clamp(STEP_SAFETY · err^(−1/(q+1)), STEP_FAC_MIN, STEP_FAC_MAX)
 STEP_SAFETY = 0.9
-STEP_FAC_MIN = 0.2             # the most a step shrinks at once (also after a non-finite error)
-STEP_FAC_MAX = 5.0             # the most a step grows at once (also after a zero error)
-STEP_LAST_REL = 1e-12          # a remainder below this fraction of t_final joins the current step
+STEP_FAC_MIN = 0.2  # the most a step shrinks at once (also after a non-finite error)
+STEP_FAC_MAX = 5.0  # the most a step grows at once (also after a zero error)
+STEP_LAST_REL = 1e-12  # a remainder below this fraction of t_final joins the current step
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
     """Solve A X = B in place in the flat work array ``w`` (LU with partial pivoting).
 
@@ -67,7 +73,7 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
             if v > big:
                 big = v
                 piv = i
-        if not (big > 0.0):          # zero or NaN pivot
+        if not (big > 0.0):  # zero or NaN pivot
             singular = True
             break
         if piv != c:
@@ -106,13 +112,13 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
     return rc
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def terms_call(t, x, p, w):
     """``terms`` compiled once as a function, for cold paths (projection, completion)."""
     terms(t, x, p, w)
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def make_workspace():
     """The flat scratch array of one right-hand side evaluation (allocated once per run).
 
@@ -128,7 +134,7 @@ def make_workspace():
     return w
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
     terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (codegen.inline_marked)
@@ -149,31 +155,50 @@ def rhs_ws(t, x, p, G, G1, G2, K, row, w):
                 for k in range(MH):
                     s += G1[ih, k] * w[OPSID + k] + G2[ih, k] * w[OPSI + k]
             w[OR + i * (PI + 1) + PI] = -w[OB + i] + s
-        if SCALE_ROWS:
-            # rows of degree k > 1 in u scaled by 1/max(1, |u|∞)^(k−1): same solution, and a
-            # condition estimate that sees a degenerating gradient rather than large speeds
+        if SCALE_ROWS or NORM_ROWS:
+            # rows of J (and R: same solution) scaled for the condition estimate (kernel_terms.row_degrees):
+            # degree k > 1 in u: by 1/max(1, |u|∞)^(k−1); not polynomial (ROWDEG 0): by 1/max_j |J_ij|,
+            # and the estimate is at most the row's share on u_D, max_j |J2_ij| / max_j |J_ij|
             un = 1.0
             for j in range(N):
                 un = max(un, abs(x[N + j]))
             inv = 1.0 / un
+            share = 1.0
             for i in range(M):
+                sc = 1.0
                 if ROWDEG[i] > 1:
                     sc = inv
                     for _ in range(ROWDEG[i] - 2):
                         sc *= inv
+                elif ROWDEG[i] == 0:
+                    big = 0.0
+                    big_d = 0.0
+                    for j in range(N):
+                        a = abs(w[OJ + i * N + j])
+                        if a > big:
+                            big = a
+                        if j >= PI and a > big_d:
+                            big_d = a
+                    if big > 0.0 and big < math.inf:  # a zero row is left to the LU (zero pivot), a
+                        sc = 1.0 / big  # non-finite one to the loops' finiteness checks
+                        share = min(share, big_d * sc)
+                if sc != 1.0:
                     for j in range(N):
                         w[OJ + i * N + j] *= sc
                     for j in range(PI + 1):
                         w[OR + i * (PI + 1) + j] *= sc
         # J2 X = R  ->  X = [A | B̂]   (20), (108), (113)
         w[ORC] = lu_solve_flat(w, OJ + PI, N, OR, PI + 1, M, PI + 1)  # INLINE
-    if w[ORC] == 0.0:              # J2 singular: no u̇ (the loops stop on the rcond)
+        if NORM_ROWS:
+            if share < w[ORC]:
+                w[ORC] = share
+    if w[ORC] == 0.0:  # J2 singular: no u̇ (the loops stop on the rcond)
         w[ORC + 1] = 0.0
     else:
-        _reduced_solve(w, K, row)   # INLINE
+        _reduced_solve(w, K, row)  # INLINE
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def _reduced_solve(w, K, row):
     """The rest of ``rhs_ws`` once [A | B̂] is known (pasted into it by the generator)."""
     # T u̇ = V̂ with T = [A1; A2 Q], V̂ = [B̂; A2 P]  (22), (40), (44), (110), solved by block
@@ -215,7 +240,7 @@ def _reduced_solve(w, K, row):
         K[row, N + PERM[PI + k]] = acc
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def rhs(t, x, p, G, G1, G2):
     """Convenience form for Python callers and tests: returns (ẋ, rcond J2, rcond T)."""
     w = make_workspace()
@@ -224,7 +249,7 @@ def rhs(t, x, p, G, G1, G2):
     return K[0].copy(), w[ORC], w[ORC + 1]
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
     """Fill the stage derivatives K[i] of one explicit RK step; return a status code."""
     S = TC.shape[0]
@@ -240,11 +265,14 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
         total = 0.0
         for j in range(n2):
             total += abs(xs[j])
-        if not math.isfinite(total):      # a stage left the finite numbers: divergence
+        if not math.isfinite(total):  # a stage left the finite numbers: divergence
             return STATUS_DIVERGED
         rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)  # INLINE
         rc0 = w[ORC]
         rc1 = w[ORC + 1]
+        if rc0 <= rcond_min or rc1 <= rcond_min:
+            if not _finite_work(w):  # not singular: the model's expressions are not defined here
+                return STATUS_DIVERGED
         if rc0 < stats[STATS_RCOND_J2]:
             stats[STATS_RCOND_J2] = rc0
         if rc1 < stats[STATS_RCOND_T]:
@@ -256,7 +284,17 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
     return STATUS_OK
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _finite_work(w):
+    """Whether the right-hand side's work array is finite (the cold path of a zero or tiny
+    condition estimate: a NaN pivot — √ of a negative number, 0/0 — also gives rcond 0)."""
+    for i in range(ORC):
+        if not math.isfinite(w[i]):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def _record(t, x, p, viol, stats, nv):
     """Diagnostics of an accepted state; running maxima in ``stats``. Returns E, or NaN
     (and leaves the maxima untouched) when any diagnostic is not finite."""
@@ -277,9 +315,32 @@ def _record(t, x, p, viol, stats, nv):
     return E
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
-def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA, TB, TC,
-                    rcond_min, proj, out_t, out_x, out_E, out_V, row, stats):
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def integrate_fixed(
+    x,
+    t0,
+    dt,
+    t_final,
+    k0,
+    k1,
+    nsteps,
+    every,
+    p,
+    G,
+    G1,
+    G2,
+    TA,
+    TB,
+    TC,
+    rcond_min,
+    proj,
+    out_t,
+    out_x,
+    out_E,
+    out_V,
+    row,
+    stats,
+):
     """Steps k0 … k1−1 of a fixed-step run of ``nsteps`` steps; ``x`` is advanced in place.
 
     Row r of the outputs holds the state after step r·every (and the final state).
@@ -332,10 +393,36 @@ def integrate_fixed(x, t0, dt, t_final, k0, k1, nsteps, every, p, G, G1, G2, TA,
     return STATUS_OK, k1, row
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
-def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, every, accepted,
-                       p, G, G1, G2, TA, TB, TE, TC, err_exp, rcond_min, proj,
-                       out_t, out_x, out_E, out_V, stats):
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def integrate_adaptive(
+    x,
+    t,
+    t_final,
+    h,
+    rtol,
+    atol,
+    hmin,
+    hmax,
+    max_steps,
+    every,
+    accepted,
+    p,
+    G,
+    G1,
+    G2,
+    TA,
+    TB,
+    TE,
+    TC,
+    err_exp,
+    rcond_min,
+    proj,
+    out_t,
+    out_x,
+    out_E,
+    out_V,
+    stats,
+):
     """Adaptive embedded-RK run from t until t_final, the output buffer is full, or
     ``max_steps`` attempts; error = h Σ TE_i K_i, step control with exponent ``err_exp``.
 
@@ -362,23 +449,28 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
             h = t_final - t
             last = True
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
-        if code != STATUS_OK:
+        # a stage that left the finite numbers (a trial step past a point where the model's
+        # expressions are not defined: √ of a negative number, a zero denominator) is rejected
+        # like an infinite error: the step shrinks, and the run fails only below hmin
+        finite = code == STATUS_OK
+        if code != STATUS_OK and code != STATUS_DIVERGED:
             return code, t, h, row, accepted, attempts
         errsum = 0.0
-        finite = True
-        for j in range(n2):
-            acc = 0.0
-            accE = 0.0
-            for i in range(S):
-                acc += TB[i] * K[i, j]
-                accE += TE[i] * K[i, j]
-            xn[j] = x[j] + h * acc
-            if not math.isfinite(xn[j]):
-                finite = False
-            sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
-            e = h * accE / sc
-            errsum += e * e
+        if finite:
+            for j in range(n2):
+                acc = 0.0
+                accE = 0.0
+                for i in range(S):
+                    acc += TB[i] * K[i, j]
+                    accE += TE[i] * K[i, j]
+                xn[j] = x[j] + h * acc
+                if not math.isfinite(xn[j]):
+                    finite = False
+                sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
+                e = h * accE / sc
+                errsum += e * e
         err = math.sqrt(errsum / n2) if finite else np.inf
+        nonfinite = not finite
         if err <= 1.0:
             tn = t_final if last else t + h
             if proj is not None:
@@ -406,12 +498,12 @@ def integrate_adaptive(x, t, t_final, h, rtol, atol, hmin, hmax, max_steps, ever
         else:
             fac = STEP_FAC_MIN if not math.isfinite(err) else max(STEP_FAC_MIN, STEP_SAFETY * err ** (-err_exp))
         h = min(h * fac, hmax)
-        if h < hmin and t < t_final:
-            return STATUS_FAILED, t, h, row, accepted, attempts
+        if h < hmin and t < t_final:  # non-finite trial steps down to hmin: the state cannot go on finite
+            return STATUS_DIVERGED if nonfinite else STATUS_FAILED, t, h, row, accepted, attempts
     return STATUS_OK, t, h, row, accepted, attempts
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def diagnostics_rows(ts, xs, p, E, V):
     """Energy and violations of many states (scipy adapter, initial row)."""
     viol = np.empty(NV)
@@ -421,7 +513,7 @@ def diagnostics_rows(ts, xs, p, E, V):
             V[r, j] = viol[j]
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def outputs_rows(ts, xs, p, O):
     out = np.empty(NO)
     for r in range(ts.shape[0]):
@@ -430,7 +522,7 @@ def outputs_rows(ts, xs, p, O):
             O[r, j] = out[j]
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def state_terms(t, x, p):
     """Constraint quantities at one state, for completing and checking initial states:
     (J = ∂[φ; ψ̇]/∂u in the model's speed order, [φ; ψ̇], ψ, ∂ψ/∂q, reported violations)."""
@@ -446,8 +538,8 @@ def state_terms(t, x, p):
         c[a] = w[OPHIN + a]
     for a in range(MH):
         c[MNH + a] = w[OPSID + a]
-    psi = w[OPSI:OPSI + MH].copy()
-    psi_q = w[OPSQ:OPSQ + MH * N].copy().reshape((MH, N))
+    psi = w[OPSI : OPSI + MH].copy()
+    psi_q = w[OPSQ : OPSQ + MH * N].copy().reshape((MH, N))
     viol = np.empty(NV)
     diagnostics(t, x, p, viol)
     return J, c, psi, psi_q, viol

@@ -11,21 +11,21 @@ names the model-specific part defines: ``N, M, MNH, MH, PERM``, ``terms`` ...).
 import numpy as np
 from numba import njit
 
-PS_OY = N * N                    # projection scratch layout: Q (model order) and its LU,
-PS_OZ = PS_OY + N * M            # Y = W⁻¹Gᵀ (n×m), a second n×m block,
-PS_OS = PS_OZ + N * M            # S = G W⁻¹ Gᵀ (m×m),
-PS_OZR = PS_OS + M * M           # z = S⁻¹ r (m),
-PS_OD = PS_OZR + M               # δ = Y z (n),
-PS_OG = PS_OD + N                # G (m×n, model column order) and r (m) of the correction
+PS_OY = N * N  # projection scratch layout: Q (model order) and its LU,
+PS_OZ = PS_OY + N * M  # Y = W⁻¹Gᵀ (n×m), a second n×m block,
+PS_OS = PS_OZ + N * M  # S = G W⁻¹ Gᵀ (m×m),
+PS_OZR = PS_OS + M * M  # z = S⁻¹ r (m),
+PS_OD = PS_OZR + M  # δ = Y z (n),
+PS_OG = PS_OD + N  # G (m×n, model column order) and r (m) of the correction
 PS_SIZE = PS_OG + M * N + M + N
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def make_projection_scratch():
     return np.zeros(PS_SIZE)
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def _weighted_correction(w, ps, mrows, metric, N, M, perm):
     """δ = W⁻¹Gᵀ (G W⁻¹ Gᵀ)⁻¹ r for G (mrows×n) and r stored at ps[PS_OG:].
 
@@ -49,27 +49,27 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
     OR_ = PS_OG + mrows * N
     for i in range(N):
         for r in range(mrows):
-            ps[PS_OY + i * mrows + r] = ps[PS_OG + r * N + i]          # Y = Gᵀ
+            ps[PS_OY + i * mrows + r] = ps[PS_OG + r * N + i]  # Y = Gᵀ
     if metric > 0:
-        for i in range(N):                                              # Q, model order
+        for i in range(N):  # Q, model order
             for j in range(N):
                 ps[perm[i] * N + perm[j]] = w[OQ + i * N + j]
         if metric == 2:
-            for i in range(N):                                          # Z = Cᵀ Gᵀ
+            for i in range(N):  # Z = Cᵀ Gᵀ
                 for r in range(mrows):
                     acc = 0.0
                     for k in range(N):
                         acc += w[OC + k * N + i] * ps[PS_OY + k * mrows + r]
                     ps[PS_OZ + i * mrows + r] = acc
-            lu_solve_flat(ps, zero, N, PS_OZ, mrows, N, mrows)         # Z = Q⁻¹Cᵀ Gᵀ
-            for i in range(N):                                          # Y = C Z
+            lu_solve_flat(ps, zero, N, PS_OZ, mrows, N, mrows)  # Z = Q⁻¹Cᵀ Gᵀ
+            for i in range(N):  # Y = C Z
                 for r in range(mrows):
                     acc = 0.0
                     for k in range(N):
                         acc += w[OC + i * N + k] * ps[PS_OZ + k * mrows + r]
                     ps[PS_OY + i * mrows + r] = acc
         else:
-            lu_solve_flat(ps, zero, N, PS_OY, mrows, N, mrows)         # Y = Q⁻¹Gᵀ
+            lu_solve_flat(ps, zero, N, PS_OY, mrows, N, mrows)  # Y = Q⁻¹Gᵀ
     for a in range(mrows):
         for b in range(mrows):
             acc = 0.0
@@ -86,7 +86,7 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
     return rc
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def project(t, x, p, w, ps, proj, E0, viol, perm):
     """Post-step correction of positions, then speeds (geometric elimination).
 
@@ -99,7 +99,7 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
     Returns 0, or 1 when a correction matrix was singular.
     """
     weight, pos_iters, newton, energy_fix = proj[0], proj[1], proj[2], proj[3]
-    N, M, MNH, MH = proj[4], proj[5], proj[6], proj[7]     # runtime values (see above)
+    N, M, MNH, MH = proj[4], proj[5], proj[6], proj[7]  # runtime values (see above)
     PS_OD = N * N + 2 * N * M + M * M + M
     PS_OG = PS_OD + N
     tol = 1e-15
@@ -133,7 +133,7 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
                 big = max(big, abs(w[OPSID + a]))
             if big <= tol:
                 break
-            for a in range(M):                     # J = ∂[φ; ψ̇]/∂u in model column order
+            for a in range(M):  # J = ∂[φ; ψ̇]/∂u in model column order
                 for j in range(N):
                     ps[PS_OG + a * N + perm[j]] = w[OJ + a * N + j]
             for a in range(MNH):
@@ -159,7 +159,7 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
     return 0
 
 
-@njit(cache=True, nogil=True, fastmath=FM)
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def project_state(t, x, p, proj):
     """Project one state onto the constraint manifold (initial states); returns (x, code)."""
     w = make_workspace()

@@ -24,9 +24,8 @@ import hashlib
 import os
 import sys
 import threading
+from collections.abc import Callable
 from pathlib import Path
-
-from typing import Callable
 
 from . import precompile
 from .cache import import_kernel, kernel_dir, write_kernel
@@ -68,8 +67,9 @@ def _printer():
     return _Printer({"fully_qualified_modules": True, "standard": "python3"})
 
 
-def _block(name: str, signature: str, kt, assignments: list[tuple],
-           returns: str | None = None, inline: bool = False) -> str:
+def _block(
+    name: str, signature: str, kt, assignments: list[tuple], returns: str | None = None, inline: bool = False
+) -> str:
     """One straight-line function: unpack state and parameters, CSE, assign outputs."""
     import sympy as sp
 
@@ -77,20 +77,23 @@ def _block(name: str, signature: str, kt, assignments: list[tuple],
     xs = [sp.Symbol(f"x_{i}", real=True) for i in range(len(kt.args_x))]
     ps = [sp.Symbol(f"p_{i}", real=True) for i in range(len(kt.args_p))]
     tt = sp.Symbol("t", real=True)
-    sub = dict(zip(kt.args_x, xs))
-    sub.update(zip(kt.args_p, ps))
+    sub = dict(zip(kt.args_x, xs, strict=True))
+    sub.update(zip(kt.args_p, ps, strict=True))
     sub[kt.args_t] = tt
     exprs = [sp.sympify(a[1]).xreplace(sub) for a in assignments]
     # cse's "basic" pre-optimizations (factoring) save a few percent of operations but cost
     # time that grows fast with the size: a bicycle's terms take 8 s with them, 0.6 s without
     size = sum(1 for e in exprs for _ in sp.preorder_traversal(e))
-    repl, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("c_"),
-                           optimizations="basic" if size <= CSE_BASIC_MAX_NODES else None)
+    repl, reduced = sp.cse(
+        exprs, symbols=sp.numbered_symbols("c_"), optimizations="basic" if size <= CSE_BASIC_MAX_NODES else None
+    )
     used = set()
     for e in exprs:
         used |= {s.name for s in sp.sympify(e).free_symbols}
     flags = ', inline="always"' if inline else ""
-    lines = [f"@njit(cache=True, nogil=True, fastmath=FM{flags})", f"def {name}({signature}):"]
+    # error_model="numpy": x/0 gives ±inf or NaN, as √ of a negative number does, instead of raising
+    # ZeroDivisionError from compiled code; the loops' finiteness checks then end the run with a status
+    lines = [f'@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy"{flags})', f"def {name}({signature}):"]
     for i, s in enumerate(xs):
         if s.name in used:
             lines.append(f"    {s.name} = x[{i}]")
@@ -99,7 +102,7 @@ def _block(name: str, signature: str, kt, assignments: list[tuple],
             lines.append(f"    {s.name} = p[{i}]")
     for sym, e in repl:
         lines.append(f"    {sym} = {printer.doprint(e)}")
-    for a, e in zip(assignments, reduced):
+    for a, e in zip(assignments, reduced, strict=True):
         comment = f"  # {a[2]}" if len(a) > 2 else ""
         lines.append(f"    {a[0]} = {printer.doprint(e)}{comment}")
     if returns:
@@ -132,13 +135,31 @@ def generate_source(derivation) -> str:
     ]
     head += [f"{k} = {v}" for k, v in d.items()]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")
-    head.append(f"ROWDEG = np.array({(kt.row_degree or [1])!r}, dtype=np.int64)  # degree in u of each row of J")
-    head.append(f"SCALE_ROWS = {any(k > 1 for k in kt.row_degree)}")
+    head.append(
+        f"ROWDEG = np.array({(kt.row_degree or [1])!r}, dtype=np.int64)  # degree in u of each row of J"
+        "  (0: not a polynomial)"
+    )
+    head.append(f"SCALE_ROWS = {any(k > 1 for k in kt.row_degree)}  # some rows polynomial of degree > 1 in u")
+    head.append(f"NORM_ROWS = {any(k == 0 for k in kt.row_degree)}  # some rows not polynomial in u")
     # offsets into the flat work array (see make_workspace in the generic part)
-    sizes = [("OJ", M * N), ("OB", M), ("OPHIN", d["MNH"]), ("OPSID", d["MH"]), ("OPSI", d["MH"]),
-             ("OQ", N * N), ("OP", N), ("OQD", N), ("OR", M * (d["PI"] + 1)),
-             ("OW", N * d["PI"]), ("OMR", d["PI"] ** 2), ("OY", N), ("OUI", d["PI"]), ("ORC", 2),
-             ("OPSQ", d["MH"] * N), ("OC", N * N)]
+    sizes = [
+        ("OJ", M * N),
+        ("OB", M),
+        ("OPHIN", d["MNH"]),
+        ("OPSID", d["MH"]),
+        ("OPSI", d["MH"]),
+        ("OQ", N * N),
+        ("OP", N),
+        ("OQD", N),
+        ("OR", M * (d["PI"] + 1)),
+        ("OW", N * d["PI"]),
+        ("OMR", d["PI"] ** 2),
+        ("OY", N),
+        ("OUI", d["PI"]),
+        ("ORC", 2),
+        ("OPSQ", d["MH"] * N),
+        ("OC", N * N),
+    ]
     off = {}
     pos = 0
     for name, size in sizes:
@@ -173,12 +194,19 @@ def generate_source(derivation) -> str:
         "\n".join(head),
         _block("terms", "t, x, p, w", kt, assign),
         _block("positions", "t, x, p, w", kt, kin),
-        _block("diagnostics", "t, x, p, viol", kt,
-               [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)], returns="_E"),
+        _block(
+            "diagnostics",
+            "t, x, p, viol",
+            kt,
+            [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)],
+            returns="_E",
+        ),
         _block("outputs", "t, x, p, out", kt, [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)]),
     ]
-    generic = "".join(f"\n\n# ---- generic part: nmkane_core/{name} ----\n"
-                      + (Path(__file__).parent / name).read_text() for name in GENERIC_FILES)
+    generic = "".join(
+        f"\n\n# ---- generic part: nmkane_core/{name} ----\n" + (Path(__file__).parent / name).read_text()
+        for name in GENERIC_FILES
+    )
     return inline_marked("\n\n".join(parts) + generic)
 
 
@@ -202,7 +230,7 @@ def _inline_body(fn: ast.FunctionDef, args: list, target, tag: str) -> list:
     apart with ``tag``, a final ``return e`` turned into ``target = e`` (dropped if no target)."""
     body = list(fn.body)
     if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
-        body = body[1:]                                             # the docstring
+        body = body[1:]  # the docstring
     returns = [n for st in body for n in ast.walk(st) if isinstance(n, ast.Return)]
     if returns and (len(returns) > 1 or body[-1] is not returns[0]):
         raise RuntimeError(f"{fn.name}: only a function whose one return ends it can be inlined")
@@ -211,11 +239,11 @@ def _inline_body(fn: ast.FunctionDef, args: list, target, tag: str) -> list:
         raise RuntimeError(f"{fn.name}: called with {len(args)} arguments, takes {len(params)}")
     stores = {n.id for st in body for n in ast.walk(st) if isinstance(n, ast.Name) and isinstance(n.ctx, ast.Store)}
     mapping, out = {}, []
-    for name, arg in zip(params, args):
+    for name, arg in zip(params, args, strict=True):
         if name not in stores and isinstance(arg, (ast.Name, ast.Constant)):
-            mapping[name] = arg.id if isinstance(arg, ast.Name) else arg       # substitute
+            mapping[name] = arg.id if isinstance(arg, ast.Name) else arg  # substitute
         else:
-            mapping[name] = tag + name                                          # bind once
+            mapping[name] = tag + name  # bind once
             out.append(ast.Assign(targets=[ast.Name(id=tag + name, ctx=ast.Store())], value=arg))
     for name in stores - set(params):
         mapping[name] = tag + name
@@ -247,10 +275,15 @@ def inline_marked(source: str) -> str:
 
     def expand(fn: ast.FunctionDef) -> ast.FunctionDef:
         if fn.name not in expanded:
+
             class Expander(ast.NodeTransformer):
                 def _inline(self, st, call, target):
-                    if not ("# INLINE" in lines[st.lineno - 1] and isinstance(call, ast.Call)
-                            and isinstance(call.func, ast.Name) and call.func.id in funcs):
+                    if not (
+                        "# INLINE" in lines[st.lineno - 1]
+                        and isinstance(call, ast.Call)
+                        and isinstance(call.func, ast.Name)
+                        and call.func.id in funcs
+                    ):
                         return st
                     count[0] += 1
                     callee = expand(funcs[call.func.id])
@@ -262,7 +295,7 @@ def inline_marked(source: str) -> str:
                 def visit_Assign(self, st):
                     return self._inline(st, st.value, st.targets[0]) if len(st.targets) == 1 else st
 
-            new = Expander().visit(copy.deepcopy(fn))             # line numbers kept: markers
+            new = Expander().visit(copy.deepcopy(fn))  # line numbers kept: markers
             changed[fn.name] = ast.dump(new) != ast.dump(fn)
             expanded[fn.name] = new
         return expanded[fn.name]
@@ -273,7 +306,7 @@ def inline_marked(source: str) -> str:
         if not changed[fn.name]:
             continue
         first = min([fn.lineno] + [d.lineno for d in fn.decorator_list])
-        out += lines[pos:first - 1]
+        out += lines[pos : first - 1]
         out.append(ast.unparse(ast.fix_missing_locations(new)))
         pos = fn.end_lineno or fn.lineno
     return "\n".join(out + lines[pos:]) + "\n"
@@ -328,8 +361,23 @@ def model_fingerprint(system_name: str, variant: str, model) -> str:
     printed canonically (``srepr``), and the generator's files and tool versions."""
     import sympy as sp
 
-    fields = ("q", "u", "params", "C", "D", "Q", "P", "nonholonomic", "holonomic", "u_independent",
-              "energy", "outputs", "q_dependent", "monitors", "t")
+    fields = (
+        "q",
+        "u",
+        "params",
+        "C",
+        "D",
+        "Q",
+        "P",
+        "nonholonomic",
+        "holonomic",
+        "u_independent",
+        "energy",
+        "outputs",
+        "q_dependent",
+        "monitors",
+        "t",
+    )
     text = "\0".join(sp.srepr(getattr(model, f)) for f in fields)
     h = hashlib.sha256(_tools_key(system_name, variant).encode())
     h.update(text.encode())
@@ -348,8 +396,7 @@ def _tools_key(system_name: str, variant: str) -> str:
     return h.hexdigest()
 
 
-def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] = ("", "")
-           ) -> tuple[object, ModelInfo]:
+def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] = ("", "")) -> tuple[object, ModelInfo]:
     """The kernel module and model info for fingerprint ``fp``, from the disk cache when it
     is there (no sympy needed), otherwise derived, generated and cached.  ``label`` (system,
     variant) is recorded in the index for ``nmkane cache``."""
@@ -367,10 +414,10 @@ def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] 
                         raise FileNotFoundError(key)
                     _LOADED[key] = _import(folder, key, None)
                     with contextlib.suppress(OSError):
-                        os.utime(index)            # last use, for `nmkane cache prune --unused-days`
+                        os.utime(index)  # last use, for `nmkane cache prune --unused-days`
                 return _LOADED[key], ModelInfo.from_json(json.dumps(entry["info"]))
         except (OSError, KeyError, ValueError, TypeError):
-            pass                                   # a damaged entry: regenerate below
+            pass  # a damaged entry: regenerate below
     d = derive()
     source = generate_source(d)
     module = compiled_kernel(d, source)
@@ -380,7 +427,15 @@ def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] 
 
         index.parent.mkdir(parents=True, exist_ok=True)
         tmp = index.with_suffix(f".tmp{os.getpid()}")
-        tmp.write_text(json.dumps({"key": _source_key(source), "system": label[0], "variant": label[1],
-                                   "info": json.loads(info.to_json())}))
+        tmp.write_text(
+            json.dumps(
+                {
+                    "key": _source_key(source),
+                    "system": label[0],
+                    "variant": label[1],
+                    "info": json.loads(info.to_json()),
+                }
+            )
+        )
         os.replace(tmp, index)
     return module, info

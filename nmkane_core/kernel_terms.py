@@ -27,7 +27,7 @@ from .derivation import Derivation
 class KernelTerms:
     derivation: Derivation
     args_t: sp.Symbol
-    args_x: list          # q then u (model order)
+    args_x: list  # q then u (model order)
     args_p: list
     J: sp.Matrix
     b: sp.Matrix
@@ -43,13 +43,14 @@ class KernelTerms:
     outputs: sp.Matrix
     output_names: tuple
     perm: list
-    row_degree: list      # degree in u of each velocity-level constraint (condition scaling)
+    row_degree: list  # degree in u of each velocity-level constraint, 0 if not polynomial (row_degrees)
 
     @property
     def dims(self) -> dict:
         d = self.derivation
-        return dict(N=d.model.n, M=d.m, MNH=d.m_nh, MH=d.m_h, PI=d.p,
-                    NV=len(self.viol_names), NO=len(self.output_names))
+        return dict(
+            N=d.model.n, M=d.m, MNH=d.m_nh, MH=d.m_h, PI=d.p, NV=len(self.viol_names), NO=len(self.output_names)
+        )
 
 
 def kernel_terms(d: Derivation) -> KernelTerms:
@@ -64,26 +65,51 @@ def kernel_terms(d: Derivation) -> KernelTerms:
     energy = sp.sympify(md.energy) if md.energy is not None else sp.Integer(0)
     S = _pythagorean_matrix
     return KernelTerms(
-        derivation=d, args_t=md.t, args_x=list(md.q) + list(md.u), args_p=list(md.params),
-        J=S(J), b=S(d.b), phin=S(d.phi_nh), psid=S(d.psi_dot), psi=S(d.psi), Q=S(d.Q), P=S(d.P),
-        qdot=S(d.qdot), energy=pythagorean(energy),
+        derivation=d,
+        args_t=md.t,
+        args_x=list(md.q) + list(md.u),
+        args_p=list(md.params),
+        J=S(J),
+        b=S(d.b),
+        phin=S(d.phi_nh),
+        psid=S(d.psi_dot),
+        psi=S(d.psi),
+        Q=S(d.Q),
+        P=S(d.P),
+        qdot=S(d.qdot),
+        energy=pythagorean(energy),
         viol=S(sp.Matrix(viol_exprs)) if viol_exprs else sp.zeros(0, 1),
         viol_names=tuple(viol_names),
         outputs=sp.Matrix(list(md.outputs.values())) if md.outputs else sp.zeros(0, 1),
-        output_names=tuple(md.outputs), perm=list(d.perm), row_degree=row_degrees(d))
+        output_names=tuple(md.outputs),
+        perm=list(d.perm),
+        row_degree=row_degrees(d),
+    )
 
 
 def row_degrees(d: Derivation) -> list:
-    """Growth degree in u of each row of φ = [φ_nh; ψ̇], for the condition estimate's scaling.
+    """How each row of φ = [φ_nh; ψ̇] is scaled for the kernels' estimate of J2's condition:
+    its degree k ≥ 1 in u when it is a polynomial in u, else 0.
 
-    A row of J = ∂φ/∂u of polynomial degree k grows like |u|^(k−1): the kernels divide it
-    by max(1, |u|∞)^(k−1) before estimating J2's condition, so that a constraint quadratic
-    in the speeds (the Appell–Hamel (57)) is flagged where its gradient degenerates (φ̇ → 0,
-    cancellation) and not merely because the speeds are large.  A row that is not a
-    polynomial in u (a square root of a sum of squares — the speed along a path —,
-    trigonometric, rational or exponential functions of the speeds) is scaled by its
-    degree of homogeneity k when it is homogeneous (φ(λu) = λ^k φ(u), as √(u1² + u2²) is
-    with k = 1) and left unscaled (k = 1) otherwise.
+    The estimate is the pivot ratio min|pivot| / max|pivot| of J2's LU factors, which depends on
+    the rows' relative sizes; the kernels (``rhs_ws`` in :mod:`nmkane_core._kernel_loops`) first
+    bring the rows to comparable sizes:
+
+    * a row of polynomial degree k > 1 (its gradient grows like |u|^(k−1)) is divided by
+      max(1, |u|∞)^(k−1), so that a constraint quadratic in the speeds (the Appell–Hamel (57))
+      is flagged where its gradient degenerates (φ̇ → 0, cancellation) and not merely because
+      the speeds are large; rows of degree 1 are left as they are.  (The paper's systems have
+      only such rows: their estimates and thresholds do not depend on what follows.)
+    * a row that is not a polynomial in u (k = 0: a square root — the speed along a path
+      √(u1² + u2²) −, trigonometric, rational or exponential functions of the speeds) has no
+      natural size to compare with, so it is made scale-free: divided by its own ∞-norm over
+      the whole row [J1 J2] at the current state (the estimate is then the same for φ and c·φ
+      and for any speeds).  Its share on the dependent speeds, max_j |J2_ij| / max_j |J_ij|,
+      also bounds the estimate from above: a constraint whose gradient turns away from u_D
+      (u2 − √(a² − u1²) as u1 → a, or √(u1² + u2²) − v with u_D = u2 as u2 → 0) makes J2
+      singular even when J2 is 1×1, where the pivot ratio alone is always 1.  (A gradient that
+      is not finite — a square root's argument at or past zero, a zero denominator — is not
+      an estimate's business: the loops' finiteness checks end the run ``diverged`` there.)
     """
     return [_row_degree(e, d.u) for e in d.phi]
 
@@ -91,17 +117,8 @@ def row_degrees(d: Derivation) -> list:
 def _row_degree(e, u) -> int:
     try:
         return max(1, sp.Poly(sp.expand(e), *u).total_degree())
-    except sp.PolynomialError:              # not a polynomial in u (sqrt, sin, exp, 1/u, ...)
-        pass
-    lam = sp.Dummy("lam", positive=True)
-    scaled = e.subs({ui: lam * ui for ui in u}, simultaneous=True)
-    for k in (1, 2, 3):
-        try:
-            if sp.simplify(scaled - lam ** k * e) == 0:
-                return k
-        except Exception:                   # simplification gave up: treat as not homogeneous
-            break
-    return 1
+    except sp.PolynomialError:  # not a polynomial in u (sqrt, sin, exp, 1/u, ...)
+        return 0
 
 
 def pythagorean(e):
@@ -120,13 +137,13 @@ def pythagorean(e):
 
 
 def _pythagorean_add(add):
-    found = {}                                  # (coefficient, argument) → {func: term index}
+    found = {}  # (coefficient, argument) → {func: term index}
     terms = list(add.args)
     for i, term in enumerate(terms):
         factors = sp.Mul.make_args(term)
         for j, f in enumerate(factors):
             if f.is_Pow and f.exp == 2 and isinstance(f.base, (sp.sin, sp.cos)):
-                key = (sp.Mul(*(factors[:j] + factors[j + 1:])), f.base.args[0])
+                key = (sp.Mul(*(factors[:j] + factors[j + 1 :])), f.base.args[0])
                 found.setdefault(key, {}).setdefault(f.base.func, i)
                 break
     drop, keep = set(), []

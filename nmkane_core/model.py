@@ -18,8 +18,8 @@ Two ways to give the holonomic equations:
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, Sequence
 
 import sympy as sp
 
@@ -43,38 +43,57 @@ def _as_matrix(value, rows: int | None = None) -> sp.Matrix:
 class MechanicalModel:
     """A constrained system: kinematics, holonomic equations, constraints, partition.
 
+    Every argument is keyword-only; all expressions are sympy expressions in ``q``, ``u``,
+    ``params`` and ``t`` (nothing else may appear in them).
+
     Parameters
     ----------
-    name:
-        A short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``...).
     q, u:
-        Generalized coordinates and speeds (plain sympy symbols).
+        Generalized coordinates and speeds, n of each (plain real sympy symbols, see
+        :func:`plain_symbols`; their names are the state names of runs).
     params:
-        Parameter symbols, in the order numeric parameter vectors use.
+        Parameter symbols, in the order numeric parameter vectors use; every symbol of the
+        expressions that is not in ``q``, ``u`` or ``t`` must be one of them.
     C, D:
-        (1) ``q̇ = C u + D``; ``C`` n×n invertible, ``D`` n×1.
+        (1) ``q̇ = C u + D``; ``C`` n×n invertible, ``D`` n×1 (``sp.eye(n)``,
+        ``sp.zeros(n, 1)`` when the speeds are the coordinates' rates).
     Q, P:
-        (42) the holonomic system ``Q u̇ = P`` (Q symmetric positive definite).
+        (42) the holonomic (unconstrained) system ``Q u̇ = P``: Q n×n symmetric positive
+        definite, P n×1 (applied and inertia forces).
     nonholonomic:
-        Named φ_i(q, u, t) = 0, possibly nonlinear in u.
+        Named constraints φ_i(q, u, t) = 0: any smooth function of the speeds —
+        linear, polynomial, or not polynomial at all (square roots such as the speed
+        along a path √(u1² + u2²) − v, trigonometric, rational, exponential).  Where a
+        constraint's expression is not defined (the argument of a square root below
+        zero, a zero denominator) a run ends with a status.
     holonomic:
         Named ψ_i(q, t) = 0.
     u_independent:
-        u_I of (16); the remaining speeds (in the order of ``u``) are u_D.
+        u_I of (16); the remaining speeds (in the order of ``u``) are u_D, solved from
+        the constraints: choose them so that J2 = ∂[φ; ψ̇]/∂u_D is invertible along the
+        motion (runs report where it is not, status ``singular``).  Required when there
+        are constraints.
     energy:
-        Total energy E(q, u) if the system defines one (diagnostics only).
+        Optional total energy E(q, u, t), reported with its drift (diagnostics only).
     outputs:
-        Extra reported quantities as expressions of q, u (e.g. the minimal
-        formulation of the sliding particle reports y and u2 that it does not
+        Optional extra reported quantities, name → expression of q, u, t (e.g. the
+        minimal formulation of the sliding particle reports y and u2 that it does not
         integrate).
     monitors:
-        Extra named quantities reported beside the constraint values, e.g. the surface
-        equation for a minimal formulation that satisfies it by construction.
+        Optional extra named quantities reported beside the constraint values, e.g. the
+        surface equation for a minimal formulation that satisfies it by construction.
     q_dependent:
         Coordinates solved from the holonomic constraints when completing an initial
-        state; chosen by pivoting on ∂ψ/∂q when not given.
+        state (one per holonomic constraint); chosen by pivoting on ∂ψ/∂q when not given.
+    name:
+        Optional short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``), shown in
+        generated code and messages; a system names its variants itself.
     t:
-        The time symbol.
+        The time symbol (default ``Symbol("t", real=True)``).
+    description:
+        Optional text about the model.
+
+    Raises :class:`ValueError` naming the field when the shapes or symbols do not fit.
     """
 
     name: str = ""
@@ -92,7 +111,7 @@ class MechanicalModel:
     outputs: Mapping[str, sp.Expr] = field(default_factory=dict)
     q_dependent: tuple[sp.Symbol, ...] = ()
     monitors: Mapping[str, sp.Expr] = field(default_factory=dict)
-    t: sp.Symbol = sp.Symbol("t", real=True)
+    t: sp.Symbol = sp.Symbol("t", real=True)  # noqa: RUF009 (an immutable symbol, shared on purpose)
     description: str = ""
 
     def __post_init__(self):
@@ -117,8 +136,12 @@ class MechanicalModel:
         n = len(self.q)
         if len(self.u) != n:
             raise ValueError(f"model {self.name!r}: {n} coordinates but {len(self.u)} speeds")
-        for label, mat, shape in (("C", self.C, (n, n)), ("D", self.D, (n, 1)),
-                                  ("Q", self.Q, (n, n)), ("P", self.P, (n, 1))):
+        for label, mat, shape in (
+            ("C", self.C, (n, n)),
+            ("D", self.D, (n, 1)),
+            ("Q", self.Q, (n, n)),
+            ("P", self.P, (n, 1)),
+        ):
             if mat.shape != shape:
                 raise ValueError(f"model {self.name!r}: {label} has shape {mat.shape}, expected {shape}")
         m = self.m
@@ -126,7 +149,8 @@ class MechanicalModel:
         if m and p + m != n:
             raise ValueError(
                 f"model {self.name!r}: {m} constraints and {p} independent speeds do not add "
-                f"up to {n} speeds (u_I must have n - m entries)")
+                f"up to {n} speeds (u_I must have n - m entries)"
+            )
         unknown = [s for s in self.u_independent if s not in self.u]
         if unknown:
             raise ValueError(f"model {self.name!r}: u_independent {unknown} are not speeds of the model")
@@ -134,14 +158,17 @@ class MechanicalModel:
         for name, psi in self.holonomic.items():
             extra = sp.sympify(psi).free_symbols - allowed
             if extra:
-                raise ValueError(f"model {self.name!r}: holonomic constraint {name!r} depends on "
-                                 f"{sorted(map(str, extra))}; ψ may depend on q, t and parameters only")
+                raise ValueError(
+                    f"model {self.name!r}: holonomic constraint {name!r} depends on "
+                    f"{sorted(map(str, extra))}; ψ may depend on q, t and parameters only"
+                )
         allowed |= set(self.u)
         for name, phi in self.nonholonomic.items():
             extra = sp.sympify(phi).free_symbols - allowed
             if extra:
-                raise ValueError(f"model {self.name!r}: constraint {name!r} has unknown symbols "
-                                 f"{sorted(map(str, extra))}")
+                raise ValueError(
+                    f"model {self.name!r}: constraint {name!r} has unknown symbols {sorted(map(str, extra))}"
+                )
         dup = set(self.nonholonomic) & set(self.holonomic)
         if dup:
             raise ValueError(f"model {self.name!r}: constraint names used twice: {sorted(dup)}")
@@ -173,12 +200,26 @@ class MechanicalModel:
 
     # ------------------------------------------------------------ from mechanics
     @classmethod
-    def from_mechanics(cls, name: str = "", *, q, u, kd_eqs, bodies, loads, frame, params,
-                       nonholonomic: Mapping[str, sp.Expr] | None = None,
-                       holonomic: Mapping[str, sp.Expr] | None = None,
-                       u_independent: Iterable = (), energy=None, outputs: Mapping[str, sp.Expr] | None = None,
-                       q_dependent: Iterable = (), monitors: Mapping[str, sp.Expr] | None = None,
-                       description: str = "") -> "MechanicalModel":
+    def from_mechanics(
+        cls,
+        name: str = "",
+        *,
+        q,
+        u,
+        kd_eqs,
+        bodies,
+        loads,
+        frame,
+        params,
+        nonholonomic: Mapping[str, sp.Expr] | None = None,
+        holonomic: Mapping[str, sp.Expr] | None = None,
+        u_independent: Iterable = (),
+        energy=None,
+        outputs: Mapping[str, sp.Expr] | None = None,
+        q_dependent: Iterable = (),
+        monitors: Mapping[str, sp.Expr] | None = None,
+        description: str = "",
+    ) -> MechanicalModel:
         """Build a model from sympy.physics.mechanics bodies, particles and loads.
 
         ``q`` and ``u`` are ``dynamicsymbols``; ``kd_eqs`` the kinematical differential
@@ -205,8 +246,8 @@ class MechanicalModel:
         ts = sp.Symbol("t", real=True)
         # xreplace, not subs: an exact swap of nodes, linear in the size of the expression
         # (subs took minutes on a bicycle's mass matrix)
-        to_qdot = dict(zip(qd, qdot))
-        to_plain = {**dict(zip(q, qs)), **dict(zip(u, us)), t: ts}
+        to_qdot = dict(zip(qd, qdot, strict=True))
+        to_plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), t: ts}
 
         def plain(e):
             return sp.sympify(e).xreplace(to_qdot).xreplace(to_plain)
@@ -216,11 +257,21 @@ class MechanicalModel:
         uind = [plain(s) for s in u_independent]
         qdep = [plain(s) for s in q_dependent]
         return cls(
-            name=name, q=qs, u=us, params=tuple(params), C=C.applyfunc(plain), D=D.applyfunc(plain),
-            Q=Q, P=P,
+            name=name,
+            q=qs,
+            u=us,
+            params=tuple(params),
+            C=C.applyfunc(plain),
+            D=D.applyfunc(plain),
+            Q=Q,
+            P=P,
             nonholonomic={k: plain(v) for k, v in dict(nonholonomic or {}).items()},
             holonomic={k: plain(v) for k, v in dict(holonomic or {}).items()},
-            u_independent=tuple(uind), energy=None if energy is None else plain(energy),
-            outputs={k: plain(v) for k, v in dict(outputs or {}).items()}, q_dependent=tuple(qdep),
+            u_independent=tuple(uind),
+            energy=None if energy is None else plain(energy),
+            outputs={k: plain(v) for k, v in dict(outputs or {}).items()},
+            q_dependent=tuple(qdep),
             monitors={k: plain(v) for k, v in dict(monitors or {}).items()},
-            t=ts, description=description)
+            t=ts,
+            description=description,
+        )

@@ -8,8 +8,8 @@ about gains whose constraint-error dynamics are not stable.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Mapping
 
 import numpy as np
 
@@ -17,11 +17,12 @@ from .errors import InputError
 from .initial import initial_state
 from .integrators import ScipyMethod, Tableau, get_integrator
 from .projection import ProjectionOptions, projection_options
-from .schema import LIMITS, RunSettings
 from .registry import get_system
+from .schema import LIMITS, RunSettings
 from .system import System
 
 __all__ = ["Plan", "min_every", "output_rows", "raise_all", "resolve", "round_up", "validate_settings"]
+
 
 @dataclass
 class Plan:
@@ -43,7 +44,7 @@ class Plan:
     rcond_min: float
     rcond_switch: float
     switching: bool
-    projection: "ProjectionOptions"
+    projection: ProjectionOptions
     x0: np.ndarray
     initial: dict[str, float]
     settings: dict
@@ -66,18 +67,21 @@ def validate_settings(settings: Mapping) -> RunSettings:
     from pydantic import ValidationError
 
     if not isinstance(settings, Mapping):
-        raise InputError("settings", _shown(settings), "a mapping (dict) of run settings, e.g. "
-                         "{'system': 'appell-hamel', 'dt': 0.01}", f"a {type(settings).__name__}")
+        raise InputError(
+            "settings",
+            _shown(settings),
+            "a mapping (dict) of run settings, e.g. {'system': 'appell-hamel', 'dt': 0.01}",
+            f"a {type(settings).__name__}",
+        )
     try:
         return RunSettings.model_validate(_plain_data(dict(settings)), strict=True)
     except ValidationError as e:
         errors = []
         for err in e.errors():
             field = ".".join(str(p) for p in err["loc"]) or "settings"
-            errors.append(InputError(field, _shown(err.get("input")),
-                                     err["msg"].replace("Input should be", "a value")))
+            errors.append(InputError(field, _shown(err.get("input")), err["msg"].replace("Input should be", "a value")))
         raise_all(errors)
-        raise AssertionError("unreachable") from None     # pragma: no cover
+        raise AssertionError("unreachable") from None  # pragma: no cover
 
 
 def raise_all(errors: list[InputError]) -> None:
@@ -90,7 +94,7 @@ def raise_all(errors: list[InputError]) -> None:
     first = errors[0]
     combined = InputError(first.field, first.value, first.allowed, first.reason)
     combined.args = ("; ".join(str(e) for e in errors) + f" ({len(errors)} problems)",)
-    combined.errors = errors                    # type: ignore[attr-defined]
+    combined.errors = errors  # type: ignore[attr-defined]
     raise combined
 
 
@@ -116,7 +120,7 @@ def _shown(value, depth: int = 0):
     if isinstance(value, bool) or value is None or isinstance(value, float):
         return value
     if isinstance(value, int):
-        if abs(value) < 10 ** 30:
+        if abs(value) < 10**30:
             return value
         return f"an integer of about {int(value.bit_length() * 0.30103) + 1:,} digits"
     if isinstance(value, str):
@@ -147,12 +151,23 @@ def _check_float(name, value, lo, hi, lo_open=True, unit=""):
     ok = (v > lo if lo_open else v >= lo) and v <= hi and math.isfinite(v)
     if not ok:
         bracket = "(" if lo_open else "["
-        raise InputError(name, value, f"a finite number in {bracket}{lo:g}, {hi:g}]{' ' + unit if unit else ''}",
-                         "out of range" if math.isfinite(v) else "not finite")
+        raise InputError(
+            name,
+            value,
+            f"a finite number in {bracket}{lo:g}, {hi:g}]{' ' + unit if unit else ''}",
+            "out of range" if math.isfinite(v) else "not finite",
+        )
     return v
 
 
-def _gain(name: str, value, size: int, warnings: list[str], what: str) -> np.ndarray:
+def _gain(name: str, value, constraints: tuple[str, ...], warnings: list[str], kind: str, where: str) -> np.ndarray:
+    """The gain matrix ``name`` for the ``constraints`` (their names) of one kind (``kind``:
+    "nonholonomic" or "holonomic") of the model described by ``where``."""
+    size = len(constraints)
+    if size:
+        what = f"{where} has {size} {kind} constraint{'s' if size > 1 else ''}: " + ", ".join(constraints)
+    else:
+        what = f"{where} has no {kind} constraints"
     if value is None:
         return np.zeros((size, size))
     if isinstance(value, (int, float)):
@@ -164,9 +179,13 @@ def _gain(name: str, value, size: int, warnings: list[str], what: str) -> np.nda
         except (TypeError, ValueError):
             raise InputError(name, value, f"a number or a {size}×{size} matrix", "not a matrix") from None
         if G.shape != (size, size):
-            raise InputError(name, value, f"a number or a {size}×{size} matrix"
-                             + (f" ({what})" if size == 0 else " (one row and column per constraint)"),
-                             f"shape {G.shape}")
+            raise InputError(
+                name,
+                value,
+                f"a number or a {size}×{size} matrix"
+                + (f" ({what})" if size == 0 else " (one row and column per constraint)"),
+                f"shape {G.shape}",
+            )
         if not np.all(np.isfinite(G)) or np.abs(G).max(initial=0) > LIMITS["max_gain"]:
             raise InputError(name, value, f"finite entries with |Γ_ij| ≤ {LIMITS['max_gain']:g}", "out of range")
     if size == 0 and value not in (None, 0, 0.0):
@@ -182,9 +201,12 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     system = get_system(s.system)
     other = "formulation" if system.option == "model" else "model"
     if getattr(s, other) is not None:
-        raise InputError(other, getattr(s, other),
-                         f"{system.option}: {' | '.join(system.variants)} ({system.name} has no {other})",
-                         f"{system.name} has no {other}")
+        raise InputError(
+            other,
+            getattr(s, other),
+            f"{system.option}: {' | '.join(system.variants)} ({system.name} has no {other})",
+            f"{system.name} has no {other}",
+        )
     variant = system.check_variant(getattr(s, system.option), system.option)
     integ = get_integrator(s.integrator or system.default_integrator)
     errors: list[InputError] = []
@@ -196,14 +218,18 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
             errors.append(e)
             return None
 
-    dt = check(_check_float, "dt", s.dt if s.dt is not None else system.default_dt,
-               0.0, LIMITS["max_dt"], unit="s")
+    dt = check(_check_float, "dt", s.dt if s.dt is not None else system.default_dt, 0.0, LIMITS["max_dt"], unit="s")
     if dt is not None and dt < LIMITS["min_dt"]:
-        errors.append(InputError("dt", dt, f"a number in [{LIMITS['min_dt']:g}, {LIMITS['max_dt']:g}] s",
-                                 "too small"))
+        errors.append(InputError("dt", dt, f"a number in [{LIMITS['min_dt']:g}, {LIMITS['max_dt']:g}] s", "too small"))
         dt = None
-    t_final = check(_check_float, "t_final", s.t_final if s.t_final is not None else system.default_t_final,
-                    0.0, LIMITS["max_t_final"], unit="s")
+    t_final = check(
+        _check_float,
+        "t_final",
+        s.t_final if s.t_final is not None else system.default_t_final,
+        0.0,
+        LIMITS["max_t_final"],
+        unit="s",
+    )
     every = s.every
     if every < 1 or every > LIMITS["max_steps"]:
         errors.append(InputError("every", every, f"an integer in [1, {LIMITS['max_steps']}]"))
@@ -211,14 +237,28 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     if dt is not None and t_final is not None and isinstance(integ, Tableau) and not integ.adaptive:
         nsteps = math.ceil(t_final / dt - 1e-9)
         if nsteps > LIMITS["max_steps"]:
-            errors.append(InputError("dt", dt, f"t_final/dt ≤ {LIMITS['max_steps']:,} steps "
-                                     f"(dt ≥ {round_up(t_final / LIMITS['max_steps']):.3g} s for "
-                                     f"t_final = {t_final:g} s)", f"{nsteps:,} steps"))
+            errors.append(
+                InputError(
+                    "dt",
+                    dt,
+                    f"t_final/dt ≤ {LIMITS['max_steps']:,} steps "
+                    f"(dt ≥ {round_up(t_final / LIMITS['max_steps']):.3g} s for "
+                    f"t_final = {t_final:g} s)",
+                    f"{nsteps:,} steps",
+                )
+            )
         elif every is not None:
             rows = output_rows(nsteps, every)
             if rows > LIMITS["max_rows"]:
-                errors.append(InputError("every", every, f"an integer ≥ {min_every(nsteps, LIMITS['max_rows'])} "
-                                         f"(at most {LIMITS['max_rows']:,} output rows)", f"{rows:,} rows"))
+                errors.append(
+                    InputError(
+                        "every",
+                        every,
+                        f"an integer ≥ {min_every(nsteps, LIMITS['max_rows'])} "
+                        f"(at most {LIMITS['max_rows']:,} output rows)",
+                        f"{rows:,} rows",
+                    )
+                )
     rtol = check(_check_float, "rtol", s.rtol, 0.0, 0.1)
     if rtol is not None and rtol < 1e-14:
         errors.append(InputError("rtol", s.rtol, "a number in [1e-14, 0.1]", "too small"))
@@ -232,39 +272,97 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     p = system.param_vector(variant, params)
     md = system.info(variant)
     warnings: list[str] = []
-    m_nh, m_h = len(md.nonholonomic), len(md.holonomic)
-    G = _gain("gamma", s.gamma if s.gamma is not None else system.default_gamma, m_nh, warnings,
-              f"the {variant} {system.option} has no nonholonomic constraints")
-    G1 = _gain("gamma1", s.gamma1 if s.gamma1 is not None else system.default_gamma1, m_h, warnings,
-               f"the {variant} {system.option} has no holonomic constraints")
-    G2 = _gain("gamma2", s.gamma2 if s.gamma2 is not None else system.default_gamma2, m_h, warnings,
-               f"the {variant} {system.option} has no holonomic constraints")
+    where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
+    G = _gain(
+        "gamma",
+        s.gamma if s.gamma is not None else system.default_gamma,
+        md.nonholonomic,
+        warnings,
+        "nonholonomic",
+        where,
+    )
+    G1 = _gain(
+        "gamma1",
+        s.gamma1 if s.gamma1 is not None else system.default_gamma1,
+        md.holonomic,
+        warnings,
+        "holonomic",
+        where,
+    )
+    G2 = _gain(
+        "gamma2",
+        s.gamma2 if s.gamma2 is not None else system.default_gamma2,
+        md.holonomic,
+        warnings,
+        "holonomic",
+        where,
+    )
     _warn_unstable(G, G1, G2, warnings)
-    proj = projection_options(s.projection, s.projection_weight, s.projection_iterations,
-                              s.projection_jacobian, s.projection_energy)
+    proj = projection_options(
+        s.projection, s.projection_weight, s.projection_iterations, s.projection_jacobian, s.projection_energy
+    )
     if proj.name != "none" and isinstance(integ, ScipyMethod):
-        raise InputError("projection", s.projection, "none with scipy integrators; blajer | yoon with "
-                         "rk4, kutta-merson, kutta-merson-adaptive", "post-step projection needs a tableau integrator")
+        raise InputError(
+            "projection",
+            s.projection,
+            "none with scipy integrators; blajer | yoon with rk4, kutta-merson, kutta-merson-adaptive",
+            "post-step projection needs a tableau integrator",
+        )
     if proj.name != "none" and md.m == 0:
-        warnings.append(f"projection {proj.name} has nothing to do: the {variant} {system.option} has no constraints")
+        warnings.append(f"projection {proj.name} has nothing to do: {where} has no constraints")
     correction: dict[str, float] = {}
-    x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial,
-                             correction=correction)
+    x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial, correction=correction)
     _check_finite_start(system, variant, p, x0, full)
     if correction:
-        warnings.append("the initial state was projected onto the constraint manifold: "
-                        + ", ".join(f"{k} {v:+.3g}" for k, v in correction.items()))
+        warnings.append(
+            "the initial state was projected onto the constraint manifold: "
+            + ", ".join(f"{k} {v:+.3g}" for k, v in correction.items())
+        )
     resolved = s.model_dump()
-    resolved.update({system.option: variant, other: None, "integrator": integ.name, "dt": dt,
-                     "t_final": t_final, "params": params, "initial": full,
-                     "gamma": _plain(s.gamma, system.default_gamma),
-                     "gamma1": _plain(s.gamma1, system.default_gamma1),
-                     "gamma2": _plain(s.gamma2, system.default_gamma2)})
+    resolved.update(
+        {
+            system.option: variant,
+            other: None,
+            "integrator": integ.name,
+            "dt": dt,
+            "t_final": t_final,
+            "params": params,
+            "initial": full,
+            "gamma": _plain(s.gamma, system.default_gamma),
+            "gamma1": _plain(s.gamma1, system.default_gamma1),
+            "gamma2": _plain(s.gamma2, system.default_gamma2),
+        }
+    )
     if proj.name != "none":
-        resolved.update(projection_weight=proj.weight, projection_iterations=proj.iterations,
-                        projection_jacobian=proj.jacobian, projection_energy=proj.energy)
-    plan = Plan(system, variant, integ, params, p, G, G1, G2, dt, t_final, s.every, rtol, atol,
-                rcond_min, rcond_switch, s.switching, proj, x0, full, resolved, warnings)
+        resolved.update(
+            projection_weight=proj.weight,
+            projection_iterations=proj.iterations,
+            projection_jacobian=proj.jacobian,
+            projection_energy=proj.energy,
+        )
+    plan = Plan(
+        system,
+        variant,
+        integ,
+        params,
+        p,
+        G,
+        G1,
+        G2,
+        dt,
+        t_final,
+        s.every,
+        rtol,
+        atol,
+        rcond_min,
+        rcond_switch,
+        s.switching,
+        proj,
+        x0,
+        full,
+        resolved,
+        warnings,
+    )
     plan.initial_correction = correction
     return plan
 
@@ -277,13 +375,23 @@ def _check_finite_start(system: System, variant: str, p: np.ndarray, x0: np.ndar
     mod.diagnostics_rows(np.zeros(1), x0[None, :], p, E, V)
     if mod.NO:
         mod.outputs_rows(np.zeros(1), x0[None, :], p, O)
-    bad = [what for what, ok in (("the energy", not system.info(variant).has_energy or np.isfinite(E).all()),
-                                 ("a constraint violation", np.isfinite(V).all()),
-                                 ("an output", np.isfinite(O).all())) if not ok]
+    bad = [
+        what
+        for what, ok in (
+            ("the energy", not system.info(variant).has_energy or np.isfinite(E).all()),
+            ("a constraint violation", np.isfinite(V).all()),
+            ("an output", np.isfinite(O).all()),
+        )
+        if not ok
+    ]
     if bad:
         verb = "overflows" if len(bad) == 1 else "overflow"
-        raise InputError("initial", _shown(full), "initial values small enough that the energy, the constraint "
-                         "terms and the outputs are finite numbers", f"{' and '.join(bad)} {verb} at t = 0")
+        raise InputError(
+            "initial",
+            _shown(full),
+            "initial values small enough that the energy, the constraint terms and the outputs are finite numbers",
+            f"{' and '.join(bad)} {verb} at t = 0",
+        )
 
 
 def output_rows(nsteps: int, every: int) -> int:
@@ -302,11 +410,15 @@ def _plain(v, default):
 
 def _warn_unstable(G, G1, G2, warnings):
     if G.size and np.any(G) and np.any(np.linalg.eigvals(G).real >= 0):
-        warnings.append("Γ has eigenvalues with non-negative real part: the nonholonomic constraint "
-                        "error dynamics φ̇ = Γφ are not stable (stabilizing gains are negative)")
+        warnings.append(
+            "Γ has eigenvalues with non-negative real part: the nonholonomic constraint "
+            "error dynamics φ̇ = Γφ are not stable (stabilizing gains are negative)"
+        )
     if G1.size and (np.any(G1) or np.any(G2)):
         k = G1.shape[0]
         comp = np.block([[np.zeros((k, k)), np.eye(k)], [G2, G1]])
         if np.any(np.linalg.eigvals(comp).real >= 0):
-            warnings.append("Γ1, Γ2 give constraint error dynamics ψ̈ = Γ1ψ̇ + Γ2ψ with eigenvalues of "
-                            "non-negative real part: not stable (e.g. Γ1 = −20, Γ2 = −100 are)")
+            warnings.append(
+                "Γ1, Γ2 give constraint error dynamics ψ̈ = Γ1ψ̇ + Γ2ψ with eigenvalues of "
+                "non-negative real part: not stable (e.g. Γ1 = −20, Γ2 = −100 are)"
+            )

@@ -70,9 +70,17 @@ class ReferenceKernel:
             J1, J2 = J[:, :PI], J[:, PI:]
             # the compiled kernel's row scaling for the condition estimate (kernel_terms.row_degrees)
             unorm = max(1.0, np.abs(np.asarray(x)[N:]).max(initial=0.0))
-            sc = unorm ** -(np.array(self.terms.row_degree, float) - 1.0)
+            deg = np.array(self.terms.row_degree, float)
+            sc = unorm ** -(np.maximum(deg, 1.0) - 1.0)
+            share = 1.0
+            for i in np.flatnonzero(deg == 0):  # not polynomial in u: scale-free
+                a = np.nan_to_num(np.abs(J[i]), nan=0.0, posinf=np.inf)
+                big = a.max(initial=0.0)
+                if 0.0 < big < np.inf:
+                    sc[i] = 1.0 / big
+                    share = min(share, a[PI:].max(initial=0.0) / big)
             lu = sla.lu_factor(sc[:, None] * J2, check_finite=False) if np.all(np.isfinite(J2)) else None
-            rc_j2 = pivot_rcond(lu[0]) if lu is not None else 0.0
+            rc_j2 = min(pivot_rcond(lu[0]), share) if lu is not None else 0.0
             out.update(J1=J1, J2=J2, b=b, s=s, rcond_J2=rc_j2)
             if rc_j2 == 0.0:
                 return out

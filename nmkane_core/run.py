@@ -151,8 +151,11 @@ def finish(plan: Plan, mod, out: LoopOutput, wall: float) -> Run:
     elif code == STATUS_DIVERGED:
         status = "diverged"
         message = (
-            f"the state stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "
-            f"the last finite state (try a smaller dt or gains of smaller magnitude)"
+            f"the state or its derivative stopped being finite after t = {t_end:.6g} s; the run "
+            f"stopped and keeps the last finite state (an unstable step: try a smaller dt or gains of "
+            f"smaller magnitude; or the motion reached a point where the model's expressions are not "
+            f"defined — a square root of a negative number, a zero denominator — e.g. the end of the "
+            f"branch of a constraint nonlinear in the speeds)"
         )
     elif code == STATUS_PROJECTION_FAILED:
         status = "failed"
@@ -173,7 +176,12 @@ def finish(plan: Plan, mod, out: LoopOutput, wall: float) -> Run:
                 f"the rows up to there are kept"
             )
         else:
-            message = f"the step size fell below its minimum at t = {t_end:.6g} s"
+            message = (
+                f"the step size fell below its minimum at t = {t_end:.6g} s: the solution cannot be "
+                f"continued there (a blow-up, or a point where the model's expressions are not defined — "
+                f"a square root of a negative number, a zero denominator — e.g. the end of the branch of "
+                f"a constraint nonlinear in the speeds); the rows up to there are kept"
+            )
     x = out.x
     O = np.empty((x.shape[0], mod.NO))
     if mod.NO:

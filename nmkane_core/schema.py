@@ -8,7 +8,7 @@ request and response models and the CLI writes ``RunResult`` as its JSON.
 
 from __future__ import annotations
 
-from typing import Literal, Optional, Union
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -16,71 +16,129 @@ __all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "LIMITS", "REST_D
 
 #: Library-wide limits (the REST service may impose lower ones; see /api/systems).
 LIMITS = {
-    "max_steps": 50_000_000,      # fixed steps (or adaptive attempts) per run
-    "max_rows": 2_000_000,        # output rows per run
-    "max_t_final": 1e6,           # s
-    "min_dt": 1e-7,               # s
-    "max_dt": 10.0,               # s
-    "max_gain": 1e6,              # |Γ| entries
+    "max_steps": 50_000_000,  # fixed steps (or adaptive attempts) per run
+    "max_rows": 2_000_000,  # output rows per run
+    "max_t_final": 1e6,  # s
+    "min_dt": 1e-7,  # s
+    "max_dt": 10.0,  # s
+    "max_gain": 1e6,  # |Γ| entries
 }
 
 #: The REST service's default limits per run (backend/config.py; raised with NMKANE_MAX_STEPS and
 #: NMKANE_MAX_ROWS).  Kept here, in the core, so that the core can quote them without importing backend.
 REST_DEFAULT_LIMITS = {
-    "max_steps": 2_000_000,       # fixed steps per run
-    "max_rows": 100_000,          # output rows per run
+    "max_steps": 2_000_000,  # fixed steps per run
+    "max_rows": 100_000,  # output rows per run
 }
 
-Gain = Union[float, list[list[float]]]
+Gain = float | list[list[float]]
 
 
 class RunSettings(BaseModel):
     """A run request. Names follow the CLI's options with underscores."""
 
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False,
-                              json_schema_extra={"examples": [
-                                  {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}]})
+    model_config = ConfigDict(
+        extra="forbid",
+        allow_inf_nan=False,
+        json_schema_extra={"examples": [{"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}]},
+    )
 
-    system: str = Field("appell-hamel", description="appell-hamel | sliding-particle", max_length=64)
-    model: Optional[str] = Field(None, description="appell-hamel constraint model: nonlinear | linear",
-                                 max_length=64)
-    formulation: Optional[str] = Field(None, description="sliding-particle: nonminimal | minimal",
-                                       max_length=64)
-    gamma: Optional[Gain] = Field(None, description="Γ for nonholonomic constraints (104): a scalar "
-                                  "(Γ·I) or a matrix; stabilizing gains are negative")
-    gamma1: Optional[Gain] = Field(None, description="Γ1 for holonomic constraints (112), s⁻¹")
-    gamma2: Optional[Gain] = Field(None, description="Γ2 for holonomic constraints (112), s⁻²")
+    system: str = Field(
+        "appell-hamel",
+        description="the name of a registered system: the built-in appell-hamel and "
+        "sliding-particle, or one loaded from a systems file (GET /api/systems lists them)",
+        max_length=64,
+    )
+    model: str | None = Field(
+        None,
+        description="the variant to run, for a system whose variants are models "
+        "(appell-hamel: nonlinear | linear); default: the system's first",
+        max_length=64,
+    )
+    formulation: str | None = Field(
+        None,
+        description="the variant to run, for a system whose variants are "
+        "formulations (sliding-particle: nonminimal | minimal); default: the "
+        "system's first",
+        max_length=64,
+    )
+    gamma: Gain | None = Field(
+        None,
+        description="Γ for nonholonomic constraints (104): a scalar (Γ·I) or a matrix; stabilizing gains are negative",
+    )
+    gamma1: Gain | None = Field(None, description="Γ1 for holonomic constraints (112), s⁻¹")
+    gamma2: Gain | None = Field(None, description="Γ2 for holonomic constraints (112), s⁻²")
     projection: Literal["none", "blajer", "yoon"] = Field(
-        "none", description="post-step constraint correction (geometric elimination): none | blajer "
-        "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.projection")
-    projection_weight: Optional[Literal["identity", "mass"]] = Field(
-        None, description="override the projection's weighting matrix W")
-    projection_iterations: Optional[int] = Field(
-        None, ge=1, le=20, description="override: Newton iterations of the position correction (1 = one-shot)")
-    projection_jacobian: Optional[Literal["updated", "frozen"]] = Field(
-        None, description="override: position Jacobian updated each iteration or frozen at the uncorrected point")
-    projection_energy: Optional[bool] = Field(
-        None, description="override: rescale the speeds to restore the initial energy after the correction")
-    integrator: Optional[str] = Field(None, description="rk4 | kutta-merson | kutta-merson-adaptive | "
-                                      "rk45 | dop853 | radau", max_length=64)
-    dt: Optional[float] = Field(None, gt=0, le=LIMITS["max_dt"], description="step size (fixed-step methods) or initial step and "
-                                "maximum output spacing hint (adaptive), s")
-    t_final: Optional[float] = Field(None, gt=0, le=LIMITS["max_t_final"], description="final time, s")
-    every: int = Field(1, ge=1, le=LIMITS["max_steps"], description="keep every k-th step in the output (maxima use every step)")
+        "none",
+        description="post-step constraint correction (geometric elimination): none | blajer "
+        "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.projection",
+    )
+    projection_weight: Literal["identity", "mass"] | None = Field(
+        None, description="override the projection's weighting matrix W"
+    )
+    projection_iterations: int | None = Field(
+        None, ge=1, le=20, description="override: Newton iterations of the position correction (1 = one-shot)"
+    )
+    projection_jacobian: Literal["updated", "frozen"] | None = Field(
+        None, description="override: position Jacobian updated each iteration or frozen at the uncorrected point"
+    )
+    projection_energy: bool | None = Field(
+        None, description="override: rescale the speeds to restore the initial energy after the correction"
+    )
+    integrator: str | None = Field(
+        None,
+        description="rk4 | kutta-merson | kutta-merson-adaptive | rk45 | dop853 | radau; default: the system's",
+        max_length=64,
+    )
+    dt: float | None = Field(
+        None,
+        gt=0,
+        le=LIMITS["max_dt"],
+        description="the step, s, of a fixed-step method (rk4, kutta-merson); the first step "
+        "tried by an adaptive one (kutta-merson-adaptive, rk45, dop853, radau), whose steps "
+        "then follow rtol and atol; default: the system's",
+    )
+    t_final: float | None = Field(
+        None, gt=0, le=LIMITS["max_t_final"], description="final time, s; default: the system's"
+    )
+    every: int = Field(
+        1, ge=1, le=LIMITS["max_steps"], description="keep every k-th step in the output (maxima use every step)"
+    )
     rtol: float = Field(1e-10, ge=1e-14, le=0.1, description="relative tolerance (adaptive methods)")
     atol: float = Field(1e-12, gt=0, le=1.0, description="absolute tolerance (adaptive methods)")
-    rcond_min: float = Field(1e-10, ge=0, le=0.1, description="J2 or T with a pivot-ratio reciprocal condition "
-                             "below this stops the run with status 'singular'")
-    switching: bool = Field(True, description="near a singular J2 or T, continue with an equivalent "
-                            "constraint model declared by the system and switch back afterwards")
-    rcond_switch: float = Field(1e-2, ge=0, le=0.5, description="reciprocal-condition estimate of J2 or T at which the "
-                                "run switches to an equivalent model (when the system declares one)")
-    project_initial: bool = Field(False, description="move a full initial state that violates the "
-                                  "constraints onto the constraint manifold (the correction is reported) "
-                                  "instead of refusing it")
-    params: dict[str, float] = Field(default_factory=dict, description="physical parameters")
-    initial: dict[str, float] = Field(default_factory=dict, description="initial values: independent "
-                                      "ones (the rest is completed) or a full consistent state")
+    rcond_min: float = Field(
+        1e-10,
+        ge=0,
+        le=0.1,
+        description="J2 or T with a pivot-ratio reciprocal condition below this stops the run with status 'singular'",
+    )
+    switching: bool = Field(
+        True,
+        description="near a singular J2 or T, continue with an equivalent "
+        "constraint model declared by the system and switch back afterwards",
+    )
+    rcond_switch: float = Field(
+        1e-2,
+        ge=0,
+        le=0.5,
+        description="reciprocal-condition estimate of J2 or T at which the "
+        "run switches to an equivalent model (when the system declares one)",
+    )
+    project_initial: bool = Field(
+        False,
+        description="move a full initial state that violates the "
+        "constraints onto the constraint manifold (the correction is reported) "
+        "instead of refusing it",
+    )
+    params: dict[str, float] = Field(
+        default_factory=dict,
+        description="physical parameters by name; the system's "
+        "defaults for those left out (names, ranges and units: GET /api/systems)",
+    )
+    initial: dict[str, float] = Field(
+        default_factory=dict,
+        description="initial values: independent ones (the rest is completed) or a full consistent state",
+    )
 
 
 class Switch(BaseModel):
@@ -100,24 +158,26 @@ class RunSummary(BaseModel):
     kernel_load_s: float = Field(0.0, description="time to load (or first compile) the kernel, s")
     t_end: float
     max_abs_violation: dict[str, float]
-    max_abs_energy_drift: Optional[float]
-    final_energy_drift: Optional[float]
-    min_rcond: dict[str, float] = Field(default_factory=dict,
-                                        description="smallest reciprocal condition estimate of J2 and T")
+    max_abs_energy_drift: float | None
+    final_energy_drift: float | None
+    min_rcond: dict[str, float] = Field(
+        default_factory=dict, description="smallest reciprocal condition estimate of J2 and T"
+    )
     warnings: list[str] = Field(default_factory=list)
-    initial_correction: dict[str, float] = Field(default_factory=dict,
-                                                 description="change made by project_initial, per state")
+    initial_correction: dict[str, float] = Field(
+        default_factory=dict, description="change made by project_initial, per state"
+    )
     switches: list[Switch] = Field(default_factory=list)
 
 
 class RunResult(BaseModel):
     """The run result document: times, states, energy, violations and the summary."""
 
-    id: Optional[str] = None
+    id: str | None = None
     system: str
     settings: dict
     t: list[float]
     state: dict[str, list[float]]
-    energy: Optional[list[float]]
+    energy: list[float] | None
     violation: dict[str, list[float]]
     summary: RunSummary

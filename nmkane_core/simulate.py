@@ -19,8 +19,8 @@ from __future__ import annotations
 import os
 import sys
 import time
+from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
-from typing import Callable, Mapping
 
 from .catalog import catalog
 from .drivers import kernel_for, prepare, run_adaptive, run_fixed, run_scipy
@@ -29,13 +29,67 @@ from .plan import Plan, resolve, validate_settings
 from .run import Run, finish
 from .schema import RunSettings
 
-__all__ = ["Plan", "Run", "resolve", "simulate", "simulate_many", "kernel_for", "catalog", "prepare",
-           "validate_settings"]
+__all__ = [
+    "Plan",
+    "Run",
+    "resolve",
+    "simulate",
+    "simulate_many",
+    "kernel_for",
+    "catalog",
+    "prepare",
+    "validate_settings",
+]
 
 
-def simulate(settings: RunSettings | Mapping | Plan, *, progress: bool | None = None,
-             time_limit: float | None = None, cancel: Callable[[], bool] | None = None) -> Run:
-    """Run a simulation; see the module docstring for the guarantees."""
+def simulate(
+    settings: RunSettings | Mapping | Plan,
+    *,
+    progress: bool | None = None,
+    time_limit: float | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> Run:
+    """Integrate one run and return it as a :class:`Run`.
+
+    Parameters
+    ----------
+    settings:
+        What to run: a :class:`~nmkane_core.schema.RunSettings`, a mapping with the same
+        fields (``{"system": "knife-edge", "dt": 0.001, "t_final": 10, "initial": {...}}``;
+        omitted fields take the system's defaults), or a :class:`Plan` already made by
+        :func:`resolve`.  Settings are checked before anything runs: bad input raises
+        :class:`~nmkane_core.errors.InputError` naming the field, the value and what is
+        allowed (an initial state the constraints cannot be solved from is such input).
+    progress:
+        Show a progress bar on stderr (default: when stderr is a terminal).
+    time_limit:
+        Wall-clock seconds of integration (compiling or loading the kernel is not counted;
+        it is reported as ``summary["kernel_load_s"]``); the run then ends ``timeout``.
+    cancel:
+        A function polled between chunks of compiled work; when it returns true the run
+        ends ``timeout`` with the message "cancelled".
+
+    Returns
+    -------
+    Run
+        ``t``, ``state`` (by coordinate and speed name, plus the model's outputs),
+        ``energy`` (None when the model declares none), ``violation`` (φ and ψ by
+        constraint name, then monitors), ``settings`` (fully resolved) and ``summary``:
+        ``status`` — ``"ok"`` (reached t_final), ``"singular"`` (J2 or T became singular
+        or ill-conditioned: reciprocal condition estimate ≤ ``rcond_min``),
+        ``"diverged"`` (the state or its derivative stopped being finite: an unstable
+        step, or the model's expressions undefined where the motion went — a square root
+        of a negative number, a zero denominator), ``"timeout"`` (time limit or
+        cancellation) or ``"failed"`` (step size below its minimum, step or row budget
+        used up, a projection or scipy failure) — and ``message`` saying why, with
+        steps, evaluations, wall time, ``t_end``, maxima of |violation| and of the
+        energy drift, the smallest condition estimates, model switches and warnings.
+
+    Guarantees: every number returned is finite (a run that cannot go on stops and keeps
+    what was computed up to its last good step); output is bounded by
+    ``LIMITS["max_rows"]`` rows and ``LIMITS["max_steps"]`` steps; numerical trouble during
+    integration is a status, never an exception.
+    """
     plan = settings if isinstance(settings, Plan) else resolve(settings)
     t_setup = time.perf_counter()
     mod = prepare(plan)
@@ -58,8 +112,9 @@ def simulate(settings: RunSettings | Mapping | Plan, *, progress: bool | None = 
     return run
 
 
-def simulate_many(settings_list, *, workers: int | None = None, progress: bool | None = None,
-                  time_limit: float | None = None) -> list[Run]:
+def simulate_many(
+    settings_list, *, workers: int | None = None, progress: bool | None = None, time_limit: float | None = None
+) -> list[Run]:
     """Many runs (a Γ sweep, a parameter study) spread over the machine's cores.
 
     The compiled loops release the GIL, so a thread pool runs them in parallel; every run
@@ -117,11 +172,18 @@ class _Progress:
                 columns = os.get_terminal_size(sys.stderr.fileno()).columns
             except (OSError, ValueError, AttributeError):
                 columns = 0
-            self.bar = tqdm(total=total, unit="s", unit_scale=False, delay=self.DELAY, leave=False,
-                            mininterval=0.25, ncols=None if columns else self.FALLBACK_COLUMNS,
-                            nrows=None if columns else 24,      # tqdm reads 0 rows as -1: draws nothing
-                            desc="simulating", bar_format="{desc}: {percentage:3.0f}%|{bar}| "
-                            "t = {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]")
+            self.bar = tqdm(
+                total=total,
+                unit="s",
+                unit_scale=False,
+                delay=self.DELAY,
+                leave=False,
+                mininterval=0.25,
+                ncols=None if columns else self.FALLBACK_COLUMNS,
+                nrows=None if columns else 24,  # tqdm reads 0 rows as -1: draws nothing
+                desc="simulating",
+                bar_format="{desc}: {percentage:3.0f}%|{bar}| t = {n:.4g}/{total:.4g} s [{elapsed}<{remaining}]",
+            )
 
     def update(self, t: float):
         if self.bar is not None and t > self.bar.n:
