@@ -27,6 +27,7 @@ import datetime as dt
 import sys
 from functools import lru_cache
 from importlib import metadata
+from typing import Any
 
 import numpy as np
 import orjson
@@ -55,8 +56,8 @@ except metadata.PackageNotFoundError:  # running from a source tree without inst
 
 RUN_ID = Path(description="the run's id, as returned by POST /api/runs", min_length=1, max_length=64)
 
-_ERR = {"model": ErrorResponse}
-POST_RESPONSES = {
+_ERR: dict[str, Any] = {"model": ErrorResponse}
+POST_RESPONSES: dict[int | str, dict[str, Any]] = {
     201: {
         "description": "the run result document (also for runs that ended singular, diverged or timeout)",
         "links": {
@@ -86,9 +87,12 @@ POST_RESPONSES = {
         "headers": {"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}},
     },
 }
-NOT_FOUND = {404: {**_ERR, "description": "no run with this id"}, 422: {**_ERR, "description": "malformed id"}}
+NOT_FOUND: dict[int | str, dict[str, Any]] = {
+    404: {**_ERR, "description": "no run with this id"},
+    422: {**_ERR, "description": "malformed id"},
+}
 _ERR_JSON = {"content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorResponse"}}}}
-NOT_FOUND_CSV = {
+NOT_FOUND_CSV: dict[int | str, dict[str, Any]] = {
     404: {**_ERR_JSON, "description": "no run with this id"},
     422: {**_ERR_JSON, "description": "malformed id"},
 }
@@ -272,7 +276,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         return Health(
             status="ok",
             version=VERSION,
-            runs_stored=svc.store.count(),
+            runs_stored=svc.opened_store().count(),
             runs_in_flight=svc.admitted,
             runs_running=svc.running,
             queue_limit=settings.queue_limit,
@@ -325,17 +329,19 @@ def create_app(settings: Settings | None = None) -> FastAPI:
         svc: RunService = Depends(service),
     ):
         """Recent runs, newest first: id, time, system, status, resolved settings and summary."""
-        runs = svc.store.list(limit, offset, system, status)
+        runs = svc.opened_store().list(limit, offset, system, status)
         for r in runs:
             r["created"] = _iso(r["created"])
         return JSONBytes(
-            orjson.dumps({"runs": runs, "total": svc.store.count(system, status), "limit": limit, "offset": offset})
+            orjson.dumps(
+                {"runs": runs, "total": svc.opened_store().count(system, status), "limit": limit, "offset": offset}
+            )
         )
 
     @app.get("/api/runs/{run_id}.csv", response_class=CSVResponse, responses=NOT_FOUND_CSV, operation_id="get_run_csv")
     def get_run_csv(run_id: str = RUN_ID, svc: RunService = Depends(service)):
         """The stored run as CSV: t, the state, energy, violation_<constraint> (one row per output step)."""
-        doc = svc.store.document(run_id)
+        doc = svc.opened_store().document(run_id)
         if doc is None:
             return _not_found(run_id)
         return StreamingResponse(
@@ -353,7 +359,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     def get_run(run_id: str = RUN_ID, svc: RunService = Depends(service)):
         """The stored run result document, exactly as POST /api/runs answered it."""
-        doc = svc.store.document(run_id)
+        doc = svc.opened_store().document(run_id)
         if doc is None:
             return _not_found(run_id)
         return JSONBytes(doc)
@@ -366,7 +372,7 @@ def create_app(settings: Settings | None = None) -> FastAPI:
     )
     def delete_run(run_id: str = RUN_ID, svc: RunService = Depends(service)):
         """Delete a stored run (its document, CSV and listing entry)."""
-        if not svc.store.delete(run_id):
+        if not svc.opened_store().delete(run_id):
             return _not_found(run_id)
         return Response(status_code=204)
 

@@ -93,10 +93,10 @@ def plain(value: Any, depth: int = 0) -> Any:
             out["…"] = f"{len(items) - 20} more"
         return out
     if isinstance(value, (list, tuple)):
-        out = [plain(v, depth + 1) for v in value[:20]]
+        seq: list = [plain(v, depth + 1) for v in value[:20]]
         if len(value) > 20:
-            out.append(f"… {len(value) - 20} more")
-        return out
+            seq.append(f"… {len(value) - 20} more")
+        return seq
     if hasattr(value, "tolist"):  # numpy arrays and scalars
         return plain(value.tolist(), depth)
     return plain(repr(value), depth)

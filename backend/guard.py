@@ -15,6 +15,7 @@
 
 from __future__ import annotations
 
+import asyncio
 import ipaddress
 import secrets
 from collections.abc import Iterable
@@ -166,6 +167,7 @@ def read_deadline_protocol(seconds: float):
 
     class ReadDeadlineProtocol(HttpToolsProtocol):
         read_timeout = seconds
+        _deadline: asyncio.TimerHandle | None = None
 
         def connection_made(self, transport):
             super().connection_made(transport)
@@ -185,8 +187,9 @@ def read_deadline_protocol(seconds: float):
             super().connection_lost(exc)
 
         def _cancel_deadline(self) -> None:
-            if getattr(self, "_deadline", None) is not None:
-                self._deadline.cancel()
+            deadline = getattr(self, "_deadline", None)
+            if deadline is not None:
+                deadline.cancel()
                 self._deadline = None
 
         def _too_slow(self) -> None:

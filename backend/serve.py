@@ -79,7 +79,7 @@ def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server
 
 def _stop_api(server: uvicorn.Server, thread: threading.Thread) -> None:
     server.should_exit = True
-    thread.join(server.config.timeout_graceful_shutdown + 10)
+    thread.join((server.config.timeout_graceful_shutdown or 0) + 10)
 
 
 def _web_app() -> Callable[..., Any]:
@@ -202,7 +202,7 @@ def serve(
                 handle.stop()
             except Exception:  # keep stopping the API
                 log.exception("stopping the 3D web app failed")
-        if server is not None:
+        if server is not None and thread is not None:
             _stop_api(server, thread)
         for sig, h in previous.items():  # see the docstring: after a signal stop, repeats are ignored
             signal.signal(sig, signal.SIG_IGN if stopping else h)

@@ -198,6 +198,13 @@ class RunService:
         self.writer: ThreadPoolExecutor | None = None  # commits (disk), one at a time
 
     # -- life ---------------------------------------------------------------------------
+
+    def opened_store(self) -> RunStore:
+        """The run store of a started service (routes run only between start and stop)."""
+        if self.store is None:
+            raise RuntimeError("the run service is not started")
+        return self.store
+
     def start(self) -> None:
         """Open the store and the pool (again, after a stop: an app can have several lifespans)."""
         with self._lock:

@@ -213,7 +213,8 @@ class RunStore:
     def prune(self, keep: int | None = None, older_than_s: float | None = None) -> int:
         """Delete all but the newest ``keep`` runs, and/or the runs older than ``older_than_s``
         seconds; returns how many were deleted."""
-        cond, args = [], []
+        cond: list[str] = []
+        args: list[float] = []
         if keep is not None:
             cond.append("id NOT IN (SELECT id FROM runs ORDER BY created DESC, rowid DESC LIMIT ?)")
             args.append(int(keep))
@@ -265,7 +266,8 @@ class RunStore:
 
     @staticmethod
     def _where(system, status):
-        cond, args = [], []
+        cond: list[str] = []
+        args: list[float] = []
         if system is not None:
             cond.append("system = ?")
             args.append(system)

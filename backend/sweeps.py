@@ -201,7 +201,8 @@ class _Sink:
     """run_sweep's output: rows into the store (``done`` is empty: a REST sweep starts fresh)."""
 
     def __init__(self, store: SweepStore, sweep_id: str):
-        self.store, self.id, self.done, self.n = store, sweep_id, set(), 0
+        self.store, self.id, self.n = store, sweep_id, 0
+        self.done: set = set()
 
     def write(self, rows):
         clean = [

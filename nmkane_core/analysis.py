@@ -123,8 +123,8 @@ def linearize(
     position in the plane, a heading, a wheel angle) — for a bicycle, keep roll, steer and
     their rates.  ``step`` is the perturbation size of the central differences (scaled by
     each value's magnitude)."""
-    system, variant, module, info, p, x0 = _setup(system, state, params, variant)
-    _check_consistent(system, module, info, x0, p, CHECK_TOL)
+    sysm, variant, module, info, p, x0 = _setup(system, state, params, variant)
+    _check_consistent(sysm, module, info, x0, p, CHECK_TOL)
     q_ind = [q for q in info.q if q not in info.q_dependent]
     u_ind = list(info.u_independent) if info.m else list(info.u)
     independent = q_ind + u_ind
@@ -134,7 +134,7 @@ def linearize(
         raise InputError(
             f"keep.{bad[0]}",
             bad[0],
-            f"independent coordinates and speeds of {system.name}: {', '.join(independent)}",
+            f"independent coordinates and speeds of {sysm.name}: {', '.join(independent)}",
             "not independent",
         )
     index = [info.state_names.index(k) for k in names]

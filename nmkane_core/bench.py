@@ -155,7 +155,7 @@ def run_bench(quick: bool = False, log=print) -> list[dict]:
     _bicycle_rows(add, quick)
 
     # 5. interactive re-runs (settings in → arrays out)
-    variants = [
+    variants: list[dict] = [
         {"gamma": -1.0},
         {"gamma": -5.0},
         {"dt": 0.005},

@@ -137,7 +137,7 @@ def pythagorean(e):
 
 
 def _pythagorean_add(add):
-    found = {}  # (coefficient, argument) → {func: term index}
+    found: dict = {}  # (coefficient, argument) → {func: term index}
     terms = list(add.args)
     for i, term in enumerate(terms):
         factors = sp.Mul.make_args(term)

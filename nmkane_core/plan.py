@@ -230,8 +230,8 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         LIMITS["max_t_final"],
         unit="s",
     )
-    every = s.every
-    if every < 1 or every > LIMITS["max_steps"]:
+    every: int | None = s.every
+    if s.every < 1 or s.every > LIMITS["max_steps"]:
         errors.append(InputError("every", every, f"an integer in [1, {LIMITS['max_steps']}]"))
         every = None
     if dt is not None and t_final is not None and isinstance(integ, Tableau) and not integ.adaptive:
@@ -254,7 +254,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
                     InputError(
                         "every",
                         every,
-                        f"an integer ≥ {min_every(nsteps, LIMITS['max_rows'])} "
+                        f"an integer ≥ {min_every(int(nsteps), LIMITS['max_rows'])} "
                         f"(at most {LIMITS['max_rows']:,} output rows)",
                         f"{rows:,} rows",
                     )

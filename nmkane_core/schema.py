@@ -8,14 +8,14 @@ request and response models and the CLI writes ``RunResult`` as its JSON.
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
 __all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "LIMITS", "REST_DEFAULT_LIMITS", "Gain"]
 
 #: Library-wide limits (the REST service may impose lower ones; see /api/systems).
-LIMITS = {
+LIMITS: dict[str, Any] = {
     "max_steps": 50_000_000,  # fixed steps (or adaptive attempts) per run
     "max_rows": 2_000_000,  # output rows per run
     "max_t_final": 1e6,  # s
@@ -26,7 +26,7 @@ LIMITS = {
 
 #: The REST service's default limits per run (backend/config.py; raised with NMKANE_MAX_STEPS and
 #: NMKANE_MAX_ROWS).  Kept here, in the core, so that the core can quote them without importing backend.
-REST_DEFAULT_LIMITS = {
+REST_DEFAULT_LIMITS: dict[str, int] = {
     "max_steps": 2_000_000,  # fixed steps per run
     "max_rows": 100_000,  # output rows per run
 }

@@ -230,7 +230,10 @@ def _generate(vis: Visuals, state_names: Sequence[str], param_names: Sequence[st
     from .errors import InputError
 
     names = set(state_names) | set(param_names)
-    size_exprs, pose_exprs, frames, shapes = [], [], {}, []
+    size_exprs: list = []
+    pose_exprs: list = []
+    frames: dict = {}
+    shapes: list = []
 
     def add(target, exprs, where, allowed):
         start = len(target)

@@ -86,8 +86,8 @@ def check_out(path: str) -> None:
 class SweepWriter:
     """Streams rows to ``path``; ``done`` holds the keys of rows already there (resume)."""
 
-    def __init__(self, path: str, names: list[str], constraints: list[str], resume: bool = True):
-        check_out(path)
+    def __init__(self, path: str | os.PathLike, names: list[str], constraints: list[str], resume: bool = True):
+        check_out(str(path))
         self.path, self.names = str(path), list(names)
         self.columns = columns(names, constraints)
         self.done: set = set()

@@ -89,7 +89,9 @@ def plot_sweep(
             )
             ax.set_yticks(range(len(ys)), [f"{y:.3g}" if isinstance(y, float) else str(y) for y in ys])
         else:  # scattered samples
-            im = ax.scatter([r[names[0]] for r in rows], [r[names[1]] for r in rows], c=values, cmap="viridis")
+            im = ax.scatter(  # type: ignore[assignment]
+                [r[names[0]] for r in rows], [r[names[1]] for r in rows], c=values, cmap="viridis"
+            )
         fig.colorbar(im, ax=ax, label=metric)
         ax.set_xlabel(names[0])
         ax.set_ylabel(names[1])

@@ -171,7 +171,7 @@ def parse_axis(text: str, log: bool = False) -> Axis:
             vals[0], vals[-1] = start, stop  # the ends exactly as written
         else:
             vals = np.linspace(start, stop, num)
-        values = tuple(float(v) for v in vals)
+        values: tuple = tuple(float(v) for v in vals)
         if name in _INT_FIELDS:
             values = tuple(round(v) for v in values)
     elif log:

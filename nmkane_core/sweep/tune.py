@@ -103,8 +103,8 @@ class TuneResult:
 
 
 def _metric(row: dict, constraints) -> float | None:
-    vals = [row.get(f"max_abs_violation.{c}") for c in constraints]
-    vals = [v for v in vals if isinstance(v, (int, float)) and math.isfinite(v)]
+    raw = [row.get(f"max_abs_violation.{c}") for c in constraints]
+    vals: list[float] = [v for v in raw if isinstance(v, (int, float)) and math.isfinite(v)]
     return max(vals) if vals and len(vals) == len(constraints) else None
 
 
@@ -220,5 +220,5 @@ def rank(result: TuneResult, stage: str) -> tuple[int, int] | None:
     g = result.given.get(stage)
     if g is None or not g.feasible:
         return None
-    better = sum(1 for c in result.stages[stage] if c.feasible and c.violation < g.violation)
+    better = sum(1 for c in result.stages[stage] if c.feasible and (c.violation or 0.0) < (g.violation or 0.0))
     return better + 1, sum(1 for c in result.stages[stage] if c.feasible) + 1
