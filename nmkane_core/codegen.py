@@ -34,7 +34,7 @@ from .info import ModelInfo
 __all__ = ["cache_dir", "generate_source", "compiled_kernel", "kernel", "fingerprint"]
 
 #: the generic compiled code appended to every generated kernel (not imported as modules)
-GENERIC_FILES = ("_kernel_loops.py", "_kernel_projection.py")
+GENERIC_FILES = ("_kernel_loops.py", "_kernel_state.py", "_kernel_projection.py")
 
 _LOCK = threading.Lock()
 
