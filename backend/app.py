@@ -171,8 +171,14 @@ def _too_large(size, limit: int) -> dict:
     return item(["body"], "too_large", size, "request body too large", f"at most {limit:,} bytes")
 
 
-@lru_cache(maxsize=1)
 def _catalog() -> dict:
+    from nmkane_core.registry import generation
+
+    return _catalog_at(generation())
+
+
+@lru_cache(maxsize=4)
+def _catalog_at(_generation: int) -> dict:  # refreshed when systems are registered later
     return catalog()
 
 

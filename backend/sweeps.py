@@ -333,7 +333,12 @@ def _check_limits(base: dict, spec: SweepSpec, max_steps: int) -> None:
     status_code=202,
     response_model=SweepCreated,
     operation_id="create_sweep",
-    responses={422: {**_ERR, "description": "a bad specification, or a sweep over this service's limits"}},
+    responses={
+        400: {**_ERR, "description": "the body could not be read as text (e.g. not UTF-8)"},
+        413: {**_ERR, "description": "request body larger than max_request_bytes"},
+        415: {**_ERR, "description": "the body is not declared as JSON (Content-Type)"},
+        422: {**_ERR, "description": "a bad specification, or a sweep over this service's limits"},
+    },
 )
 def create_sweep(body: SweepRequest, request: Request):
     """Start a sweep; answers 202 with its id (fetch progress and rows with GET /api/sweeps/{id})."""

@@ -19,13 +19,14 @@ from typing import overload
 from .errors import InputError
 from .system import System
 
-__all__ = ["register", "unregister", "get_system", "system_names"]
+__all__ = ["register", "unregister", "get_system", "system_names", "generation"]
 
 _FACTORIES: dict[str, Callable[[], System]] = {}
 _BUILT: dict[str, System] = {}
 _USED: set[str] = set()
 _LOCK = threading.RLock()
 _builtin_loaded = False
+_generation = 0  # counts changes, so that caches of the catalogue know when to refresh
 
 
 def _add(system: System, check: bool) -> System:
@@ -45,6 +46,7 @@ def _add(system: System, check: bool) -> System:
         _FACTORIES[name] = lambda: system
         _BUILT[name] = system
         _USED.discard(name)
+        _bump()
     return system
 
 
@@ -90,6 +92,18 @@ def unregister(name: str) -> None:
         _FACTORIES.pop(name, None)
         _BUILT.pop(name, None)
         _USED.discard(name)
+        _bump()
+
+
+def _bump() -> None:
+    global _generation
+    _generation += 1
+
+
+def generation() -> int:
+    """A number that changes whenever a system is registered or removed (cache key for catalogues)."""
+    _load_builtin()
+    return _generation
 
 
 def _load_builtin() -> None:

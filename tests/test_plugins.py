@@ -100,7 +100,7 @@ def test_rest_service_lists_and_runs_a_plugged_in_system(tmp_path):
     from nmkane_core.plugins import load_systems
 
     assert load_systems([str(SKATE)]) == []
-    with TestClient(create_app(Settings(db_path=tmp_path / "runs.sqlite3"))) as client:
+    with TestClient(create_app(Settings(db_path=tmp_path / "runs.sqlite3")), base_url="http://localhost") as client:
         names = [s["name"] for s in client.get("/api/systems").json()["systems"]]
         assert "skate-on-incline" in names
         r = client.post("/api/runs", json={"system": "skate-on-incline", "t_final": 0.5})

@@ -270,7 +270,9 @@ def api(tmp_path):
     from backend.app import create_app
     from backend.config import Settings
 
-    with TestClient(create_app(Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=2))) as c:
+    with TestClient(
+        create_app(Settings(data_dir=tmp_path, warm_kernels=False, max_concurrent_runs=2)), base_url="http://localhost"
+    ) as c:
         yield c
 
 
