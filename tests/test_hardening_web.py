@@ -182,4 +182,6 @@ def test_closed_sessions_leave_no_threads_sessions_or_memory_behind(web):
     assert sessions_alive() <= sessions_before  # none of this app's 60 sessions is left
     assert not app.server._websock_server._client_state_from_id and not app.server.get_clients()
     assert resim_threads() <= threads_before
-    assert max(later) - first < 12, (first, later)
+    # before the fix each cycle of 20 sessions kept 25–30 MB (two more cycles: +50 MB or more); the margin
+    # leaves room for allocator noise on a loaded machine
+    assert max(later) - first < 25, (first, later)
