@@ -9,8 +9,9 @@ and checked too.
 """
 
 import pytest
+from _helpers import require
 
-schemathesis = pytest.importorskip("schemathesis")
+schemathesis = require("schemathesis")
 from fastapi.testclient import TestClient
 from hypothesis import HealthCheck, settings
 from schemathesis.specs.openapi.checks import positive_data_acceptance

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from _helpers import require
 
 from nmkane_core.cli import main
 from nmkane_core.errors import InputError
@@ -138,7 +139,7 @@ def test_local_processes_equal_direct_runs(tmp_path):
 
 
 def test_dask_local_cluster_equals_direct_runs(tmp_path):
-    pytest.importorskip("distributed")
+    require("distributed")
     from nmkane_core.sweep.executors import DaskExecutor
 
     spec = sweep_spec(grid=["integrator=rk4,kutta-merson"], sample=["params.m=0.5:2"], samples=2, seed=7)
@@ -264,7 +265,7 @@ def test_tune_refuses_adaptive_integrators(capsys):
 
 @pytest.fixture()
 def api(tmp_path):
-    pytest.importorskip("fastapi")
+    require("fastapi")
     from fastapi.testclient import TestClient
 
     from backend.app import create_app
