@@ -39,6 +39,8 @@ SPEED_NAMES = {
 }
 DPI = 170
 FONT_SIZE = 11
+PARENT_ENV = "NMKANE_MATRICES_PARENT"  # the child stops when this process is gone
+TYPESET_OPS = 150  # an entry longer than this (sympy count_ops) is drawn as ⋯, not typeset
 
 
 @dataclass
@@ -106,6 +108,7 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
         specs += [k for k in plugins.loaded_specs() if k not in specs]
         if specs:
             env[plugins.ENV_VAR] = os.pathsep.join(specs)
+        env[PARENT_ENV] = str(os.getpid())
         child = subprocess.Popen(
             [sys.executable, "-m", "web.matrices", system, variant, tmp],
             env=env,
@@ -216,10 +219,20 @@ def _build(system: str, variant: str) -> Panel:
 
     from nmkane_core import get_system
 
-    d = get_system(system).derivation(variant)
-    mats = {name: d.matrix(name).applyfunc(_nice) for name in MATRICES}
+    core = get_system(system)
+    d = core.derivation(variant)
+    raw = {name: d.matrix(name) for name in MATRICES}
+    elided = sp.Dummy("elided")  # stands for an entry too long to typeset
+    longest = max((sp.count_ops(e) for M in raw.values() for e in M), default=0)
+    shown = lambda e: elided if sp.count_ops(e) > TYPESET_OPS else _nice(e)  # noqa: E731
+    mats = {name: M.applyfunc(shown) for name, M in raw.items()}
     short, defs = _abbreviate(mats)
-    tex = lambda e: sp.latex(e, fold_func_brackets=True).replace(r"\frac", r"\dfrac")  # noqa: E731
+
+    def tex(e) -> str:
+        if e == elided:
+            return r"\cdots"
+        return sp.latex(e, fold_func_brackets=True).replace(r"\frac", r"\dfrac")
+
     images = {
         name: _matrix_image(
             TITLES[name], [[tex(short[name][i, j]) for j in range(short[name].cols)] for i in range(short[name].rows)]
@@ -228,12 +241,22 @@ def _build(system: str, variant: str) -> Panel:
         if short[name].rows and short[name].cols
     }
     where = _lines_image([f"{tex(n)} = {tex(e)}" for n, e in defs]) if defs else None
-    latex = {name: f"{TITLES[name]} = {sp.latex(mats[name])}" for name in MATRICES}
+    latex = {
+        name: f"{TITLES[name]} = {sp.latex(raw[name])}"
+        if all(sp.count_ops(e) <= TYPESET_OPS for e in raw[name])
+        else f"% {TITLES[name]}: too long to show; `nmkane matrices {system} --{core.option} {variant}` prints it"
+        for name in MATRICES
+    }
     intro = (
         f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
         f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
         f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}); {SPEED_NAMES.get(system, '')}."
     )
+    if longest > TYPESET_OPS:
+        intro += (
+            f" Entries drawn as ⋯ are too long to typeset (the longest has {longest:,} operations); "
+            f"`nmkane matrices {system}` prints them in full."
+        )
     return Panel(system, variant, images, where, latex, intro)
 
 
@@ -315,5 +338,15 @@ if __name__ == "__main__":  # the child process of _compute: SYSTEM VARIANT OUT
     from web import matrices as _module  # pickle web.matrices.Panel, not __main__.Panel
 
     _system, _variant, _out = sys.argv[1:4]
+    _parent = int(os.environ.get(PARENT_ENV) or os.getppid())
+
+    def _watch_parent() -> None:  # the server died (SIGKILL, crash): do not derive for nobody
+        import time
+
+        while os.getppid() == _parent:
+            time.sleep(1.0)
+        os._exit(3)
+
+    threading.Thread(target=_watch_parent, daemon=True).start()
     with open(_out, "wb") as _f:
         pickle.dump(_module._build(_system, _variant), _f)
