@@ -52,6 +52,7 @@ class DeclaredScene:
         self.frame_poses: dict = {}  # frame name -> (positions (n,3), wxyz (n,4))
         self.points: list[np.ndarray] = []
         self.rows: list[np.ndarray] = []
+        self.moving: list[bool] = []
         self.extent = 0.5  # a length of the system itself: its largest shape (m)
         self.fixed_points: list[np.ndarray] = []  # vertices of fixed surfaces (for the bounds)
         self.bounds_ = None
@@ -226,10 +227,15 @@ class DeclaredScene:
             pts = _clip(cv.point(out, i))
             node.points = geo.segments(pts[geo.decimate(len(pts), 2000)])
             lo.append(pts.min(0)), hi.append(pts.max(0))
-        self.rows = []  # per moving shape: its points over the run (n, m, 3), float32
-        for _, _, idx in self.dynamic:  # balls at points, segment ends (a thread's top)
-            pts = _clip(np.stack([cv.point(out, i) for i in idx], axis=1))
-            self.rows.append(pts.astype(np.float32))
+        self.rows, self.moving = [], []  # per shape at points: its points over the run (n, m, 3)
+        for node, kind, idx in self.dynamic:  # balls at points, segment ends (a thread's top)
+            pts = _clip(np.stack([cv.point(out, i) for i in idx], axis=1)).astype(np.float32)
+            moving = bool(np.any(pts != pts[:1]))
+            self.rows.append(pts)
+            self.moving.append(moving)
+            if not moving:  # fixed (a bowl's rings): placed once, drawn by the main scene only
+                self._place(node, kind, pts[0])
+                node.visible = self.ghost is None
             lo.append(pts.min((0, 1))), hi.append(pts.max((0, 1)))
         for pts in self.fixed_points:
             lo.append(pts.min(0)), hi.append(pts.max(0))
@@ -248,11 +254,17 @@ class DeclaredScene:
             for node, _, _ in self.dynamic:
                 node.position = tuple(self.points[0][k])
             return
-        for (node, kind, _), rows in zip(self.dynamic, self.rows, strict=True):
-            if kind == "point":
-                node.position = tuple(float(v) for v in rows[k, 0])
-            else:
-                node.points = rows[k].reshape(-1, 2, 3)
+        for (node, kind, _), rows, moving in zip(self.dynamic, self.rows, self.moving, strict=True):
+            if moving:
+                self._place(node, kind, rows[k])
+
+    @staticmethod
+    def _place(node, kind: str, pts: np.ndarray) -> None:
+        """Put a ball or label (kind "point") or line segments at these points (m, 3)."""
+        if kind == "point":
+            node.position = tuple(float(v) for v in pts[0])
+        else:
+            node.points = pts.reshape(-1, 2, 3)
 
     def bounds_at(self, k: int) -> tuple[np.ndarray, np.ndarray] | None:
         """(lowest, highest) corner of the frame origins and moving points at output row k."""

@@ -237,7 +237,7 @@ def speed_names(model) -> str:
     """"; u1 = ẋ, u2 = ẏ" when the speeds are the coordinates' rates (q̇ = u), else ""."""
     import sympy as sp
 
-    if model.C != sp.eye(len(model.q)) or any(v != 0 for v in model.D):
+    if sp.eye(len(model.q)) != model.C or any(v != 0 for v in model.D):
         return ""
     return "; " + ", ".join(f"{sp.pretty(u)} = {sp.pretty(q)}\u0307" for u, q in zip(model.u, model.q, strict=True))
 

@@ -4,9 +4,9 @@ Every connected browser gets its own :class:`MechanismApp`, so students explorin
 do not change each other's view.  Every system is shown by the same
 :class:`~web.generic.GenericView` (one scene, one simulation folder and one set of plots
 per system, built when it is first chosen, the chosen one visible); the parts live in
-:mod:`web.controls` (handles and their guard), :mod:`web.runs` (re-simulation on a control change), :mod:`web.panel` (plots, summary,
-status, matrices) and :mod:`web.camera`.  The animation thread of :mod:`web.server`
-calls :meth:`MechanismApp.tick`.
+:mod:`web.controls` (handles and their guard), :mod:`web.runs` (re-simulation on a control
+change), :mod:`web.panel` (plots, summary, status, matrices) and :mod:`web.camera`.  The
+animation thread of :mod:`web.server` calls :meth:`MechanismApp.tick`.
 """
 
 from __future__ import annotations
