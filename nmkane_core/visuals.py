@@ -200,9 +200,16 @@ def strip(name, path, width, axis="y", color=(175, 188, 205), opacity=0.65) -> S
     return Shape("strip", name, None, (width,), axis=axis, path=pts, color=tuple(color), opacity=opacity)
 
 
-def label(name, text, at) -> Shape:
-    """A text shown at a world point ``at`` (e.g. naming a part)."""
-    return Shape("label", name, points=(tuple(at),), text=str(text))
+def label(name, text, at=None, frame=None, offset=(0, 0, 0)) -> Shape:
+    """A text naming a part: at a world point ``at``, or at ``offset`` in ``frame`` (cheaper
+    to draw: it moves with its frame)."""
+    if (at is None) == (frame is None):
+        from .errors import InputError
+
+        raise InputError(f"visuals.{name}", (at, frame), "either a world point at= or a frame=", "where?")
+    if at is not None:
+        return Shape("label", name, points=(tuple(at),), text=str(text))
+    return Shape("label", name, frame, offset=tuple(offset), text=str(text))
 
 
 def ground(height=0, color=(232, 236, 226)) -> Shape:

@@ -53,6 +53,7 @@ class DeclaredScene:
         self.points: list[np.ndarray] = []
         self.rows: list[np.ndarray] = []
         self.moving: list[bool] = []
+        self.shown: int | None = None  # the output row the nodes show
         self.extent = 0.5  # a length of the system itself: its largest shape (m)
         self.fixed_points: list[np.ndarray] = []  # vertices of fixed surfaces (for the bounds)
         self.bounds_ = None
@@ -125,9 +126,11 @@ class DeclaredScene:
                     **kw,
                 )
             elif kind == "label":
-                if self.ghost is None:
+                if self.ghost is None and s["points"]:
                     node = sc.add_label(path, s.get("text", ""), anchor="bottom-left")
                     self.dynamic.append((node, "point", s["points"]))
+                elif self.ghost is None:  # on a frame: moves with it
+                    sc.add_label(path, s.get("text", ""), position=off, anchor="bottom-left")
             elif kind == "strip":
                 verts, faces = strip_mesh(
                     np.array([[float(v) for v in sizes[j : j + 3]] for j in s["path"]]), float(size[0]), s["axis"]
@@ -204,6 +207,7 @@ class DeclaredScene:
     # ---------------------------------------------------------------- poses
     def install(self, run, params: dict) -> None:
         """Poses of every row of a run (and the traces)."""
+        self.shown = None
         self.shape(params)
         states = dict(run.state)
         cv = self.compiled
@@ -243,7 +247,10 @@ class DeclaredScene:
             self.bounds_ = (np.min(lo, axis=0), np.max(hi, axis=0))
 
     def pose(self, k: int) -> None:
-        """Put every node at output row k."""
+        """Put every node at output row k (nothing is sent when row k is already shown)."""
+        if k == self.shown:
+            return
+        prev, self.shown = self.shown, k
         for name, (pos, q) in self.frame_poses.items():
             node = self.frames[name]
             node.position = tuple(pos[k])
@@ -255,7 +262,7 @@ class DeclaredScene:
                 node.position = tuple(self.points[0][k])
             return
         for (node, kind, _), rows, moving in zip(self.dynamic, self.rows, self.moving, strict=True):
-            if moving:
+            if moving and (prev is None or not np.array_equal(rows[k], rows[prev])):
                 self._place(node, kind, rows[k])
 
     @staticmethod

@@ -199,8 +199,8 @@ def _visuals():
             segments("pit", [((x, y, 0), (x, y, (z - sp.Abs(z)) / 2 - LOAD_RADIUS - 1))], FRAME_COLOR, 6.0),
             trace("trace", (x, y, 0.03), thickness=3.0),  # P's intercept on the plane (Fig. 7)
             label("load_label", "load P", (x, y, z + 2 * LOAD_RADIUS)),
-            label("wheel_label", "wheel W", world(-rho, yl - 0.3, 2 * a + 0.3)),
-            label("pulley_label", "pulleys", world(-rho / 2, drum_y, h + b + 0.5)),
+            label("wheel_label", "wheel W", frame="body", offset=(-rho, yl - 0.3, 2 * a + 0.3)),
+            label("pulley_label", "pulleys", frame="body", offset=(-rho / 2, drum_y, h + b + 0.5)),
         ),
         view=(-0.5, 0.85, 0.3),  # from behind, on the drum's side, a little above
     )
