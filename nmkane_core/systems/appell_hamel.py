@@ -197,7 +197,7 @@ def _visuals():
             polyline("thread", [world(*p) for p in thread] + [(x, y, z + LOAD_RADIUS)], (120, 30, 20), 2.0),
             # below the plane the bar goes on through the hole, as deep as the load goes
             segments("pit", [((x, y, 0), (x, y, (z - sp.Abs(z)) / 2 - LOAD_RADIUS - 1))], FRAME_COLOR, 6.0),
-            trace("trace", (x, y, 0.03), thickness=3.0),  # P's intercept on the plane (Fig. 7)
+            trace("trace", (x, y, 0.1), thickness=3.5),  # P's intercept on the plane (Fig. 7)
             label("load_label", "load P", (x, y, z + 2 * LOAD_RADIUS)),
             label("wheel_label", "wheel W", frame="body", offset=(-rho, yl - 0.3, 2 * a + 0.3)),
             label("pulley_label", "pulleys", frame="body", offset=(-rho / 2, drum_y, h + b + 0.5)),
