@@ -234,7 +234,7 @@ def _build(system: str, variant: str) -> Panel:
 
 
 def speed_names(model) -> str:
-    """"; u1 = ẋ, u2 = ẏ" when the speeds are the coordinates' rates (q̇ = u), else ""."""
+    """The text "; u1 = ẋ, u2 = ẏ" when the speeds are the coordinates' rates (q̇ = u), else ""."""
     import sympy as sp
 
     if sp.eye(len(model.q)) != model.C or any(v != 0 for v in model.D):
