@@ -42,6 +42,35 @@ def bowl_model():
     )
 
 
+def bowl_visuals():
+    """The bowl as rings and meridians on the paraboloid, the particle and its path."""
+    import sympy as sp
+
+    from nmkane_core import plain_symbols
+    from nmkane_core.visuals import Visuals, polyline, sphere, trace
+
+    x, y, z = plain_symbols("x y z")
+    R = sp.Symbol("R", positive=True)
+    angles = [2 * sp.pi * k / 48 for k in range(49)]
+    rings = [  # circles of radius r on z = r²/(2R): r = R/4 … 5R/4
+        polyline(f"ring{i}", [(r * sp.cos(a), r * sp.sin(a), r**2 / (2 * R)) for a in angles], (150, 160, 178), 1.5)
+        for i, r in enumerate(R * sp.Rational(k, 4) for k in range(1, 6))
+    ]
+    radii = [R * sp.Rational(k, 8) for k in range(11)]
+    meridians = [
+        polyline(f"meridian{j}", [(r * sp.cos(a), r * sp.sin(a), r**2 / (2 * R)) for r in radii], (150, 160, 178), 1.5)
+        for j, a in enumerate(2 * sp.pi * k / 12 for k in range(12))
+    ]
+    return Visuals(
+        shapes=(
+            *rings,
+            *meridians,
+            sphere("particle", 0.08, at=(x, y, z), color=(220, 80, 35)),
+            trace("path", (x, y, z)),
+        ),
+    )
+
+
 register(
     System(
         name="isokinetic-bowl",
@@ -58,5 +87,6 @@ register(
         default_dt=0.001,
         default_t_final=10.0,
         description="A holonomic surface and a speed constraint √(ẋ²+ẏ²+ż²) = v0, non-polynomial in the speeds.",
+        visuals=bowl_visuals,
     )
 )

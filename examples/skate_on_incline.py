@@ -43,6 +43,29 @@ def skate_model(solve_for: str):
     )
 
 
+def skate_visuals():
+    """The inclined plane (a strip along the slope), the blade on it, the path of its contact point."""
+    import sympy as sp
+
+    from nmkane_core import plain_symbols
+    from nmkane_core.visuals import Frame, Visuals, box, rot_y, rot_z, strip, trace
+
+    x, y, th = plain_symbols("x y theta")
+    alpha = sp.Symbol("alpha", positive=True)
+    down = sp.Matrix([sp.cos(alpha), 0, -sp.sin(alpha)])  # x: down the slope
+    normal = sp.Matrix([sp.sin(alpha), 0, sp.cos(alpha)])
+    on_plane = down * x + sp.Matrix([0, y, 0])
+    return Visuals(
+        frames=(Frame("skate", tuple(on_plane), rot_y(alpha) * rot_z(th)),),
+        shapes=(
+            strip("slope", [tuple(down * s) for s in (-2, 2)], 16.0, "y", color=(205, 212, 200), opacity=0.8),
+            box("blade", "skate", (0.5, 0.03, 0.08), (0, 0, 0.04), color=(60, 60, 70)),
+            box("boot", "skate", (0.25, 0.1, 0.12), (0, 0, 0.14), color=(200, 60, 40)),
+            trace("path", tuple(on_plane + normal * sp.Float(0.005))),
+        ),
+    )
+
+
 register(
     System(
         name="skate-on-incline",
@@ -59,5 +82,6 @@ register(
         default_dt=0.001,
         default_t_final=10.0,
         description="A knife edge on a slope: a linear nonholonomic constraint; it does not run away downhill.",
+        visuals=skate_visuals,
     )
 )

@@ -100,6 +100,9 @@ def _as_factory(v: Any) -> Callable[[], MechanicalModel]:
     return lambda: v
 
 
+SHOWCASE_NUMBERS = ("gamma", "gamma1", "gamma2", "dt", "t_final", "speed")
+
+
 @dataclass
 class System:
     """A named mechanical system: one model, or equivalent variants of it.
@@ -141,6 +144,12 @@ class System:
         app draws what a system declares (compiled once, see :mod:`nmkane_core.visuals`).
     what_to_try:
         A short teaching paragraph: experiments worth making with this system.
+    showcase:
+        The settings a viewer (the web page) starts with where they differ from the run
+        defaults above, e.g. a paper's figure: ``gamma``, ``gamma1``, ``gamma2``, ``dt``,
+        ``t_final`` (numbers), ``variant``, ``integrator``, ``compare`` (the runs drawn as
+        ghosts beside the shown one: ``"off"``, a variant name, ``"Γ = 0"`` or ``"all"``) and
+        ``speed`` (playback).  Runs through the CLI and REST are not affected.
     source_files:
         Extra files the models are built from.  The files that define the variant
         functions are found by themselves; list helper modules they import, so that a
@@ -167,6 +176,7 @@ class System:
     source_files: tuple[str, ...] = ()
     visuals: Callable[[], Any] | None = None
     what_to_try: str = ""
+    showcase: Mapping[str, Any] = field(default_factory=dict)
     _models: dict = field(default_factory=dict, repr=False)
     _derivations: dict = field(default_factory=dict, repr=False)
     _kernels: dict = field(default_factory=dict, repr=False)
@@ -206,6 +216,15 @@ class System:
             v = getattr(self, label)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise InputError(f"{self.name}: {label}", v, "a positive finite number of seconds", "out of range")
+        self.showcase = dict(self.showcase)
+        for k, v in self.showcase.items():
+            if k in SHOWCASE_NUMBERS:
+                self._finite(f"showcase.{k}", v)
+            elif k not in ("variant", "integrator", "compare"):
+                allowed = " | ".join((*SHOWCASE_NUMBERS, "variant", "integrator", "compare"))
+                raise InputError(f"{self.name}: showcase", k, allowed, "unknown setting")
+        if self.showcase.get("variant", self.default_variant) not in self.variants:
+            raise InputError(f"{self.name}: showcase.variant", self.showcase["variant"], names, "not a variant")
 
     def _finite(self, field_path: str, v) -> float:
         try:

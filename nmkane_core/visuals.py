@@ -11,9 +11,18 @@ the pose functions are not cached yet) returns a :class:`Visuals`:
 * shapes attached to a frame (``frame=None``: the world) — :func:`box`, :func:`cylinder`
   (a disk is a short one), :func:`sphere`; sizes and offsets are expressions of the
   parameters only;
+* :func:`rod` — a square bar between two points of a frame (a member of a frame, a leg, an
+  axle), endpoints expressions of the parameters;
 * shapes given by world points — :func:`sphere` with ``at=``, :func:`segments` (line
-  segments between points, e.g. a thread or a spoke), :func:`trace` (the path of a point);
-* :func:`ground` — a grid plane at a height.
+  segments between points, e.g. a spoke), :func:`polyline` (a thread over pulleys),
+  :func:`trace` (the path of a point);
+* :func:`strip` — a fixed curved surface: a polyline of parameter expressions swept across
+  a width (a guide, a ramp, a bowl's cross-section);
+* :func:`ground` — a grid plane at a height;
+* :func:`label` — a text at a world point ("load P").
+
+``Visuals(view=(dx, dy, dz))`` says from which side a viewer's default camera looks at
+the system (the direction from the system to the camera; None: the viewer's choice).
 
 :func:`compile_visuals` turns the declaration into :class:`CompiledVisuals`: the shape
 list (JSON-able data) and generated numpy source with two functions, ``sizes(p)`` and
@@ -27,6 +36,7 @@ from __future__ import annotations
 
 import hashlib
 import inspect
+import itertools
 import json
 import math
 import threading
@@ -46,15 +56,19 @@ __all__ = [
     "compile_visuals",
     "cylinder",
     "ground",
+    "label",
+    "polyline",
+    "rod",
     "rot_x",
     "rot_y",
     "rot_z",
     "segments",
     "sphere",
+    "strip",
     "trace",
 ]
 
-GENERATOR_VERSION = "1"
+GENERATOR_VERSION = "2"
 AXES = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
 
 
@@ -70,10 +84,13 @@ class Frame:
 
 @dataclass(frozen=True)
 class Shape:
-    """One drawn thing.  ``kind``: box | cylinder | sphere | segments | trace | ground.
-    ``size``: box (lx, ly, lz), cylinder (radius, length), sphere (radius,), ground (height,);
-    ``offset``: position in its frame; ``axis``: a cylinder's axis in its frame (x|y|z);
-    ``points``: world points (sphere ``at``, trace point, segment end points)."""
+    """One drawn thing.  ``kind``: box | cylinder | sphere | rod | segments | trace | strip | ground | label.
+    ``size``: box (lx, ly, lz), cylinder (radius, length), sphere (radius,), rod (thickness,),
+    strip (width,), ground (height,); ``offset``: position in its frame (a rod's start);
+    ``end``: a rod's end in its frame; ``axis``: a cylinder's axis in its frame, a strip's
+    sweep direction (x|y|z); ``points``: world points (sphere ``at``, trace point, segment end
+    points); ``path``: a strip's polyline (parameter expressions); ``thickness``: of lines,
+    in screen pixels (0: the viewer's default); ``text``: a label's text."""
 
     kind: str
     name: str
@@ -84,18 +101,28 @@ class Shape:
     points: tuple = ()
     color: tuple = (120, 130, 150)
     opacity: float = 1.0
+    end: tuple = ()
+    path: tuple = ()
+    thickness: float = 0.0
+    text: str = ""
 
 
 @dataclass(frozen=True)
 class Visuals:
-    """A system's visual declaration: frames and shapes (see the module's docstring)."""
+    """A system's visual declaration: frames and shapes (see the module's docstring);
+    ``view``: the direction from the system to a viewer's default camera (None: any)."""
 
     frames: tuple = ()
     shapes: tuple = ()
+    view: tuple | None = None
 
     def __post_init__(self):
         from .errors import InputError
 
+        if self.view is not None:
+            v = tuple(float(c) for c in self.view)
+            if len(v) != 3 or not all(math.isfinite(c) for c in v) or not any(v):
+                raise InputError("visuals.view", self.view, "three finite numbers, not all zero", "bad direction")
         names = {f.name for f in self.frames}
         for s in self.shapes:
             if s.frame is not None and s.frame not in names:
@@ -131,14 +158,58 @@ def sphere(name, radius, frame=None, offset=(0, 0, 0), at=None, color=(200, 80, 
     )
 
 
-def segments(name, pairs, color=(90, 40, 30)) -> Shape:
-    """Line segments between world points: ``pairs`` = [(p, q), ...]."""
-    return Shape("segments", name, points=tuple(tuple(p) for pq in pairs for p in pq), color=tuple(color))
+def rod(name, frame, start, end, thickness, color=(150, 160, 178), opacity=1.0) -> Shape:
+    """A square bar of side ``thickness`` from ``start`` to ``end`` (points of its frame,
+    expressions of the parameters)."""
+    if len(tuple(start)) != 3 or len(tuple(end)) != 3:
+        from .errors import InputError
+
+        raise InputError(f"visuals.{name}", (start, end), "two points of 3 expressions", "bad shape")
+    return Shape("rod", name, frame, (thickness,), tuple(start), end=tuple(end), color=tuple(color), opacity=opacity)
 
 
-def trace(name, point, color=(214, 48, 39)) -> Shape:
+def segments(name, pairs, color=(90, 40, 30), thickness=0.0) -> Shape:
+    """Line segments between world points: ``pairs`` = [(p, q), ...]; ``thickness`` in pixels."""
+    pts = tuple(tuple(p) for pq in pairs for p in pq)
+    return Shape("segments", name, points=pts, color=tuple(color), thickness=float(thickness))
+
+
+def polyline(name, points, color=(90, 40, 30), thickness=0.0) -> Shape:
+    """A path through world points (a thread over pulleys): segments between neighbours."""
+    pts = [tuple(p) for p in points]
+    if len(pts) < 2:
+        from .errors import InputError
+
+        raise InputError(f"visuals.{name}", len(pts), "at least 2 points", "too few points")
+    return segments(name, list(itertools.pairwise(pts)), color, thickness)
+
+
+def trace(name, point, color=(214, 48, 39), thickness=0.0) -> Shape:
     """The path of a world point over the run."""
-    return Shape("trace", name, points=(tuple(point),), color=tuple(color))
+    return Shape("trace", name, points=(tuple(point),), color=tuple(color), thickness=float(thickness))
+
+
+def strip(name, path, width, axis="y", color=(175, 188, 205), opacity=0.65) -> Shape:
+    """A fixed surface: the polyline ``path`` (world points, expressions of the parameters)
+    swept by ``width`` along ``axis`` (x|y|z), centred on the path."""
+    pts = tuple(tuple(p) for p in path)
+    if axis not in AXES or len(pts) < 2:
+        from .errors import InputError
+
+        raise InputError(f"visuals.{name}", (axis, len(pts)), "axis x | y | z and at least 2 points", "bad strip")
+    return Shape("strip", name, None, (width,), axis=axis, path=pts, color=tuple(color), opacity=opacity)
+
+
+def label(name, text, at=None, frame=None, offset=(0, 0, 0)) -> Shape:
+    """A text naming a part: at a world point ``at``, or at ``offset`` in ``frame`` (cheaper
+    to draw: it moves with its frame)."""
+    if (at is None) == (frame is None):
+        from .errors import InputError
+
+        raise InputError(f"visuals.{name}", (at, frame), "either a world point at= or a frame=", "where?")
+    if at is not None:
+        return Shape("label", name, points=(tuple(at),), text=str(text))
+    return Shape("label", name, frame, offset=tuple(offset), text=str(text))
 
 
 def ground(height=0, color=(232, 236, 226)) -> Shape:
@@ -169,13 +240,15 @@ def rot_z(a):
 class CompiledVisuals:
     """Numeric pose functions of a system's visuals (no sympy).
 
-    ``shapes``: one dict per shape (kind, name, frame, axis, color, opacity, and index
-    ranges into the outputs of ``sizes`` / ``poses``); ``frames``: frame name → index of
+    ``shapes``: one dict per shape (kind, name, frame, axis, color, opacity, thickness, and
+    index ranges into the outputs of ``sizes`` — size, offset, end, path — and of ``poses``
+    — points); ``frames``: frame name → index of
     its 12 pose outputs (origin, then the rotation row by row)."""
 
     shapes: list[dict]
     frames: dict[str, int]
     source: str
+    view: tuple | None = None  # direction system → default camera (see Visuals.view)
     _ns: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
@@ -264,9 +337,13 @@ def _generate(vis: Visuals, state_names: Sequence[str], param_names: Sequence[st
             "axis": s.axis,
             "color": list(s.color),
             "opacity": float(s.opacity),
+            "thickness": float(s.thickness),
+            "text": s.text,
         }
         d["size"] = [add(size_exprs, s.size, f"visuals.{s.name}.size", param_set), len(s.size)]
         d["offset"] = add(size_exprs, s.offset, f"visuals.{s.name}.offset", param_set)
+        d["end"] = add(size_exprs, s.end, f"visuals.{s.name}.end", param_set) if s.end else None
+        d["path"] = [add(size_exprs, p, f"visuals.{s.name}.path", param_set) for p in s.path]
         d["points"] = [add(pose_exprs, p, f"visuals.{s.name}.points", names) for p in s.points]
         shapes.append(d)
 
@@ -291,7 +368,7 @@ def _generate(vis: Visuals, state_names: Sequence[str], param_names: Sequence[st
     def ident_subs(exprs):
         return [e.subs({s: sp.Symbol(_ident(s.name), real=True) for s in e.free_symbols}) for e in exprs]
 
-    src = ["import numpy", "", ""]
+    src = ["import functools", "import numpy", "", ""]
     src += [*body(ident_subs(size_exprs), "sizes", unpack(size_exprs, False)), "", ""]
     src += [*body(ident_subs(pose_exprs), "poses", unpack(pose_exprs, True)), ""]
     return shapes, frames, "\n".join(src)
@@ -350,7 +427,8 @@ def compile_visuals(system) -> CompiledVisuals | None:
         info = system.info(system.default_variant)
         state_names = tuple(info.q) + tuple(info.u) + tuple(info.outputs)
         shapes, frames, source = _generate(vis, state_names, system.param_names)
-        data = {"shapes": shapes, "frames": frames, "source": source}
+        view = None if vis.view is None else [float(c) for c in vis.view]
+        data = {"shapes": shapes, "frames": frames, "source": source, "view": view}
         if path is not None:
             try:
                 path.parent.mkdir(parents=True, exist_ok=True)
@@ -359,7 +437,8 @@ def compile_visuals(system) -> CompiledVisuals | None:
                 tmp.replace(path)
             except OSError:
                 pass
-    compiled = CompiledVisuals(data["shapes"], data["frames"], data["source"])
+    view = data.get("view")
+    compiled = CompiledVisuals(data["shapes"], data["frames"], data["source"], None if view is None else tuple(view))
     with _LOCK:
         _MEMO[id(system)] = (system, compiled)
     return compiled

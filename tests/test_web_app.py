@@ -1,5 +1,6 @@
 """The web app in-process (no browser): controls re-simulate with their settings, the scene
-nodes sit where the state puts them, plots and panel show the run."""
+nodes sit where the state puts them, plots and panel show the run.  The paper's two systems
+go through the same generic page as every other (declared visuals, compare ghosts)."""
 
 import math
 import time
@@ -8,11 +9,14 @@ import numpy as np
 import pytest
 import viser
 
+from nmkane_core.systems.appell_hamel import LOAD_RADIUS
 from web import geometry as geo
 from web import matrices as mx
 from web import plots as pl
-from web.app import AH_DEFAULTS, PT, MechanismApp, dt_of, launch
+from web.app import MechanismApp, dt_of, launch
 from web.worker import LatestWorker
+
+AH, PT = "appell-hamel", "sliding-particle"
 
 
 @pytest.fixture()
@@ -25,27 +29,33 @@ def server():
 @pytest.fixture()
 def app(server):
     a = MechanismApp(server, sync=True)
+    assert a.kind == AH  # the first registered system opens first
     yield a
     a.close()
 
 
-def _world(node_chain):
-    """World position and rotation of the last node of a parent → child chain of handles."""
-    pos, rot = np.zeros(3), (1.0, 0.0, 0.0, 0.0)
-    for h in node_chain:
-        pos = pos + geo.rotate(rot, h.position)
-        rot = geo.quat_mul(rot, tuple(h.wxyz))
-    return pos, rot
+def choose(app, name):
+    app.scene_choice.value = next(t for t, n in app.choices.items() if n == name)
+    assert app.kind == name and app.traj.kind == name
+
+
+def node(app, path):
+    return app.scene.get_handle_by_name(f"/sys/{app.kind}/{path}")
+
+
+def wheel_centre(p, th, x, y):
+    """o = (x − ρ cos θ, y − ρ sin θ, a), eqs. (53)–(54) integrated."""
+    return np.array([x - p["rho"] * math.cos(th), y - p["rho"] * math.sin(th), p["a"]])
 
 
 def test_slider_changes_resimulate_with_those_settings(app):
-    app.gamma.value = -7.5
-    app.gamma1.value = -20.0
-    app.gamma2.value = -100.0
-    app.model.value = "linear"
-    app.integrator.value = "rk4"
-    app.log_dt.value = -2.5
-    app.t_final.value = 12.0
+    app.control("gamma").value = -7.5
+    app.control("gamma1").value = -20.0
+    app.control("gamma2").value = -100.0
+    app.control("variant").value = "linear"
+    app.control("integrator").value = "rk4"
+    app.control("log_dt").value = -2.5
+    app.control("t_final").value = 12.0
     last = app.sim_log[-1]
     assert (last["gamma"], last["gamma1"], last["gamma2"], last["model"], last["integrator"]) == (
         -7.5,
@@ -63,16 +73,20 @@ def test_slider_changes_resimulate_with_those_settings(app):
 
 
 def test_physical_parameters_reach_the_run_and_reshape_the_scene(app):
-    app.params["rho"].value = 8.0
-    app.params["a"].value = 1.5
-    assert app.traj.main.settings["params"]["rho"] == 8.0
-    assert app.mechanism.layout.rho == 8.0 and app.mechanism.layout.a == 1.5
-    np.testing.assert_allclose(app.scene.get_handle_by_name("/mechanism/body/wheel").position, (-8.0, 0.0, 1.5))
+    app.control("logparams.rho").value = math.log10(8.0)
+    app.control("logparams.a").value = math.log10(1.5)
+    p = app.traj.main.settings["params"]
+    assert p["rho"] == pytest.approx(8.0) and p["a"] == pytest.approx(1.5)
+    app.seek(0.0)
+    run = app.traj.main
+    th, x, y = (float(run.state[n][0]) for n in ("theta", "x", "y"))
+    np.testing.assert_allclose(node(app, "frames/wheel").position, wheel_centre(p, th, x, y), atol=1e-6)
+    assert node(app, "frames/wheel/disk").radius == pytest.approx(1.5)
 
 
 def test_initial_speed_sliders_complete_the_dependent_speeds(app):
-    app.theta_dot0.value = 0.5
-    app.phi_dot0.value = -1.0
+    app.control("initial.u1").value = 0.5
+    app.control("initial.u2").value = -1.0
     st = app.traj.main.state
     assert st["u1"][0] == 0.5 and st["u2"][0] == -1.0
     # completed by the library: (51)–(54) at θ = 0 give ẋ = aφ̇, ẏ = ρθ̇; (59) gives ż = −bφ̇
@@ -81,111 +95,120 @@ def test_initial_speed_sliders_complete_the_dependent_speeds(app):
 
 
 def test_scene_nodes_match_the_state_at_time_t(app):
+    """The declared visuals, compiled and posed, put the parts where the paper's kinematics do."""
     run, p = app.traj.main, app.traj.params
-    body = app.mechanism.body
-    wheel = app.scene.get_handle_by_name("/mechanism/body/wheel")
+    wheel, load, thread = node(app, "frames/wheel"), node(app, "world/load"), node(app, "world/thread")
     for t in (0.0, 3.3, 12.0, 19.99):
         app.seek(t)
         k = geo.index_at(run.t, t)
         th, ph, x, y, z = (float(run.state[n][k]) for n in ("theta", "phi", "x", "y", "z"))
         # (viser keeps poses in float32: 1 mm at 100 m from the origin is its resolution)
-        # wheel centre o = P − ρ(cos θ, sin θ) at height a  (53)–(54)
-        centre, rot = _world([body.node, wheel, body.spin])
-        np.testing.assert_allclose(centre, geo.wheel_centre_world(p, th, x, y), atol=1e-3)
+        np.testing.assert_allclose(wheel.position, wheel_centre(p, th, x, y), atol=1e-3)
         # wheel orientation: axle along (−sin θ, cos θ, 0); a wheel-fixed radius turned by φ
-        np.testing.assert_allclose(geo.rotate(rot, (0, 1, 0)), geo.axle_world(th), atol=2e-5)
+        rot = tuple(wheel.wxyz)
+        np.testing.assert_allclose(geo.rotate(rot, (0, 1, 0)), (-math.sin(th), math.cos(th), 0), atol=2e-5)
         np.testing.assert_allclose(
             geo.rotate(rot, (1, 0, 0)),
             (math.cos(ph) * math.cos(th), math.cos(ph) * math.sin(th), -math.sin(ph)),
             atol=2e-5,
         )
         # the load P at (x, y, z), the thread's hanging run ends on it
-        load, _ = _world([body.node, body.load])
-        np.testing.assert_allclose(load, (x, y, z), atol=1e-3)
-        assert body.hanging.points[0, 1, 2] == pytest.approx(z + geo.LOAD_RADIUS, abs=1e-4)
+        np.testing.assert_allclose(load.position, (x, y, z), atol=1e-3)
+        np.testing.assert_allclose(thread.points[-1, 1], (x, y, z + LOAD_RADIUS), atol=1e-3)
+        # the frame rides on P's (x, y) at heading θ
+        np.testing.assert_allclose(node(app, "frames/body").position, (x, y, 0), atol=1e-3)
 
 
 def test_wheel_rolls_without_slipping_in_the_scene(app):
     """Between two frames the wheel centre moves by a·Δφ along the heading (51)–(52)."""
     run, a = app.traj.main, app.traj.params["a"]
-    wheel = app.scene.get_handle_by_name("/mechanism/body/wheel")
+    wheel = node(app, "frames/wheel")
     positions = []
     for t in (5.0, 5.01):
         app.seek(t)
-        positions.append(_world([app.mechanism.body.node, wheel])[0])
+        positions.append(np.array(wheel.position, float))
     k0, k1 = geo.index_at(run.t, 5.0), geo.index_at(run.t, 5.01)
     dphi = run.state["phi"][k1] - run.state["phi"][k0]
     th = run.state["theta"][k0]
     step = positions[1] - positions[0]
     assert np.linalg.norm(step) == pytest.approx(abs(a * dphi), rel=2e-2)
-    assert abs(np.dot(step / np.linalg.norm(step), geo.axle_world(th))) < 2e-2  # no side slip
+    axle = (-math.sin(th), math.cos(th), 0.0)
+    assert abs(np.dot(step / np.linalg.norm(step), axle)) < 2e-2  # no side slip
 
 
 def test_fig7_trace_is_the_load_path_on_the_plane(app):
     run = app.traj.main
-    segs = app.mechanism.trace.points
+    segs = node(app, "world/trace").points
     assert len(segs) <= 2000
     np.testing.assert_allclose(segs[0, 0, :2], (run.state["x"][0], run.state["y"][0]), atol=1e-4)
     np.testing.assert_allclose(segs[-1, 1, :2], (run.state["x"][-1], run.state["y"][-1]), rtol=1e-6)
 
 
 def test_load_falls_below_the_plane_and_the_bar_reaches_it(app):
-    app.t_final.value = 40.0
-    z_min = float(app.traj.main.state["z"].min())
+    app.control("t_final").value = 40.0
+    run = app.traj.main
+    k = int(np.argmin(run.state["z"]))
+    z_min = float(run.state["z"][k])
     assert z_min < -50  # the paper's model: no floor
-    bar = app.scene.get_handle_by_name("/mechanism/body/frame/bar")
-    bottom = bar.position[2] - bar.dimensions[2] / 2
-    assert bottom < z_min - geo.LOAD_RADIUS
+    app.seek(float(run.t[k]))
+    pit = node(app, "world/pit").points  # the bar below the plane, through the hole
+    assert pit[0, :, 2].min() < z_min - LOAD_RADIUS
 
 
 def test_singular_start_shows_status_and_a_moving_scene(app):
-    app.phi_dot0.value = 0.0  # the nonlinear model's J2 is singular at φ̇ = 0
+    app.control("initial.u2").value = 0.0  # the nonlinear model's J2 is singular at φ̇ = 0
     run = app.traj.main
     assert run.t[-1] > 0
     assert "nonlinear → linear" in app.status.content  # the library's switch is reported
-    app.phi_dot0.value = 1.0
-    app.model.value = "nonlinear"
-    app.phi_dot0.value = 0.0
+    app.control("initial.u2").value = 1.0
+    app.control("variant").value = "nonlinear"
+    app.control("initial.u2").value = 0.0
     assert "**nonlinear: ok**" in app.status.content or "⚠" in app.status.content
 
 
 def test_unstable_gain_result_is_reported_in_the_panel(app):
-    app.log_dt.value = math.log10(0.2)
-    app.gamma.value = 10.0  # positive Γ: unstable constraint error dynamics
+    app.control("log_dt").value = math.log10(0.2)
+    app.control("gamma").value = 10.0  # positive Γ: unstable constraint error dynamics
     run = app.traj.main
     assert run.settings["gamma"] == 10.0
     assert run.summary["status"] in app.status.content and "not stable" in app.status.content
-    assert np.all(np.isfinite(run.state["x"])) and np.isfinite(app.mechanism.trace.points).all()
+    assert np.all(np.isfinite(run.state["x"])) and np.isfinite(node(app, "world/trace").points).all()
 
 
 def test_compare_ghost_animates_the_other_model(app):
-    app.compare.value = True
+    compare = app.control("option.compare")
+    assert compare.value == "off" and set(compare.options) >= {"off", "linear", "Γ = 0"}
+    compare.value = "linear"
     assert list(app.traj.runs) == ["nonlinear", "linear"]
-    assert app.mechanism.ghost.node.visible
+    ghost = app.system_view.ghosts[0]
+    assert ghost.root.visible and ghost.ghost is not None
     app.seek(5.0)
     other = app.traj.runs["linear"]
     k = geo.index_at(other.t, 5.0)
-    np.testing.assert_allclose(
-        app.mechanism.ghost.node.position, (other.state["x"][k], other.state["y"][k], 0), atol=1e-4
-    )
+    np.testing.assert_allclose(ghost.frames["body"].position, (other.state["x"][k], other.state["y"][k], 0), atol=1e-4)
+    wheel = app.scene.get_handle_by_name(f"/sys/{AH}/ghost1/frames/wheel/disk")
+    assert wheel.opacity is not None and wheel.opacity < 1 and tuple(wheel.color) != (48, 88, 196)  # translucent
     assert "linear" in app.summary.content and "rolling_x" in app.summary.content
-    app.compare.value = False
-    assert not app.mechanism.ghost.node.visible
+    series = app.plot_handles[(AH, "energy")].series
+    assert series[2]["dash"] and "dash" not in series[1]  # the compare run's curve dashed
+    compare.value = "off"
+    assert list(app.traj.runs) == ["nonlinear"] and not ghost.root.visible
 
 
 def test_plots_show_the_run_with_a_current_time_marker(app):
+    app.control("option.plot").value = "theta"
     app.seek(7.5)
     for key, h in app.plot_handles.items():
-        if key[0] != "ah":
+        if key[0] != AH:
             continue
         t, *ys = h.data
         assert len(t) <= pl.MAX_POINTS and t[0] == 0.0 and t[-1] == pytest.approx(app.traj.t_end)
         assert all(np.all(np.isfinite(y)) for y in ys)  # never NaN (uPlot drops the curve)
         marker = h.axes[2]  # the hidden top axis' grid line
         assert marker["splits"] == (7.5,) and marker["grid"]["show"]
-    theta = app.plot_handles[("ah", "theta")].data[1]
+    theta = app.plot_handles[(AH, "coord")].data[1]
     assert theta.min() == pytest.approx(app.traj.main.state["theta"].min(), abs=1e-9)
-    assert len(app.plot_handles[("ah", "violation")].data) == 1 + 3
+    assert len(app.plot_handles[(AH, "violation")].data) == 1 + 3
     assert "rolling_speed" in app.summary.content and "max \\|ΔE\\|" in app.summary.content
 
 
@@ -205,32 +228,41 @@ def test_playback_advances_time_and_pause_holds_it(app):
 
 
 def test_reset_restores_the_papers_values_in_one_run(app):
-    app.gamma.value = -3.0
-    app.params["m"].value = 2.0
+    app.control("gamma").value = -3.0
+    app.control("logparams.m").value = math.log10(2.0)
     n = len(app.sim_log)
     app.reset.value = True
     assert len(app.sim_log) == n + 1
     s = app.sim_log[-1]
-    assert s["gamma"] == AH_DEFAULTS["gamma"] and s["params"]["m"] == 1.0
-    assert s["dt"] == 0.01 and s["initial"] == {"u1": 1.0, "u2": 1.0}
+    assert s["gamma"] == 0.0 and s["params"]["m"] == 1.0  # the paper's Example 1: no stabilization
+    assert s["dt"] == 0.01 and s["t_final"] == 20.0 and s["model"] == "nonlinear"
+    assert (s["initial"]["u1"], s["initial"]["u2"]) == (1.0, 1.0)
 
 
-def test_particle_scene_shows_minimal_undamped_and_damped_side_by_side(app):
-    app.scene_choice.value = PT
-    assert list(app.traj.runs) == ["M", "N", "DN"]
-    assert app.traj.runs["DN"].settings["gamma1"] == -20.0 and app.traj.runs["N"].settings["gamma1"] == 0.0
-    assert app.traj.runs["M"].settings["formulation"] == "minimal"
-    assert app.particle.root.visible and not app.mechanism.root.visible
-    app.pt_gamma1.value = -10.0
-    assert app.traj.runs["DN"].settings["gamma1"] == -10.0
+def test_particle_shows_minimal_undamped_and_damped_solutions_as_ghosts(app):
+    """The paper's Fig. 16 comparison through the generic page: the damped nonminimal run (DN)
+    shown, the minimal (M) and the undamped (N, Γ = 0) runs as ghosts (the system's showcase)."""
+    choose(app, PT)
+    assert list(app.traj.runs) == ["nonminimal", "minimal", "nonminimal, Γ = 0"]
+    runs = app.traj.runs
+    assert runs["nonminimal"].settings["gamma1"] == -20.0 and runs["nonminimal, Γ = 0"].settings["gamma1"] == 0.0
+    assert runs["minimal"].settings["formulation"] == "minimal"
+    assert app.traj.request["settings"]["dt"] == 0.05 and app.traj.t_end == pytest.approx(300.0)
+    view = app.system_view
+    assert view.root.visible and not app.views[AH].root.visible
+    app.control("gamma1").value = -10.0
+    assert app.traj.runs["nonminimal"].settings["gamma1"] == -10.0
     app.seek(120.0)
-    for ball, lab in zip(app.particle.balls, ("M", "N", "DN"), strict=True):
-        run = app.traj.runs[lab]
+    balls = [view.declared, *view.ghosts[:2]]
+    for scene, (lab, run) in zip(balls, app.traj.runs.items(), strict=True):
         k = geo.index_at(run.t, 120.0)
-        np.testing.assert_allclose(ball.position, (run.state["x"][k], 0.0, -run.state["y"][k]), atol=1e-6)
+        ball = app.scene.get_handle_by_name(f"{scene.prefix}/world/particle")
+        np.testing.assert_allclose(ball.position, (run.state["x"][k], 0.0, -run.state["y"][k]), atol=1e-5, err_msg=lab)
     # the undamped solution drifts off the surface, the damped one stays near it (Fig. 16)
     s = {lab: r.summary["max_abs_violation"]["surface"] for lab, r in app.traj.runs.items()}
-    assert s["M"] == 0.0 and s["DN"] < 1e-2 * s["N"]
+    assert s["minimal"] == 0.0 and s["nonminimal"] < 1e-2 * s["nonminimal, Γ = 0"]
+    labels = [x["label"] for x in app.plot_handles[(PT, "violation")].series[1:]]
+    assert labels == ["surface", "surface (minimal)", "surface (nonminimal, Γ = 0)"]
 
 
 def test_background_worker_latest_wins_and_is_fast(server):
@@ -238,13 +270,13 @@ def test_background_worker_latest_wins_and_is_fast(server):
     try:
         assert a.wait_idle(60)
         for g in np.arange(-1.0, -11.0, -0.5):  # a drag: 20 events
-            a.gamma.value = float(g)
+            a.control("gamma").value = float(g)
         assert a.wait_idle(30)
         assert a.traj.main.settings["gamma"] == -10.5
         assert len(a.sim_log) < 1 + 20
         lat = []
         for g in (-2.0, -3.0, -4.0, -5.0, -6.0):
-            a.gamma.value = g
+            a.control("gamma").value = g
             assert a.wait_idle(10)
             assert a.traj.main.settings["gamma"] == g
             lat.append(a.latencies[-1])

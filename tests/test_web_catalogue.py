@@ -113,11 +113,17 @@ def test_a_plugged_in_system_gets_the_generic_page(server):
         fields = {c.field for c in a.sim_controls[a.kind]}
         assert {"gamma", "gamma1", "gamma2"} <= fields  # both kinds of constraints
         d = a.system_view.declared
-        assert d.compiled is None  # no visuals declared: a point and its trace
+        assert d.compiled is not None  # the file declares its visuals: the bowl, the particle, its path
         a.set_playing(False)
         a.seek(1.0)
         k = int(np.searchsorted(run.t, 1.0, side="right")) - 1
-        np.testing.assert_allclose(d.dynamic[0][0].position, [run.state[n][k] for n in ("x", "y", "z")], atol=1e-9)
+        ball = a.scene.get_handle_by_name("/sys/isokinetic-bowl/world/particle")
+        np.testing.assert_allclose(ball.position, [run.state[n][k] for n in ("x", "y", "z")], atol=1e-5)
+        # a system without a second variant still compares: the same run without stabilization
+        a.control("gamma").value = -5.0
+        a.control("option.compare").value = "Γ = 0"
+        assert list(a.traj.runs) == ["default", "default, Γ = 0"]
+        assert a.traj.runs["default, Γ = 0"].settings["gamma"] == 0.0 and a.system_view.ghosts[0].root.visible
     finally:
         a.close()
 
@@ -125,7 +131,7 @@ def test_a_plugged_in_system_gets_the_generic_page(server):
 def test_scene_option_opens_on_a_system_and_an_unknown_one_is_refused(server):
     a = MechanismApp(server, sync=True, scene="rolling-disk")
     try:
-        assert a.kind == "gen:rolling-disk" and a.traj.kind == a.kind
+        assert a.kind == "rolling-disk" and a.traj.kind == a.kind
         assert len(a.sim_log) == 1  # one run: no detour through the first scene
     finally:
         a.close()
@@ -160,10 +166,12 @@ def test_performance_switch_and_slider_to_new_motion(app):
     finally:
         fresh.close()
         other.stop()
-    for name in CATALOGUE:
+    for name in ("appell-hamel", "sliding-particle", *CATALOGUE):  # the paper's two: the same page
+        away = "knife-edge" if name == "appell-hamel" else "appell-hamel"
+        choose(app, name)
         switch = []
         for _ in range(3):
-            choose(app, "appell-hamel")
+            choose(app, away)
             t0 = time.perf_counter()
             choose(app, name)
             switch.append(time.perf_counter() - t0)

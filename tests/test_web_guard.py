@@ -79,12 +79,13 @@ def served():
 def test_non_finite_or_out_of_range_slider_values_are_refused(served):
     _, client, s = served
     runs = len(s.sim_log)
-    log_dt, gamma = s.log_dt.value, s.gamma.value
+    h_dt, h_gamma = s.control("log_dt"), s.control("gamma")
+    log_dt, gamma = h_dt.value, h_gamma.value
     for handle, bad, good in (
-        (s.log_dt, math.nan, log_dt),
-        (s.log_dt, math.inf, log_dt),
-        (s.gamma, -math.inf, gamma),
-        (s.gamma, 1e6, gamma),
+        (h_dt, math.nan, log_dt),
+        (h_dt, math.inf, log_dt),
+        (h_gamma, -math.inf, gamma),
+        (h_gamma, 1e6, gamma),
     ):
         client.set_value(handle, bad)
         assert _until(lambda b=bad: repr(b) in s.status.content), s.status.content  # not a stale panel
@@ -97,7 +98,7 @@ def test_non_finite_or_out_of_range_slider_values_are_refused(served):
     s.tick(0.1, refresh=True)
     assert math.isfinite(s.t_now)
 
-    client.set_value(s.log_dt, -2.5)  # a good value still runs
+    client.set_value(h_dt, -2.5)  # a good value still runs
     assert _until(lambda: "Δt = 0.0032 s · update" in s.status.content, 30), s.status.content
     assert s.traj.main.settings["dt"] == dt_of(-2.5) == 0.0032
 
@@ -127,7 +128,7 @@ def test_nothing_is_sent_to_a_browser_that_left_mid_run():
         assert session.wait_idle(90)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            client.set_value(session.gamma, -2.0)
+            client.set_value(session.control("gamma"), -2.0)
             assert _until(lambda: session.sim_log[-1].get("gamma") == -2.0)
             client.close()
             assert _until(lambda: not app.sessions, 10)

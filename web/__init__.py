@@ -1,1 +1,1 @@
-"""nmkane web app: the Appell–Hamel mechanism and the sliding particle in viser (``python -m web``)."""
+"""nmkane web app: every registered system live in a browser, in viser (``python -m web``)."""

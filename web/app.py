@@ -1,4 +1,5 @@
-"""The 3D web app: the Appell–Hamel mechanism (and the sliding particle) live in a browser.
+"""The 3D web app: every registered system — the paper's two examples, the catalogue, systems
+plugged in with ``--systems`` — live in a browser, through one generic page.
 
 This module is the app's public face; the parts live in:
 
@@ -6,39 +7,34 @@ This module is the app's public face; the parts live in:
   :func:`launch_app` / :func:`launch` (background) and :func:`main` (``python -m web``);
 * :mod:`web.session` — one browser's page (:class:`MechanismApp`): controls, scene, camera
   and trajectory wired together;
+* :mod:`web.generic` — the one system view, :class:`~web.generic.GenericView`: controls,
+  runs (with compare ghosts), plots and scene from the core system's declaration;
+* :mod:`web.declared` — the visuals a system declares (:mod:`nmkane_core.visuals`) as a
+  viser scene, and the camera framing;
 * :mod:`web.controls` — control handles built from data, and the guard that refuses
   non-finite or out-of-range slider values;
 * :mod:`web.runs` — re-simulation on a control change via :mod:`web.worker`;
 * :mod:`web.panel` — plots, summary, status text and the derived-matrices panel;
-* :mod:`web.camera` — following the mechanism while keeping the viewer's orbit;
-* :mod:`web.systems` — what is specific to each system (controls, runs, plots, scene of
-  :mod:`web.scene`) behind one small interface, :class:`~web.systems.SystemView`.
+* :mod:`web.camera` — following the system while keeping the viewer's orbit.
 
-Geometry lives in :mod:`web.geometry`, plot data in :mod:`web.plots`, the matrices in
-:mod:`web.matrices`.
+Geometry helpers live in :mod:`web.geometry`, plot data in :mod:`web.plots`, the matrices
+in :mod:`web.matrices`.  Nothing in ``web/`` names a system (a test checks it).
 """
 
 from __future__ import annotations
 
 from .controls import INTEGRATORS, dt_of
+from .generic import GenericView, scene_choices
 from .runs import TIME_LIMIT_S, Trajectory
 from .server import FPS, REFRESH_HZ, WebApp, launch, launch_app, main, warm
 from .session import MechanismApp
-from .systems import AppellHamelView, ParticleView
-
-AH, PT = AppellHamelView.title, ParticleView.title
-AH_DEFAULTS = {c.attr: c.default for c in AppellHamelView.controls}
-PT_DEFAULTS = {c.attr: c.default for c in ParticleView.controls}
 
 __all__ = [
-    "AH",
-    "AH_DEFAULTS",
     "FPS",
     "INTEGRATORS",
-    "PT",
-    "PT_DEFAULTS",
     "REFRESH_HZ",
     "TIME_LIMIT_S",
+    "GenericView",
     "MechanismApp",
     "Trajectory",
     "WebApp",
@@ -46,5 +42,6 @@ __all__ = [
     "launch",
     "launch_app",
     "main",
+    "scene_choices",
     "warm",
 ]

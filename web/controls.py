@@ -1,11 +1,12 @@
 """The control panel of one browser: GUI handles built from data, and their guard.
 
-A system's simulation controls are described by :class:`Control` rows (what a system
-view in :mod:`web.systems` lists); :class:`ControlPanel` turns them into viser handles,
-reads them back into the core's settings (:meth:`ControlPanel.settings`), resets them to
-their defaults, and guards every slider: a value that is not finite or lies outside the
-slider's range (a websocket message can carry either) is refused with a message in the
-status panel and the slider goes back to its last good value.
+A system's simulation controls are described by :class:`Control` rows (what
+:func:`web.generic.generic_controls` makes from a system's declaration);
+:class:`ControlPanel` turns them into viser handles, reads them back into the core's
+settings (:func:`settings_from`), resets them to their defaults, and guards every
+slider: a value that is not finite or lies outside the slider's range (a websocket
+message can carry either) is refused with a message in the status panel and the slider
+goes back to its last good value.
 """
 
 from __future__ import annotations
@@ -56,33 +57,6 @@ class Control:
 def log_dt_control(attr: str, label: str, default: float, hint: str | None = None) -> Control:
     lo, hi, step = LOG_DT_RANGE
     return Control(attr, label, "log_dt", default, min=lo, max=hi, step=step, marks=DT_MARKS, hint=hint)
-
-
-def parameter_controls(system, ranges: dict, labels: dict | None = None, suffix: str = "") -> tuple[Control, ...]:
-    """Sliders for a core System's physical parameters: ``ranges`` gives (min, max, step) per
-    name; a parameter without one gets a range around its default inside its allowed range."""
-    out = []
-    for p in system.parameters:
-        if p.name in ranges:
-            lo, hi, step = ranges[p.name]
-        else:
-            span = abs(p.default) * 4.0 or 1.0
-            lo, hi = max(p.min, p.default - span), min(p.max, p.default + span)
-            step = float(f"{(hi - lo) / 200:.1g}") or 0.01
-        label = (labels or {}).get(p.name, p.name)
-        out.append(
-            Control(
-                p.name,
-                f"{label} [{p.unit}]{suffix}",
-                f"params.{p.name}",
-                p.default,
-                min=lo,
-                max=hi,
-                step=step,
-                hint=p.description,
-            )
-        )
-    return tuple(out)
 
 
 class ControlPanel:

@@ -1,12 +1,19 @@
-"""One page for any registered system: controls, plots and scene made from the core System.
+"""One page for every registered system: controls, plots and scene made from the core System.
 
-:class:`GenericView` implements :class:`~web.systems.SystemView` from data only: sliders
-for every parameter (over its declared range; on a log scale when it spans decades), for
-the independent initial values (:attr:`System.independent`), for Γ only when the system
-has nonholonomic constraints and Γ1, Γ2 only when it has holonomic ones, Δt and the final
-time; choosers for the variant, integrator, projection and the plotted coordinate; the
-energy drift, log10|violation| per constraint and the chosen coordinate; and the scene
-the system declares (:mod:`web.declared`).
+:class:`GenericView` is the only system view: everything it shows comes from data —
+sliders for every parameter (over its declared range; on a log scale when it spans
+decades), for the independent initial values (:attr:`System.independent`), for Γ only
+when the system has nonholonomic constraints and Γ1, Γ2 only when it has holonomic ones,
+Δt and the final time; choosers for the variant, integrator, projection, the compare runs
+and the plotted coordinate; the energy drift, log10|violation| per constraint and the
+chosen coordinate; and the scene the system declares (:mod:`web.declared`).  Where a
+system declares a ``showcase`` (e.g. a paper's figure) the controls start there.
+
+**Compare.**  The dropdown "Compare with (ghost)" runs other versions of the shown run
+with the same settings: another variant (the other constraint model, the minimal
+formulation), ``Γ = 0`` (the same run without stabilization, when the shown one has
+some), or ``all`` of them.  Each compare run is drawn as a translucent ghost of the
+system's moving visuals, in the colour of its dashed curves in the plots.
 """
 
 from __future__ import annotations
@@ -23,9 +30,14 @@ from . import geometry as geo
 from . import plots as pl
 from .controls import INTEGRATORS, Control, log_dt_control
 from .declared import DeclaredScene, fit_camera
-from .systems import COLORS, SystemView
 
 DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
+OFF, UNSTABILIZED, ALL = "off", "Γ = 0", "all"  # compare choices besides the variants
+GAMMAS = ("gamma", "gamma1", "gamma2")
+
+
+def _rgb(hex_color: str) -> tuple[int, int, int]:
+    return tuple(int(hex_color[i : i + 2], 16) for i in (1, 3, 5))
 
 
 def _step(lo: float, hi: float, n: int = 200) -> float:
@@ -80,9 +92,20 @@ def initial_control(name: str, default: float, prefix: str) -> Control:
     )
 
 
+def compare_choices(core) -> tuple[str, ...]:
+    """The compare dropdown of a system: off, each variant, Γ = 0 (when it has constraints
+    to stabilize), and all of them (when that is more than one run)."""
+    info = core.info(core.default_variant)
+    runs = [*core.variants] if len(core.variants) > 1 else []
+    if info.nonholonomic or info.holonomic:
+        runs.append(UNSTABILIZED)
+    return (OFF, *runs, *((ALL,) if len(runs) > 2 or (len(runs) == 2 and len(core.variants) == 1) else ()))
+
+
 def generic_controls(core, prefix: str) -> tuple[Control, ...]:
     """The simulation controls of any system, from its declaration and its model's info."""
     info = core.info(core.default_variant)
+    show = dict(getattr(core, "showcase", {}))
     out = []
     if len(core.variants) > 1:
         out.append(
@@ -90,24 +113,44 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
                 f"{prefix}variant",
                 core.option.capitalize(),
                 "variant",
-                core.default_variant,
+                show.get("variant", core.default_variant),
                 kind="dropdown",
                 options=tuple(core.variants),
             )
         )
-    integ = core.default_integrator if core.default_integrator in INTEGRATORS else INTEGRATORS[0]
+    choices = compare_choices(core)
+    if len(choices) > 1:
+        first = show.get("compare", OFF)
+        out.append(
+            Control(
+                f"{prefix}compare",
+                "Compare with (ghost)",
+                "option.compare",
+                first if first in choices else OFF,
+                kind="dropdown",
+                options=choices,
+                hint="other runs with the same settings, drawn translucent and dashed in the plots",
+            )
+        )
+    integ = show.get("integrator", core.default_integrator)
+    integ = integ if integ in INTEGRATORS else INTEGRATORS[0]
     out.append(Control(f"{prefix}integrator", "Integrator", "integrator", integ, kind="dropdown", options=INTEGRATORS))
     out.append(
         Control(f"{prefix}projection", "Projection", "projection", "none", kind="dropdown", options=tuple(PRESETS))
     )
     if info.nonholonomic:
-        out.append(
-            Control(f"{prefix}gamma", "Γ (nonholonomic)", "gamma", core.default_gamma, min=-50.0, max=10.0, step=0.5)
-        )
+        g = show.get("gamma", core.default_gamma)
+        out.append(Control(f"{prefix}gamma", "Γ (nonholonomic)", "gamma", g, min=-50.0, max=10.0, step=0.5))
     if info.holonomic:
         out.append(
             Control(
-                f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", core.default_gamma1, min=-50.0, max=10.0, step=0.5
+                f"{prefix}gamma1",
+                "Γ1 (holonomic) [1/s]",
+                "gamma1",
+                show.get("gamma1", core.default_gamma1),
+                min=-50.0,
+                max=10.0,
+                step=0.5,
             )
         )
         out.append(
@@ -115,15 +158,15 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
                 f"{prefix}gamma2",
                 "Γ2 (holonomic) [1/s²]",
                 "gamma2",
-                core.default_gamma2,
+                show.get("gamma2", core.default_gamma2),
                 min=-500.0,
                 max=50.0,
                 step=5.0,
             )
         )
-    log_dt = min(max(math.log10(core.default_dt), -4.0), math.log10(0.2))
+    log_dt = min(max(math.log10(show.get("dt", core.default_dt)), -4.0), math.log10(0.2))
     out.append(log_dt_control(f"{prefix}log_dt", "log₁₀ Δt [s]", round(log_dt, 2)))
-    tf = core.default_t_final
+    tf = float(show.get("t_final", core.default_t_final))
     out.append(
         Control(
             f"{prefix}t_final",
@@ -142,22 +185,30 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
     return tuple(out)
 
 
-class GenericView(SystemView):
-    """Any system on the page, from its core declaration (one instance per system and browser)."""
+class GenericView:
+    """One system on the page, from its core declaration (one instance per system and browser).
+
+    ``kind`` (the system's name) keys its plots and folder on the page; ``runs`` turns the
+    controls' settings into the runs of one request (the shown one first, then the compare
+    runs), ``curves`` into plot data, and the scene (:class:`~web.declared.DeclaredScene`,
+    plus one ghost per compare run) is shaped once per trajectory and posed per frame."""
 
     follows = True
     camera_views: ClassVar[dict] = {"system": None}
-    reset_label = "Reset to the system's defaults"
-    speed = 1.0
+    fixed_camera = None
+    params_folder = "Physical parameters"
+    reset_label = "Reset to the defaults"
 
     def __init__(self, scene, name: str):
+        self.scene = scene
         self.system = name
         core = get_system(name)
-        self.kind = f"gen:{name}"
+        self.kind = name
         self.title = core.title or name
         self.folder = f"Simulation: {self.title}"
         prefix = f"g_{''.join(c if c.isalnum() else '_' for c in name)}_"
         self.params_attr = f"{prefix}params"
+        self.speed = float(getattr(core, "showcase", {}).get("speed", 1.0))
         self.controls = generic_controls(core, prefix)
         self._param_controls = tuple(parameter_control(p, prefix) for p in core.parameters)
         self.plots = (
@@ -165,56 +216,123 @@ class GenericView(SystemView):
             ("violation", "log₁₀ |constraint violation|"),
             ("coord", "Plotted coordinate"),
         )
-        super().__init__(scene)
         self.declared = DeclaredScene(scene, core)
+        self.ghosts: list[DeclaredScene] = []  # one per compare run, made on first use
         self.root = self.declared.root
         self.plot_name = core.state_names[0]
         self.k = 0
         self.fit_pending = True
         self.fixed_target = None  # the whole motion fits in view: the camera stays put
         self.offset = None
+        self.shift = np.zeros(3)  # following: the camera looks at the centre plus this
+
+    @property
+    def core(self):
+        return get_system(self.system)
 
     @property
     def param_controls(self) -> tuple[Control, ...]:
         return self._param_controls
 
-    def matrices_variants(self) -> tuple[str, ...]:  # instance-level: the system is per view
+    def matrices_variant(self, settings: dict) -> str:
+        return settings.get(self.core.option, self.core.default_variant)
+
+    def matrices_variants(self) -> tuple[str, ...]:
         core = self.core
         return (core.default_variant, *(v for v in core.variants if v != core.default_variant))
 
     # ---------------------------------------------------------------- runs and plots
     def runs(self, settings: dict, options: dict) -> dict[str, dict]:
+        """label -> the core's settings of each run of one request: the shown run, then the
+        compare runs (same settings; another variant, or Γ = 0)."""
+        core = self.core
         self.plot_name = options.get("plot", self.plot_name)
-        return {settings.get(self.core.option, self.core.default_variant): settings}
+        main = settings.get(core.option, core.default_variant)
+        out = {main: settings}
+        compare = options.get("compare", OFF)
+        picks = [*core.variants, UNSTABILIZED] if compare == ALL else [compare]
+        for pick in picks:
+            if pick == UNSTABILIZED:
+                s = {**settings, **{g: 0.0 for g in GAMMAS if g in settings}}
+                if s != settings:
+                    out[f"{main}, Γ = 0"] = s
+            elif pick in core.variants and pick != main:
+                info = core.info(pick)
+                drop = {"gamma"} if not info.nonholonomic else set()
+                drop |= {"gamma1", "gamma2"} if not info.holonomic else set()
+                out[pick] = {k: v for k, v in {**settings, core.option: pick}.items() if k not in drop}
+        return out
 
     def curves(self, runs: dict) -> dict:
-        run = next(iter(runs.values()))
-        t = run.t
-        e = np.zeros(len(t)) if run.energy is None else np.asarray(run.energy, float)
-        dE = e - e[0] if len(e) else e
-        factor, unit = pl.readable([dE], "J")
-        names = list(run.violation) or ["(no constraints)"]
-        ys = [pl.log10_abs(run.violation[c]) for c in run.violation] or [np.full(len(t), math.log10(pl.LOG_FLOOR))]
-        name = self.plot_name if self.plot_name in run.state else next(iter(run.state))
-        return {
-            "energy": pl.curves(t, [dE / factor], [f"ΔE [{unit}]"]),
-            "violation": pl.curves(t, ys, names),
-            "coord": pl.curves(t, [run.state[name]], [name]),
-        }
+        labels = list(runs)
+        many = len(labels) > 1
+        main = runs[labels[0]]
+        t = main.t
+
+        def on_t(r, v):
+            return np.asarray(v, float) if r is main else np.interp(t, r.t, v)
+
+        def style(j: int, color: str) -> dict:
+            return {"stroke": color, **({"dash": pl.DASHES[(j - 1) % len(pl.DASHES)]} if j else {})}
+
+        dEs = []
+        for r in runs.values():
+            e = np.zeros(len(r.t)) if r.energy is None else np.asarray(r.energy, float)
+            dEs.append(on_t(r, e - e[0] if len(e) else e))
+        factor, unit = pl.readable(dEs, "J")
+        energy = pl.curves(
+            t, [d / factor for d in dEs], [f"ΔE {lab} [{unit}]" if many else f"ΔE [{unit}]" for lab in labels]
+        )
+        energy.styles = [style(j, pl.RUN_COLORS[j % len(pl.RUN_COLORS)]) for j in range(len(labels))]
+        ys, names, styles = [], [], []
+        for j, (lab, r) in enumerate(runs.items()):
+            for c, (name, v) in enumerate(r.violation.items()):
+                ys.append(pl.log10_abs(on_t(r, v)))
+                names.append(name if j == 0 else f"{name} ({lab})")
+                color = pl.COLORS[c % len(pl.COLORS)] if len(r.violation) > 1 else pl.RUN_COLORS[j % len(pl.RUN_COLORS)]
+                styles.append(style(j, color))
+        if not ys:
+            ys, names, styles = (
+                [np.full(len(t), math.log10(pl.LOG_FLOOR))],
+                ["(no constraints)"],
+                [style(0, pl.COLORS[0])],
+            )
+        violation = pl.curves(t, ys, names)
+        violation.styles = styles
+        name = self.plot_name if self.plot_name in main.state else next(iter(main.state))
+        coord = pl.curves(
+            t, [on_t(r, r.state[name]) for r in runs.values()], [f"{name} {lab}" if many else name for lab in labels]
+        )
+        coord.styles = energy.styles
+        return {"energy": energy, "violation": violation, "coord": coord}
 
     def series_style(self, key: str, i: int, traj) -> dict:
-        return {"stroke": COLORS[i % len(COLORS)]}
+        styles = traj.plots[key].styles
+        return styles[i] if i < len(styles) else {"stroke": pl.COLORS[i % len(pl.COLORS)]}
 
     # ---------------------------------------------------------------- scene
     def install(self, traj) -> None:
-        self.declared.install(traj.main, traj.params)
+        runs = list(traj.runs.values())
+        self.declared.install(runs[0], traj.params)
+        for j, run in enumerate(runs[1:], start=1):
+            if len(self.ghosts) < j:
+                color = _rgb(pl.RUN_COLORS[j % len(pl.RUN_COLORS)])
+                self.ghosts.append(DeclaredScene(self.scene, self.core, ghost=color, index=j))
+            self.ghosts[j - 1].install(run, traj.params)
+        for j, g in enumerate(self.ghosts, start=1):
+            g.root.visible = j < len(runs)
         self._plan_camera(traj)
 
     def pose(self, traj, t_now: float) -> dict:
-        label = next(iter(traj.runs))
-        self.k = geo.index_at(traj.runs[label].t, t_now)
+        labels = list(traj.runs)
+        self.k = geo.index_at(traj.runs[labels[0]].t, t_now)
         self.declared.pose(self.k)
-        return traj.row(label, t_now)
+        for g, lab in zip(self.ghosts, labels[1:], strict=False):
+            g.pose(geo.index_at(traj.runs[lab].t, t_now))
+        return traj.row(labels[0], t_now)
+
+    def readouts(self, traj, t_now: float) -> None:
+        """Slow-rate labels in the scene (none)."""
 
     def rest_row(self) -> dict:
         return {}
@@ -226,48 +344,59 @@ class GenericView(SystemView):
             return np.mean([pos[min(self.k, len(pos) - 1)] for pos, _ in d.frame_poses.values()], axis=0)
         if d.points and d.compiled is None:
             return d.points[0][min(self.k, len(d.points[0]) - 1)]
+        if d.rows:
+            return d.rows[0][min(self.k, len(d.rows[0]) - 1), 0].astype(float)
         return np.zeros(3)
 
     def _plan_camera(self, traj) -> None:
-        """Fixed on the whole motion when it is not much larger than the system; else follow it."""
+        """Fixed on the whole motion when it is not much larger than the system; else follow it.
+        Seen from the side the system declares (``Visuals.view``), if it does."""
         b = self.declared.bounds()
         if b is None:
             return
         lo, hi = b
         whole = float(np.linalg.norm(hi - lo)) / 2
-        size = self._size()
-        if whole <= 3.0 * size + 1.0:
-            self.fixed_target, self.offset = fit_camera(b)
-            self.offset = self.offset - self.fixed_target
-        else:
-            c = self._centre()
-            look, pos = fit_camera((c - 1.2 * size, c + 1.2 * size))
-            self.fixed_target, self.offset = None, pos - look
-
-    def _size(self) -> float:
-        """A length of the system itself: its largest shape (1 m if none)."""
+        size = self.declared.extent
         cv = self.declared.compiled
-        if cv is None or self.declared.sizes_for is None:
-            return 0.5
-        sizes = cv.sizes(dict(self.declared.sizes_for))
-        big = [
-            abs(float(v))
-            for s in cv.shapes
-            if s["kind"] in ("box", "cylinder", "sphere")
-            for v in sizes[s["size"][0] : s["size"][0] + s["size"][1]]
-        ]
-        return max(big, default=0.5)
+        side = None if cv is None else cv.view
+        if whole <= 3.0 * size + 1.0:
+            self.fixed_target, self.offset = fit_camera(b, direction=side)
+            self.offset = self.offset - self.fixed_target
+        else:  # the system at the shown row (a tall frame, a thread) and around its centre
+            c = self._centre()
+            lo, hi = c - 1.2 * size, c + 1.2 * size
+            now = self.declared.bounds_at(self.k)
+            if now is not None:
+                lo, hi = np.minimum(lo, now[0]), np.maximum(hi, now[1])
+            look, pos = fit_camera((lo, hi), direction=side)
+            self.fixed_target, self.offset, self.shift = None, pos - look, look - c
 
     def camera_target(self, row: dict | None, view: str) -> np.ndarray:
-        return self.fixed_target if self.fixed_target is not None else self._centre()
+        return self.fixed_target if self.fixed_target is not None else self._centre() + self.shift
 
     def camera_offset(self, row: dict | None, view: str) -> np.ndarray:
         return self.offset if self.offset is not None else np.array([2.0, -3.0, 2.0])
 
 
+def scene_choices() -> dict[str, str]:
+    """The scene dropdown: title -> system name for every registered system (built-in,
+    catalogue, plugged in), in the registry's order."""
+    from nmkane_core.registry import system_names
+
+    out: dict[str, str] = {}
+    for name in system_names():
+        try:
+            title = get_system(name).title or name
+        except Exception:  # a broken plug-in: listed by name, reported when chosen
+            title = name
+        out[title if title not in out else f"{title} ({name})"] = name
+    return out
+
+
 def warm_systems(skip=()) -> list[tuple[str, str]]:
-    """Load every registered system's kernel and loops (a short run) and compile its visuals, so
-    that choosing it later is quick; returns (system, default variant) of each, for the matrices."""
+    """Load every registered system's kernels and loops (a short run of each variant) and
+    compile its visuals, so that choosing it (or comparing) later is quick; returns
+    (system, default variant) of each, for the matrices."""
     import contextlib
 
     from nmkane_core.registry import system_names
@@ -282,5 +411,8 @@ def warm_systems(skip=()) -> list[tuple[str, str]]:
             core = get_system(name)
             simulate({"system": name, "t_final": 0.05}, progress=False)
             compile_visuals(core)
+            for v in core.variants:
+                if v != core.default_variant:
+                    simulate({"system": name, core.option: v, "t_final": 0.05}, progress=False)
             out.append((name, core.default_variant))
     return out

@@ -33,10 +33,6 @@ import numpy as np
 MATRICES = ("A1", "A2", "T")
 TITLES = {"A1": "A_1", "A2": "A_2", "T": "T"}
 EQUATION = {"A1": "(22)", "A2": "(40)", "T": "(44)"}
-SPEED_NAMES = {
-    "appell-hamel": "u₁ = θ̇, u₂ = φ̇, u₃ = ẋ, u₄ = ẏ, u₅ = ż",
-    "sliding-particle": "u₁ = ẋ, u₂ = ẏ",
-}
 DPI = 170
 FONT_SIZE = 11
 PARENT_ENV = "NMKANE_MATRICES_PARENT"  # the child stops when this process is gone
@@ -250,7 +246,7 @@ def _build(system: str, variant: str) -> Panel:
     intro = (
         f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
         f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
-        f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}); {SPEED_NAMES.get(system, '')}."
+        f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}){speed_names(get_system(system).model(variant))}."
     )
     if longest > TYPESET_OPS:
         intro += (
@@ -258,6 +254,15 @@ def _build(system: str, variant: str) -> Panel:
             f"`nmkane matrices {system}` prints them in full."
         )
     return Panel(system, variant, images, where, latex, intro)
+
+
+def speed_names(model) -> str:
+    """The text "; u1 = ẋ, u2 = ẏ" when the speeds are the coordinates' rates (q̇ = u), else ""."""
+    import sympy as sp
+
+    if sp.eye(len(model.q)) != model.C or any(v != 0 for v in model.D):
+        return ""
+    return "; " + ", ".join(f"{sp.pretty(u)} = {sp.pretty(q)}\u0307" for u, q in zip(model.u, model.q, strict=True))
 
 
 # --------------------------------------------------------------------------- drawing

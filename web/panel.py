@@ -16,7 +16,6 @@ from viser import uplot
 
 from . import matrices as mx
 from . import plots as pl
-from .systems import COLORS
 
 
 def _fmt(v) -> str:
@@ -50,7 +49,7 @@ class PlotPanel:
         return gui.add_uplot(
             order=order,
             data=(z, z),
-            series=(uplot.Series(label="t [s]"), uplot.Series(label="—", stroke=COLORS[0], width=2)),
+            series=(uplot.Series(label="t [s]"), uplot.Series(label="—", stroke=pl.COLORS[0], width=2)),
             title=title,
             scales=x_scale,
             axes=pl.marker_axes(0.0),

@@ -12,10 +12,13 @@ floor, 1e−16.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")  # one per constraint
+RUN_COLORS = ("#1f77b4", "#ff7f0e", "#9467bd", "#2ca02c")  # the shown run, then the compare runs (ghosts)
+DASHES = ((6.0, 4.0), (2.0, 3.0), (10.0, 3.0, 2.0, 3.0))  # compare runs: dashed, one pattern each
 MAX_POINTS = 800  # per series after decimation (two per bucket: min and max)
 LOG_FLOOR = 1e-16  # |φ| below this is plotted as 1e-16 (round-off level)
 
@@ -67,6 +70,7 @@ class Curves:
     t: np.ndarray
     ys: list[np.ndarray]
     labels: list[str]
+    styles: list[dict] = field(default_factory=list)  # uPlot series styles (stroke, dash), one per series
 
     def data(self) -> tuple[np.ndarray, ...]:
         """uPlot's data: (t, y1, …, yn)."""

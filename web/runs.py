@@ -25,7 +25,7 @@ TIME_LIMIT_S = 10.0  # a run that takes longer stops with status 'timeout'
 class Trajectory:
     """What a session animates: the runs of one request, prepared for display."""
 
-    kind: str  # the view's kind ("ah" | "pt")
+    kind: str  # the view's kind (the system name)
     request: dict
     runs: dict  # label -> nmkane_core Run (first = main)
     params: dict

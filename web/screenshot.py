@@ -1,10 +1,11 @@
 """Screenshots of the web app in headless Chromium (Playwright driving the Debian binary).
 
-    python -m web.screenshot [--out docs/screenshots]
+    python -m web.screenshot [--out docs/screenshots] [--systems FILE ...] [NAME ...]
 
-starts the app on a free port, opens one page per scene, waits until the panel is
-filled and the motion has run for a few seconds, and writes ``mechanism.png`` and
-``particle.png``.  The e2e test uses the same helpers.
+starts the app on a free port, opens one page per system (default: every registered
+one), waits until the panel is filled, shows the motion at 45 % of its time with the
+system's default camera and its simulation folder folded (the plots beside the scene), and
+writes ``<out>/<NAME>.png``.  The e2e tests use the same helpers.
 """
 
 from __future__ import annotations
@@ -70,10 +71,14 @@ def input_of(page, label: str):
     return row.locator("input:not([type='hidden'])").last
 
 
-def capture(out_dir: str = "docs/screenshots") -> list[str]:
+def capture(out_dir: str = "docs/screenshots", names=None, fraction: float = 0.45) -> list[str]:
+    """Screenshots of the systems ``names`` (default: every registered one) in ``out_dir``;
+    each at ``fraction`` of its run's time.  Returns the files written."""
     from playwright.sync_api import sync_playwright
 
-    from .app import PT, launch
+    from nmkane_core.registry import system_names
+
+    from .app import launch
 
     exe = chromium_path()
     if exe is None:
@@ -85,35 +90,26 @@ def capture(out_dir: str = "docs/screenshots") -> list[str]:
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=exe, headless=True, args=CHROMIUM_ARGS)
             try:
-                page = open_page(browser, f"http://127.0.0.1:{app.port}/?hideViserLogo")
-                session = app.wait_for_session()
-                session.wait_idle(60)
-                time.sleep(1.0)
-                session.set_playing(False)
-                session.seek(9.0)
-                session.reset_view()
-                collapse(page, "Simulation: Appell–Hamel")  # show the plots beside the scene
-                time.sleep(3.0)  # camera settles, plot markers refresh
-                close_toasts(page)
-                path = os.path.join(out_dir, "mechanism.png")
-                page.screenshot(path=path)
-                written.append(path)
-                page.close()
-
-                page = open_page(browser, f"http://127.0.0.1:{app.port}/?hideViserLogo")
-                time.sleep(1.0)
-                with app._lock:
-                    session = list(app.sessions.values())[-1]
-                session.scene_choice.value = PT
-                session.wait_idle(60)
-                session.set_playing(False)
-                session.seek(160.0)
-                collapse(page, "Simulation: sliding particle")
-                time.sleep(3.0)
-                close_toasts(page)
-                path = os.path.join(out_dir, "particle.png")
-                page.screenshot(path=path)
-                written.append(path)
+                for name in names or system_names():
+                    page = open_page(browser, f"http://127.0.0.1:{app.port}/?hideViserLogo")
+                    with app._lock:
+                        session = list(app.sessions.values())[-1]
+                    session.wait_idle(60)
+                    title = next(t for t, n in session.choices.items() if n == name)
+                    if session.scene_choice.value != title:
+                        session.scene_choice.value = title
+                    session.wait_idle(60)
+                    time.sleep(1.0)
+                    session.set_playing(False)
+                    session.seek(fraction * session.traj.t_end)
+                    session.reset_view()
+                    collapse(page, session.system_view.folder)  # show the plots beside the scene
+                    time.sleep(3.0)  # camera settles, plot markers refresh
+                    close_toasts(page)
+                    path = os.path.join(out_dir, f"{name}.png")
+                    page.screenshot(path=path, timeout=120000)
+                    written.append(path)
+                    page.close()
             finally:
                 browser.close()
     finally:
@@ -126,5 +122,12 @@ if __name__ == "__main__":
 
     ap = argparse.ArgumentParser(prog="python -m web.screenshot")
     ap.add_argument("--out", default="docs/screenshots")
-    for path in capture(ap.parse_args().out):
+    ap.add_argument("--systems", nargs="*", default=[], help="systems files to load first")
+    ap.add_argument("names", nargs="*", help="systems to capture (default: all)")
+    args = ap.parse_args()
+    if args.systems:
+        from nmkane_core.plugins import load_systems
+
+        load_systems(args.systems)
+    for path in capture(args.out, args.names or None):
         print(path)

@@ -37,7 +37,6 @@ from nmkane_core.simulate import simulate as core_simulate
 from . import matrices as mx
 from .generic import warm_systems
 from .session import MechanismApp
-from .systems import VIEWS
 
 FPS = 40.0  # poses sent per second (the target is ≥ 30)
 REFRESH_HZ = 4.0  # plot markers, scrubber, readouts
@@ -148,9 +147,6 @@ class WebApp:
         self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
         self.server.scene.set_up_direction("+z")
         self.scene = scene  # the system new browsers open on (None: the first)
-        preset = VIEWS[0].initial_camera() if scene in (None, VIEWS[0].system) else None  # the camera's start
-        if preset is not None:
-            self.server.initial_camera.look_at, self.server.initial_camera.position = preset
         self.port = self.server.get_port()
         self.host = host
         self.sessions: dict[int, MechanismApp] = {}
@@ -282,23 +278,15 @@ class WebApp:
 
 
 def warm() -> None:
-    """Load every view's compiled kernels and their loops (numba loads machine code at a
-    function's first call: a short run does it) and derive the matrices panels before
-    anyone waits."""
-    first, rest = [], []
-    for view in VIEWS:
-        system = get_system(view.system)
-        for v in system.variants:
-            with contextlib.suppress(Exception):
-                system.kernel(v)
-        for v in system.variants:
-            with contextlib.suppress(Exception):
-                core_simulate({"system": system.name, system.option: v, "t_final": 0.05}, progress=False)
-        shown = view.matrices_variants()
-        first.append((system.name, shown[0]))
-        rest += [(system.name, v) for v in shown[1:]]
-    others = warm_systems(skip={view.system for view in VIEWS})  # every other system's kernels, visuals
-    for key in first + others + rest:  # every system's first model, then the others
+    """Load every system's compiled kernels and their loops (numba loads machine code at a
+    function's first call: a short run does it), compile its visuals, and derive the
+    matrices panels before anyone waits."""
+    first = warm_systems()
+    rest = []
+    for name, default in first:
+        with contextlib.suppress(Exception):
+            rest += [(name, v) for v in get_system(name).variants if v != default]
+    for key in first + rest:  # every system's first model, then the others
         with contextlib.suppress(Exception):
             mx.panel(*key)
 

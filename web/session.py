@@ -1,12 +1,12 @@
 """One browser's page: its controls, scene, camera and trajectory, wired together.
 
 Every connected browser gets its own :class:`MechanismApp`, so students exploring at once
-do not change each other's view.  The page is generic over the system views of
-:mod:`web.systems` (one scene, one simulation folder and one set of plots per view, the
-chosen one visible); the parts live in :mod:`web.controls` (handles and their guard),
-:mod:`web.runs` (re-simulation on a control change), :mod:`web.panel` (plots, summary,
-status, matrices) and :mod:`web.camera`.  The animation thread of :mod:`web.server`
-calls :meth:`MechanismApp.tick`.
+do not change each other's view.  Every system is shown by the same
+:class:`~web.generic.GenericView` (one scene, one simulation folder and one set of plots
+per system, built when it is first chosen, the chosen one visible); the parts live in
+:mod:`web.controls` (handles and their guard), :mod:`web.runs` (re-simulation on a control
+change), :mod:`web.panel` (plots, summary, status, matrices) and :mod:`web.camera`.  The
+animation thread of :mod:`web.server` calls :meth:`MechanismApp.tick`.
 """
 
 from __future__ import annotations
@@ -21,11 +21,9 @@ from nmkane_core.simulate import simulate as core_simulate
 
 from .camera import CameraRig
 from .controls import ControlPanel, settings_from
+from .generic import GenericView, scene_choices
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
-from .systems import VIEWS, AppellHamelView, scene_choices
-
-CAMERA_VIEWS = tuple(AppellHamelView.camera_views)  # the camera-target dropdown
 
 
 class MechanismApp:
@@ -37,8 +35,9 @@ class MechanismApp:
     :class:`~web.worker.LatestWorker` does it in the background.  ``connected()`` says
     whether the browser is still there (nothing is sent to one that left).
 
-    Each view's controls are attributes by their ``attr`` (``app.gamma``, ``app.pt_gamma1``)
-    and its parameter sliders a dict (``app.params``, ``app.pt_params``)."""
+    ``scene`` names the system shown first (default: the first registered).  The shown
+    system's controls are found by their field with :meth:`control` (``app.control("gamma")``,
+    ``app.control("params.m")``)."""
 
     def __init__(
         self,
@@ -61,30 +60,24 @@ class MechanismApp:
         self._installs = 0
         self._writing_time = False
         self._shown_t = None
-        self.views = {cls.kind: cls(self.scene) for cls in VIEWS}
-        self.system_view = next(iter(self.views.values()))  # the chosen system's view
+        self.views: dict[str, GenericView] = {}
         self.choices = scene_choices()  # dropdown title -> system name
-        self.mechanism = self.views["ah"].mechanism
-        self.particle = self.views["pt"].particle
+        first = next((t for t, n in self.choices.items() if n == scene), None) if scene else None
+        first = first or next(iter(self.choices))
         self.camera = CameraRig(self.client, self.alive)
         self.runner = Runner(self, simulate, sync=sync)
-        self._build_gui()
+        self._build_gui(first)
         if self.client is not None:
             self.client.camera.on_update(lambda cam: self.camera.on_report(self.system_view, cam))
-        first = next((t for t, n in self.choices.items() if n == scene), None) if scene else None
-        if first is not None and first != self.scene_choice.value:
-            self.scene_choice.value = first  # its callback shows the system and simulates
-            return
-        self._aim_camera(reset=True)
-        self.request()
+        self._on_scene()
 
     # ---------------------------------------------------------------- GUI
-    def _build_gui(self) -> None:
+    def _build_gui(self, first: str) -> None:
         gui = self.gui
         self.controls = ControlPanel(gui, self.show_status)
         gui.add_markdown("Nonminimal Kane's equations — Bajodah, Hodges & Chen (2005)")
         titles = tuple(self.choices)
-        self.scene_choice = gui.add_dropdown("Scene", options=titles, initial_value=self.system_view.title)
+        self.scene_choice = gui.add_dropdown("Scene", options=titles, initial_value=first)
         self.status = gui.add_markdown("computing … (the first run loads the compiled kernels)")
 
         with gui.add_folder("Playback"):
@@ -92,15 +85,14 @@ class MechanismApp:
             self.speed = self.controls.slider("Speed ×", min=0.1, max=20.0, step=0.1, initial_value=1.0)
             self.time = self.controls.slider("Time t [s]", min=0.0, max=20.0, step=0.01, initial_value=0.0)
             self.follow = gui.add_checkbox("Camera follows", initial_value=True)
-            self.view = gui.add_dropdown("Camera target", options=CAMERA_VIEWS, initial_value=CAMERA_VIEWS[0])
             self.view_reset = gui.add_button("Reset view")
             self.fit_view = gui.add_button("Fit view")
 
         self.sim_controls: dict[str, dict] = {}  # kind -> {Control: handle}
         self.folders, self.resets = {}, {}
-        for i, view in enumerate(self.views.values()):
-            self._add_view_gui(view, visible=i == 0)
-        self.reset, self.pt_reset = self.resets["ah"], self.resets["pt"]
+        view = GenericView(self.scene, self.choices[first])
+        self.views[view.kind] = self.system_view = view  # the chosen system's view
+        self._add_view_gui(view, visible=True)
 
         with gui.add_folder("Plots and summary") as self.plots_folder:
             self.plots = PlotPanel(gui, self.views)
@@ -115,7 +107,6 @@ class MechanismApp:
         self.play.on_click(lambda _: self.set_playing(not self.playing))
         self.controls.on_change(self.speed, lambda: None)
         self.controls.on_change(self.time, self._on_time)
-        self.view.on_update(lambda _: self.reset_view())
         self.view_reset.on_click(lambda _: self.reset_view())
         self.fit_view.on_click(lambda _: self.reset_view())
         self.follow.on_update(lambda _: self._aim_camera(reset=True) if self.follow.value else None)
@@ -125,33 +116,24 @@ class MechanismApp:
         gui = self.gui
         self.folders[view.kind] = folder = gui.add_folder(view.folder, visible=visible, order=order)
         with folder:
-            what = getattr(view.core, "what_to_try", "") if view.kind.startswith("gen:") else ""
+            what = view.core.what_to_try
             if what:
                 gui.add_markdown(f"*{view.core.description}*  \n**What to try:** {what}")
             handles = {c: self.controls.add(c) for c in view.controls}
             with gui.add_folder(view.params_folder, expand_by_default=False):
                 params = {c.attr: self.controls.add(c) for c in view.param_controls}
             self.resets[view.kind] = gui.add_button(view.reset_label)
-        if not view.kind.startswith("gen:"):  # the hand-made views' handles by name (tests)
-            for c, h in handles.items():
-                setattr(self, c.attr, h)
-            setattr(self, view.params_attr, params)
         handles.update({c: params[c.attr] for c in view.param_controls})
         self.sim_controls[view.kind] = handles
         for h in handles.values():
             self.controls.on_change(h, self.request)
         self.resets[view.kind].on_click(lambda _: self.reset_to_paper())
 
-    def _view_for(self, title: str):
-        """The view of a dropdown entry: a hand-made one, or a generic view built on first use."""
-        for v in self.views.values():
-            if v.title == title and not v.kind.startswith("gen:"):
-                return v
+    def _view_for(self, title: str) -> GenericView:
+        """The view of a dropdown entry (built on first use)."""
         name = self.choices[title]
-        kind = f"gen:{name}"
+        kind = name
         if kind not in self.views:
-            from .generic import GenericView
-
             view = GenericView(self.scene, name)
             self.views[kind] = view
             first = next(iter(self.folders.values()))
@@ -169,6 +151,19 @@ class MechanismApp:
 
     def view_of(self, kind: str):
         return self.views[kind]
+
+    def control(self, field: str):
+        """The shown system's control handle for a settings field (``"gamma"``, ``"variant"``,
+        ``"params.m"``, ``"initial.u1"``, ``"option.compare"``, ...); KeyError if it has none."""
+        for c, h in self.sim_controls[self.kind].items():
+            if c.field == field:
+                return h
+        raise KeyError(f"{self.system_view.system} has no control for {field!r}")
+
+    @property
+    def reset(self):
+        """The shown system's reset button."""
+        return self.resets[self.kind]
 
     def alive(self) -> bool:
         """The browser is still there (always, for a test's shared server)."""
@@ -203,7 +198,8 @@ class MechanismApp:
             self.seek(float(self.controls.value(self.time)))
 
     def reset_to_paper(self) -> None:
-        """Every control of the current scene back to the paper's values: one re-simulation."""
+        """Every control of the current scene back to its default (the system's showcase, e.g. the
+        paper's values, where it declares one): one re-simulation."""
         self.runner.quiet = True
         try:
             for c, h in self.sim_controls[self.kind].items():
@@ -218,7 +214,6 @@ class MechanismApp:
         for kind, folder in self.folders.items():
             folder.visible = kind == self.kind
         self.follow.visible = self.system_view.follows
-        self.view.visible = self.system_view.follows and not self.kind.startswith("gen:")
         for v in self.views.values():
             v.root.visible = v is self.system_view
         self.plots.show_kind(self.kind)
@@ -320,7 +315,7 @@ class MechanismApp:
         traj = self.traj
         if row is None and traj is not None and traj.kind == self.kind:
             row = traj.row(next(iter(traj.runs)), self.t_now)
-        self.camera.aim(self.system_view, self.view.value, row, reset=reset)
+        self.camera.aim(self.system_view, "system", row, reset=reset)
 
     # ---------------------------------------------------------------- lifecycle
     def wait_idle(self, timeout: float = 30.0) -> bool:

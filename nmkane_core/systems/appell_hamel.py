@@ -9,6 +9,15 @@ The holonomic equations Q u̇ = P come from sympy.physics.mechanics' KanesMethod
 *unconstrained* system (the wheel as a rigid body, the load as a particle, gravity); the
 tests check them against the paper's (99)–(100).  Two constraint models of the same
 mechanism: ``nonlinear`` (57)+(58)+(59) and ``linear`` (101)+(102)+(59).
+
+Visuals (:func:`_visuals`): the frame, wheel, pulleys, thread and load as the viewer draws
+them.  Everything riding on the frame is placed in the *body frame*: origin at P's (x, y)
+on the plane, x along the heading θ, y along the wheel's axle, z up.  The wheel centre o is
+ρ behind P at height a (53)–(54) and spins by φ about the axle; the drum (radius b) sits
+beside the disk, the thread leaves its rear vertically, runs over two pulleys of radius b
+and hangs P: z = z0 − bφ (59).  The paper gives no pulley height: the axles are 2 m above
+the highest start point of the load or the wheel, h = max(z0, 2a + b) + 2.  The paper's
+load keeps falling below the plane (z < 0): its bar continues through a hole in the plane.
 """
 
 from __future__ import annotations
@@ -107,6 +116,96 @@ def _model(name: str):
     )
 
 
+MEMBER = 0.18  # m, thickness of the frame's members
+LOAD_RADIUS = 0.35  # m, the load P drawn as a ball (the paper's P is a particle)
+BAR_Y = -0.22  # m, P's guide bar runs just behind the thread (body y)
+FRAME_COLOR = (150, 160, 178)
+
+
+def _visuals():
+    import sympy as sp
+
+    from ..model import plain_symbols
+    from ..visuals import (
+        Frame,
+        Visuals,
+        box,
+        cylinder,
+        ground,
+        label,
+        polyline,
+        rod,
+        rot_y,
+        rot_z,
+        segments,
+        sphere,
+        trace,
+    )
+
+    th, ph, x, y, z = plain_symbols(COORDINATES)
+    a, b, rho, z0 = sp.symbols("a b rho z0", real=True)
+    h = sp.Max(z0, 2 * a + b) + 2  # pulley axles
+    w, dl = 0.15 * a, 0.3 * a  # wheel width, drum length
+    drum_y = w / 2 + 0.05 * a + dl / 2
+    yl, yr = -(w / 2 + 0.15), drum_y + dl / 2 + 0.15  # the fork's struts either side of disk and drum
+    spread = sp.Max(3, 0.15 * h)  # the legs' feet on the plane
+    Rz = rot_z(th)
+
+    def world(px, py, pz):  # a body-frame point in the world
+        return tuple(sp.Matrix([x, y, 0]) + Rz * sp.Matrix([px, py, pz]))
+
+    members = {
+        "beam": ((-rho - 0.4, yl, h), (0.4, yl, h)),  # carries the pulleys
+        "fork_left": ((-rho, yl, a), (-rho, yl, h)),  # holds the axle
+        "fork_right": ((-rho, yr, a), (-rho, yr, h)),
+        "fork_top": ((-rho, yl, h), (-rho, yr, h)),  # pulley 1's axle
+        "pulley2_axle": ((-b, yl, h), (-b, 0.15, h)),
+        "bar": ((0, BAR_Y, 0), (0, BAR_Y, h)),  # P's guide
+        "bar_arm": ((0, BAR_Y, h), (0.4, yl, h)),
+        "leg_left": ((-0.6, yl, h), (-0.6, yl - spread, 0)),  # the two legs that slide on the plane
+        "leg_right": ((-0.6, yl, h), (-0.6, yl + spread, 0)),
+    }
+    frame = [rod(k, "body", p, q, MEMBER, FRAME_COLOR) for k, (p, q) in members.items()]
+    frame += [
+        rod("axle", "body", (-rho, yl, a), (-rho, yr, a), 0.06, FRAME_COLOR),
+        box("foot_left", "body", (1.2, 0.3, 0.08), (-0.6, yl - spread, 0.04), FRAME_COLOR),
+        box("foot_right", "body", (1.2, 0.3, 0.08), (-0.6, yl + spread, 0.04), FRAME_COLOR),
+        cylinder("pulley1", "body", b, 0.12, "y", (-rho, drum_y, h), (200, 140, 40)),
+        cylinder("pulley2", "body", b, 0.12, "y", (-b, 0, h), (200, 140, 40)),
+        cylinder("hole", "body", 0.5, 0.02, "z", (0, BAR_Y / 2, 0.012), (45, 40, 35), opacity=0.75),
+    ]
+    wheel = [
+        cylinder("disk", "wheel", a, w, "y", color=(48, 88, 196)),
+        box("stripe", "wheel", (0.92 * a, w + 0.02, 0.12 * a), (0.46 * a, 0, 0), (245, 245, 245)),
+        cylinder("drum", "wheel", b, dl, "y", (0, drum_y, 0), (226, 178, 40)),
+        box("drum_stripe", "wheel", (0.9 * b, dl + 0.02, 0.1 * b), (0.45 * b, drum_y, 0), (120, 80, 10)),
+    ]
+    # the thread: off the drum's rear, over pulley 1, over pulley 2, down to the load
+    arc = [sp.pi - sp.pi / 2 * k / 7 for k in range(8)]
+    thread = [(-rho - b, drum_y, a)] + [(-rho + b * sp.cos(t), drum_y, h + b * sp.sin(t)) for t in arc]
+    thread += [(-b + b * sp.cos(t - sp.pi / 2), 0, h + b * sp.sin(t - sp.pi / 2)) for t in arc]
+    return Visuals(
+        frames=(
+            Frame("body", (x, y, 0), Rz),
+            Frame("wheel", world(-rho, 0, a), Rz * rot_y(ph)),
+        ),
+        shapes=(
+            ground(0),
+            *frame,
+            *wheel,
+            sphere("load", LOAD_RADIUS, at=(x, y, z), color=(36, 160, 72)),
+            polyline("thread", [world(*p) for p in thread] + [(x, y, z + LOAD_RADIUS)], (120, 30, 20), 2.0),
+            # below the plane the bar goes on through the hole, as deep as the load goes
+            segments("pit", [((x, y, 0), (x, y, (z - sp.Abs(z)) / 2 - LOAD_RADIUS - 1))], FRAME_COLOR, 6.0),
+            trace("trace", (x, y, 0.1), thickness=3.5),  # P's intercept on the plane (Fig. 7)
+            label("load_label", "load P", (x, y, z + 2 * LOAD_RADIUS)),
+            label("wheel_label", "wheel W", frame="body", offset=(-rho, yl - 0.3, 2 * a + 0.3)),
+            label("pulley_label", "pulleys", frame="body", offset=(-rho / 2, drum_y, h + b + 0.5)),
+        ),
+        view=(-0.5, 0.85, 0.3),  # from behind, on the drum's side, a little above
+    )
+
+
 def appell_hamel() -> System:
     return System(
         name="appell-hamel",
@@ -135,4 +234,5 @@ def appell_hamel() -> System:
         default_t_final=20.0,
         default_integrator="kutta-merson",
         description="Frame, wheel and hanging load; constraints modeled nonlinear (NC) or linear (LC) in the speeds.",
+        visuals=_visuals,
     )

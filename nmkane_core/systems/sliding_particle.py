@@ -6,6 +6,11 @@ with the holonomic constraint ψ = y + x²/l0 − l0 in acceleration form, optio
 Baumgarte terms (112); ``minimal`` — Kane's minimal equation (137) in x alone, derived
 here with KanesMethod from the particle constrained to the curve, reporting y and u2 as
 outputs.
+
+Visuals: the bowl ψ = 0 as a translucent strip and the particle, drawn with y pointing
+down (at height −y).  The viewer starts on the paper's Fig. 16-like comparison
+(``showcase``): the damped nonminimal run (DN: Γ1 = −20, Γ2 = −100) with two ghosts, the
+minimal solution (M) and the same run undamped (N: Γ = 0).
 """
 
 from __future__ import annotations
@@ -77,6 +82,24 @@ def _minimal():
     )
 
 
+def _visuals():
+    import sympy as sp
+
+    from ..model import plain_symbols
+    from ..visuals import Visuals, sphere, strip
+
+    x, y = plain_symbols("x y")
+    l0 = sp.Symbol("l0", real=True)
+    path = [(s * l0, 0, s**2 * l0 - l0) for s in (sp.Rational(k - 40, 25) for k in range(81))]  # x ∈ ±1.6 l0
+    return Visuals(
+        shapes=(
+            strip("bowl", path, 1.0, "y"),
+            sphere("particle", 0.09, at=(x, 0, -y), color=(31, 119, 180)),
+        ),
+        view=(0.0, -1.0, 0.3),
+    )
+
+
 def sliding_particle() -> System:
     return System(
         name="sliding-particle",
@@ -91,4 +114,7 @@ def sliding_particle() -> System:
         default_t_final=20.0,
         default_integrator="kutta-merson",
         description="Holonomic constraint in acceleration form with Baumgarte stabilization (Γ1, Γ2).",
+        visuals=_visuals,
+        # the paper's Fig. 16-like comparison: DN shown, M and N (Γ = 0) as ghosts
+        showcase={"gamma1": -20.0, "gamma2": -100.0, "dt": 0.05, "t_final": 300.0, "compare": "all", "speed": 5.0},
     )
