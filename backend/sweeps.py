@@ -12,16 +12,25 @@ batches on the service's worker pool, or on the Dask scheduler named by
 ``NMKANE_DASK_SCHEDULER`` (``tcp://HOST:PORT``; its workers need nmkane installed).  Rows are
 stored in the service's SQLite file (tables ``sweeps`` and ``sweep_rows``), batch by batch,
 each batch in one transaction.
+
+A sweep belongs to the process that runs it (column ``owner``: host, pid and the process's
+start time).  When the service starts (and whenever the sweep store opens), a sweep left
+``queued`` or ``running`` by a process that is no longer there — killed, or the machine
+restarted — is marked ``interrupted``: it is not resumed (its rows so far stay readable;
+POST the request again to run it anew).  A sweep of another live service sharing the file
+is left alone.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import csv
 import io
 import math
 import os
 import secrets
+import socket
 import sqlite3
 import threading
 import time
@@ -42,7 +51,17 @@ from .models import RunSettings
 
 __all__ = ["SweepRequest", "SweepStore", "max_sweep_runs", "router"]
 
-router = APIRouter()
+
+@contextlib.asynccontextmanager
+async def _lifespan(app):
+    """At the service's start: open the sweep store, so sweeps a stopped service left running
+    are marked ``interrupted`` before the first request."""
+    if getattr(app, "state", None) is not None and hasattr(app.state, "settings"):
+        _manager_of(app)
+    yield
+
+
+router = APIRouter(lifespan=_lifespan)
 SWEEP_ID = Path(description="the sweep's id, as returned by POST /api/sweeps", min_length=1, max_length=64)
 _ERR = {"model": ErrorResponse}
 
@@ -91,7 +110,7 @@ class SweepState(BaseModel):
     id: str
     created: float
     system: str
-    status: str = Field(description="queued | running | done | failed")
+    status: str = Field(description="queued | running | done | failed | interrupted (the service stopped)")
     total: int
     done: int
     columns: list[str]
@@ -110,7 +129,8 @@ CREATE TABLE IF NOT EXISTS sweeps (
     done     INTEGER NOT NULL,
     request  BLOB NOT NULL,          -- JSON: the request as received
     columns  BLOB NOT NULL,          -- JSON: the output columns
-    message  TEXT NOT NULL DEFAULT ''
+    message  TEXT NOT NULL DEFAULT '',
+    owner    TEXT NOT NULL DEFAULT ''  -- host:pid:start of the process running it
 );
 CREATE TABLE IF NOT EXISTS sweep_rows (
     sweep_id TEXT NOT NULL,
@@ -121,14 +141,83 @@ CREATE TABLE IF NOT EXISTS sweep_rows (
 """
 
 
+def _start_time(pid: int) -> str | None:
+    """When process ``pid`` started (clock ticks since boot, from /proc), '' where /proc is
+    missing, None if there is no such process."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[19]
+    except FileNotFoundError:
+        if os.path.isdir("/proc/self"):
+            return None
+    except (OSError, IndexError):
+        return ""
+    try:  # no /proc: whether the pid exists at all
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return None
+    except OSError:
+        pass
+    return ""
+
+
+def process_owner(pid: int | None = None) -> str:
+    """``host:pid:start`` of a process (this one by default): a pid reused later differs in start."""
+    pid = os.getpid() if pid is None else pid
+    return f"{socket.gethostname()}:{pid}:{_start_time(pid) or ''}"
+
+
+def owner_alive(owner: str) -> bool:
+    """Whether the process named by ``owner`` (:func:`process_owner`) still runs.  Another
+    host's process counts as gone: a SQLite file is not shared between machines."""
+    host, _, rest = owner.partition(":")
+    pid_text, _, start = rest.partition(":")
+    if host != socket.gethostname() or not pid_text.isdigit():
+        return False
+    now = _start_time(int(pid_text))
+    return now is not None and (now == start or "" in (now, start))
+
+
 class SweepStore:
-    """The sweeps of one SQLite file (the service's run database); one writer connection."""
+    """The sweeps of one SQLite file (the service's run database); one writer connection.
+
+    Opening it marks the sweeps of processes that are gone ``interrupted`` (:meth:`interrupt_orphans`)."""
 
     def __init__(self, path):
         self._lock = threading.Lock()
         self._db = sqlite3.connect(path, check_same_thread=False, isolation_level=None, timeout=30)
         self._db.execute("PRAGMA journal_mode=WAL")
         self._db.executescript(SCHEMA)
+        cols = {r[1] for r in self._db.execute("PRAGMA table_info(sweeps)")}
+        if "owner" not in cols:  # a file from before the column
+            with contextlib.suppress(sqlite3.OperationalError):  # another process added it meanwhile
+                self._db.execute("ALTER TABLE sweeps ADD COLUMN owner TEXT NOT NULL DEFAULT ''")
+        self.owner = process_owner()
+        self.interrupted = self.interrupt_orphans()
+
+    def interrupt_orphans(self) -> list[str]:
+        """Mark ``interrupted`` every queued or running sweep whose process is gone; their ids."""
+        with self._lock:
+            found = self._db.execute(
+                "SELECT id, owner, done, total FROM sweeps WHERE status IN ('queued', 'running')"
+            ).fetchall()
+        gone = [r for r in found if not owner_alive(r[1])]
+        if gone:
+            self._tx(
+                [
+                    (
+                        "UPDATE sweeps SET status = 'interrupted', message = ? "
+                        "WHERE id = ? AND status IN ('queued', 'running')",
+                        (
+                            f"the service stopped after {done} of {total} runs; the rows so far are kept; "
+                            "POST the request again to run it anew",
+                            sweep_id,
+                        ),
+                    )
+                    for sweep_id, _, done, total in gone
+                ]
+            )
+        return [r[0] for r in gone]
 
     def _tx(self, statements):
         with self._lock:
@@ -149,9 +238,9 @@ class SweepStore:
         self._tx(
             [
                 (
-                    "INSERT INTO sweeps (id, created, system, status, total, done, request, columns) "
-                    "VALUES (?, ?, ?, 'queued', ?, 0, ?, ?)",
-                    (sweep_id, created, system, total, orjson.dumps(request), orjson.dumps(columns)),
+                    "INSERT INTO sweeps (id, created, system, status, total, done, request, columns, owner) "
+                    "VALUES (?, ?, ?, 'queued', ?, 0, ?, ?, ?)",
+                    (sweep_id, created, system, total, orjson.dumps(request), orjson.dumps(columns), self.owner),
                 )
             ]
         )
@@ -274,7 +363,10 @@ class SweepManager:
 
 
 def _manager(request: Request) -> SweepManager:
-    app = request.app
+    return _manager_of(request.app)
+
+
+def _manager_of(app) -> SweepManager:
     with _LOCK:
         m = getattr(app.state, "sweeps", None)
         if m is None:
