@@ -201,9 +201,20 @@ def test_dask_local_cluster_equals_direct_runs(tmp_path):
         pids = set(ex.client.run(__import__("os").getpid).values())
         assert len(pids) == 2  # two worker processes
         res = run_sweep(BASE, spec, out, executor=ex, progress=False)
+        # a second sweep on the same client, with other base settings (the scattered base of
+        # the first must not collide with this one's: it once did, key by key)
+        out2 = str(tmp_path / "s2.csv")
+        res2 = run_sweep(
+            {**BASE, "t_final": 0.3}, sweep_spec(grid=["gamma1=-20,-10"]), out2, executor=ex, progress=False
+        )
+        assert res2.ran == 2 and res2.statuses == {"ok": 2}
     assert res.executor == "dask" and res.ran == 4
     rows = _check_rows_equal_direct(out, ["integrator", "params.m"], 4)
     assert {r["integrator"] for r in rows} == {"rk4", "kutta-merson"}
+    _, rows2 = read_rows(out2)
+    for r in rows2:
+        want = simulate({**BASE, "t_final": 0.3, "gamma1": r["gamma1"]}, progress=False).summary
+        assert r["max_abs_violation.surface"] == want["max_abs_violation"]["surface"] and r["steps"] == 30
 
 
 def test_resume_after_an_interruption(tmp_path):
@@ -384,3 +395,28 @@ def test_rest_bad_sweeps_are_422(api, body, field, needle):
     assert r.status_code == 422, r.text
     detail = r.json()["detail"][0]
     assert detail["loc"][1] == field and needle in detail["msg"], detail
+
+
+def test_bench_sweep_rows_measure_and_compare_rows(monkeypatch):
+    """The bench's sweep rows on a small grid: every executor's rows equal the one-core rows,
+    and the streaming-memory probe measures a real ``nmkane sweep`` process."""
+    require("distributed")
+    import nmkane_core.sweep.bench as sb
+
+    monkeypatch.setattr(sb, "GRID", ["gamma1=-40,-5", "gamma2=-400,-25"])
+    monkeypatch.setattr(sb, "TINY_GRID", ["gamma1=-40:-1:4", "gamma2=-400:-10:2"])
+    got = []
+
+    def add(workload, wall, evals=None, target=None, ok=None, note=""):
+        got.append((workload, wall, target, ok, note))
+
+    sb.sweep_rows(add, quick=True)
+    names = [a[0] for a in got]
+    assert any("one core" in n for n in names) and any("local executor" in n for n in names)
+    assert any("Dask LocalCluster" in n for n in names) and any("Dask overhead" in n for n in names)
+    for a in got:
+        assert a[1] > 0 and "DIFFERENT" not in a[-1]
+        if "executor" in a[0] or "LocalCluster" in a[0]:
+            assert "rows equal" in a[-1]
+    mb, wall = sb._sweep_peak_rss(6, 1)
+    assert 10 < mb < 4000 and wall > 0
