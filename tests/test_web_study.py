@@ -93,6 +93,12 @@ def test_map_equals_direct_simulate_runs_and_a_cell_loads_into_the_sliders(app):
     assert last["gamma"] == g.gains[4] and last["dt"] == g.dts[2] and last["gamma1"] == -20.0
     assert app.traj.main.settings["gamma"] == g.gains[4]
 
+    before = st.image.image.copy()  # another colour: the map is drawn again, the same cell kept
+    st.metric.value = "log10 max|ΔE| (energy error)"
+    assert st.cell.value == g.label(cell, st.metric.value) and st.cell.value in st.cell.options
+    assert f"→ {ze[2, 4]:.2f}" in st.cell.value and not np.array_equal(before, st.image.image)
+    st.metric.value = "log10 max|violation|"
+
     assert st.load_best()  # the smallest value on the map
     j, i = np.unravel_index(np.nanargmin(zv), zv.shape)
     assert app.gamma.value == g.gains[i] and app.log_dt.value == g.log_dts[j]

@@ -194,8 +194,8 @@ class StudyPanel:
         self.load_button = gui.add_button("Load cell into the sliders")
         self.best_button = gui.add_button("Load best cell")
         self.compute_button.on_click(lambda _: self.start())
-        self.metric.on_update(lambda _: self._redraw(keep_cell=True))
-        self.cell.on_update(lambda _: self._redraw(keep_cell=True))
+        self.metric.on_update(lambda _: self._redraw())
+        self.cell.on_update(lambda _: self._redraw())
         self.load_button.on_click(lambda _: self.load(self._cells.get(self.cell.value)))
         self.best_button.on_click(lambda _: self.load_best())
         app.scene_choice.on_update(lambda _: self.follow_scene())
@@ -325,18 +325,22 @@ class StudyPanel:
         best = grid.best(metric)
         self.cell.value = grid.label(best, metric) if best is not None else next(iter(self._cells))
 
-    def _redraw(self, keep_cell: bool) -> None:
+    def _redraw(self) -> None:
+        """Draw the map for the chosen metric with the chosen cell marked (a metric change
+        relabels the cells: the same cell stays chosen under its new label)."""
         grid = self.grid
         if grid is None or self._quiet:
             return
         metric = self.metric.value
         cell = self._cells.get(self.cell.value)
-        if keep_cell and cell is not None and self.cell.value != grid.label(cell, metric):
-            # a metric change relabels the cells: the same cell under its new label
-            self._cells = {grid.label(c, metric): c for c in grid.cells()}
-            self.cell.options = tuple(self._cells)
-            self.cell.value = grid.label(cell, metric)
-            return  # the cell's callback redraws
+        if cell is not None and self.cell.value != grid.label(cell, metric):
+            self._quiet = True
+            try:
+                self._cells = {grid.label(c, metric): c for c in grid.cells()}
+                self.cell.options = tuple(self._cells)
+                self.cell.value = grid.label(cell, metric)
+            finally:
+                self._quiet = False
         img = render(grid, metric, cell, _title(grid))
         if self.app.alive():
             self.image.image = img
@@ -357,7 +361,8 @@ class StudyPanel:
         app.runner.quiet = True
         try:
             handles[grid.gain].value = grid.gains[i]
-            handles["log_dt"].value = grid.log_dts[j]
+            if "log_dt" in handles:  # every view has one; a view without keeps its Δt
+                handles["log_dt"].value = grid.log_dts[j]
         finally:
             app.runner.quiet = False
         app.request()
