@@ -141,10 +141,11 @@ def render(grid: StudyGrid, metric: str, cell: tuple[int, int] | None = None, ti
     im = ax.imshow(np.ma.masked_invalid(z), origin="lower", aspect="auto", cmap=cmap)
     fig.colorbar(im, ax=ax, label=metric)
     bad = grid.status()
+    lo, hi = im.get_clim()
     for j in range(len(grid.dts)):
         for i in range(len(grid.gains)):
-            v = z[j, i]
-            light = not math.isfinite(v) or im.norm(v) > 0.6  # dark text on the yellow end and on grey
+            v = float(z[j, i])
+            light = not math.isfinite(v) or v - lo > 0.6 * (hi - lo)  # dark text on the yellow end and on grey
             text = f"{v:.1f}" if math.isfinite(v) else bad.get((j, i), "")
             ax.text(i, j, text, ha="center", va="center", fontsize=6.5, color="k" if light else "w")
     if cell is not None:
