@@ -147,7 +147,8 @@ def render(grid: StudyGrid, metric: str, cell: tuple[int, int] | None = None, ti
             v = float(z[j, i])
             light = not math.isfinite(v) or v - lo > 0.6 * (hi - lo)  # dark text on the yellow end and on grey
             text = f"{v:.1f}" if math.isfinite(v) else bad.get((j, i), "")
-            ax.text(i, j, text, ha="center", va="center", fontsize=6.5, color="k" if light else "w")
+            size = 6.5 if math.isfinite(v) else 5.5  # a status word is longer than a number
+            ax.text(i, j, text, ha="center", va="center", fontsize=size, color="k" if light else "w")
     if cell is not None:
         ax.add_patch(Rectangle((cell[1] - 0.5, cell[0] - 0.5), 1, 1, fill=False, ec="red", lw=2.5))
     ax.set_xticks(range(len(grid.gains)), [f"{g:g}" for g in grid.gains], fontsize=8)
