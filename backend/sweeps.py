@@ -12,21 +12,22 @@ batches on the service's worker pool, or on the Dask scheduler named by
 ``NMKANE_DASK_SCHEDULER`` (``tcp://HOST:PORT``; its workers need nmkane installed).  Rows are
 stored in the service's SQLite file (tables ``sweeps`` and ``sweep_rows``), batch by batch,
 each batch in one transaction.
+
+A sweep left ``queued`` or ``running`` by a process that is gone (killed, the machine
+restarted) is marked ``interrupted`` when the service starts; see :mod:`backend.sweep_store`.
 """
 
 from __future__ import annotations
 
 import concurrent.futures as cf
+import contextlib
 import csv
 import io
 import math
 import os
 import secrets
-import sqlite3
 import threading
-import time
 
-import orjson
 from fastapi import APIRouter, Path, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
@@ -39,10 +40,21 @@ from nmkane_core.sweep.spec import SweepSpec, sweep_spec
 
 from .errors import ErrorResponse, error_response, item
 from .models import RunSettings
+from .sweep_store import SweepStore, owner_alive, process_owner
 
-__all__ = ["SweepRequest", "SweepStore", "max_sweep_runs", "router"]
+__all__ = ["SweepRequest", "SweepStore", "max_sweep_runs", "owner_alive", "process_owner", "router"]
 
-router = APIRouter()
+
+@contextlib.asynccontextmanager
+async def _lifespan(app):
+    """At the service's start: open the sweep store, so sweeps a stopped service left running
+    are marked ``interrupted`` before the first request."""
+    if getattr(app, "state", None) is not None and hasattr(app.state, "settings"):
+        _manager_of(app)
+    yield
+
+
+router = APIRouter(lifespan=_lifespan)
 SWEEP_ID = Path(description="the sweep's id, as returned by POST /api/sweeps", min_length=1, max_length=64)
 _ERR = {"model": ErrorResponse}
 
@@ -91,110 +103,13 @@ class SweepState(BaseModel):
     id: str
     created: float
     system: str
-    status: str = Field(description="queued | running | done | failed")
+    status: str = Field(description="queued | running | done | failed | interrupted (the service stopped)")
     total: int
     done: int
     columns: list[str]
     rows: list[dict]
     offset: int
     message: str = ""
-
-
-SCHEMA = """
-CREATE TABLE IF NOT EXISTS sweeps (
-    id       TEXT PRIMARY KEY,
-    created  REAL NOT NULL,
-    system   TEXT NOT NULL,
-    status   TEXT NOT NULL,
-    total    INTEGER NOT NULL,
-    done     INTEGER NOT NULL,
-    request  BLOB NOT NULL,          -- JSON: the request as received
-    columns  BLOB NOT NULL,          -- JSON: the output columns
-    message  TEXT NOT NULL DEFAULT ''
-);
-CREATE TABLE IF NOT EXISTS sweep_rows (
-    sweep_id TEXT NOT NULL,
-    seq      INTEGER NOT NULL,
-    row      BLOB NOT NULL,          -- JSON: one run's row
-    PRIMARY KEY (sweep_id, seq)
-);
-"""
-
-
-class SweepStore:
-    """The sweeps of one SQLite file (the service's run database); one writer connection."""
-
-    def __init__(self, path):
-        self._lock = threading.Lock()
-        self._db = sqlite3.connect(path, check_same_thread=False, isolation_level=None, timeout=30)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.executescript(SCHEMA)
-
-    def _tx(self, statements):
-        with self._lock:
-            self._db.execute("BEGIN IMMEDIATE")
-            try:
-                for sql, args in statements:
-                    if args and isinstance(args, list):
-                        self._db.executemany(sql, args)
-                    else:
-                        self._db.execute(sql, args or ())
-                self._db.execute("COMMIT")
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
-
-    def create(self, sweep_id, system, total, request: dict, columns: list[str]) -> float:
-        created = time.time()
-        self._tx(
-            [
-                (
-                    "INSERT INTO sweeps (id, created, system, status, total, done, request, columns) "
-                    "VALUES (?, ?, ?, 'queued', ?, 0, ?, ?)",
-                    (sweep_id, created, system, total, orjson.dumps(request), orjson.dumps(columns)),
-                )
-            ]
-        )
-        return created
-
-    def set_status(self, sweep_id, status, message=""):
-        self._tx([("UPDATE sweeps SET status = ?, message = ? WHERE id = ?", (status, message, sweep_id))])
-
-    def add_rows(self, sweep_id, start: int, rows: list[dict]) -> None:
-        """Rows ``start``, ``start + 1``, ... of a sweep, and its progress, in one transaction."""
-        data = [(sweep_id, start + i, orjson.dumps(r)) for i, r in enumerate(rows)]
-        self._tx(
-            [
-                ("INSERT INTO sweep_rows (sweep_id, seq, row) VALUES (?, ?, ?)", data),
-                ("UPDATE sweeps SET done = ? WHERE id = ?", (start + len(rows), sweep_id)),
-            ]
-        )
-
-    def get(self, sweep_id) -> dict | None:
-        with self._lock:
-            r = self._db.execute(
-                "SELECT id, created, system, status, total, done, columns, message FROM sweeps WHERE id = ?",
-                (sweep_id,),
-            ).fetchone()
-        if r is None:
-            return None
-        return {
-            "id": r[0],
-            "created": r[1],
-            "system": r[2],
-            "status": r[3],
-            "total": r[4],
-            "done": r[5],
-            "columns": orjson.loads(r[6]),
-            "message": r[7],
-        }
-
-    def rows(self, sweep_id, offset=0, limit=-1) -> list[dict]:
-        with self._lock:
-            got = self._db.execute(
-                "SELECT row FROM sweep_rows WHERE sweep_id = ? ORDER BY seq LIMIT ? OFFSET ?", (sweep_id, limit, offset)
-            ).fetchall()
-        return [orjson.loads(r[0]) for r in got]
 
 
 class _Sink:
@@ -274,7 +189,10 @@ class SweepManager:
 
 
 def _manager(request: Request) -> SweepManager:
-    app = request.app
+    return _manager_of(request.app)
+
+
+def _manager_of(app) -> SweepManager:
     with _LOCK:
         m = getattr(app.state, "sweeps", None)
         if m is None:

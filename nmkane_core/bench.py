@@ -12,6 +12,8 @@ targets are those of the compiled-kernels issue:
 * interactive re-run: 20 s at Δt = 0.01 with a new Γ, step or model, warm
 * 500 s to a tolerance of 1e−10 with an adaptive integrator (time to an accurate answer)
 * Γ sweep: 64 sliding-particle runs, 500 s at Δt = 0.001, one core vs all cores
+* sweeps (:mod:`nmkane_core.sweep.bench`): local processes and Dask over 2 cores, Dask
+  overhead per run; with ``--long`` the 10,000-run streaming memory
 """
 
 from __future__ import annotations
@@ -65,7 +67,8 @@ def _cli_seconds(args, env=None):
     return wall
 
 
-def run_bench(quick: bool = False, log=print) -> list[dict]:
+def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
+    """Measure every row; ``quick``: shorter workloads; ``long``: the slow rows too (10,000-run sweep)."""
     rows: list[dict] = []
     system = get_system("appell-hamel")
     long_t = 50.0 if quick else 500.0
@@ -242,7 +245,16 @@ def run_bench(quick: bool = False, log=print) -> list[dict]:
         speedup >= 1.7 if cores >= 2 else None,
         f"({1 / one:.2f} runs/s on one core, {1 / allc:.2f} runs/s on {cores}: {speedup:.2f}×)",
     )
+    _sweep_rows(add, quick, long)
     return rows
+
+
+def _sweep_rows(add, quick: bool, long: bool) -> None:
+    """The sweep issue's rows (:mod:`nmkane_core.sweep.bench`): executors over 2 cores, Dask
+    overhead, and with ``long`` the 10,000-run streaming memory."""
+    from .sweep.bench import sweep_rows
+
+    sweep_rows(add, quick=quick, long=long)
 
 
 def _user_system_rows(add) -> None:
@@ -357,12 +369,12 @@ def format_table(rows) -> str:
     return "\n".join(lines)
 
 
-def main(json_out: bool = False, quick: bool = False, strict: bool = False) -> int:
+def main(json_out: bool = False, quick: bool = False, strict: bool = False, long: bool = False) -> int:
     """Measure, print every row with PASS/FAIL against its target, and return the exit status:
     0, or with ``strict`` 1 when a row misses its target (timings on a busy machine vary, so a
     missed target is reported, not an error, unless asked)."""
     log = (lambda *_: None) if json_out else (lambda msg: print(msg, file=sys.stderr))
-    rows = run_bench(quick=quick, log=log)
+    rows = run_bench(quick=quick, log=log, long=long)
     failed = [r["workload"] for r in rows if r["pass"] is False]
     if json_out:
         print(

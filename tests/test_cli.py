@@ -151,6 +151,7 @@ def test_bench_quick_measures_every_workload():
         "interactive re-run",
         "adaptive Kutta–Merson",
         "Γ sweep",
+        "runs, local executor",
     ):
         assert part in names, part
     for r in rows:

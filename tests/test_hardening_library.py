@@ -200,7 +200,7 @@ def test_bench_exits_0_when_a_target_is_missed_unless_strict(monkeypatch, capsys
         {"workload": "fast", "wall_s": 0.1, "evals_per_s": None, "target": "≤ 1 s", "pass": True, "note": ""},
         {"workload": "slow", "wall_s": 9.0, "evals_per_s": None, "target": "≤ 1 s", "pass": False, "note": ""},
     ]
-    monkeypatch.setattr(bench, "run_bench", lambda quick=False, log=print: rows)
+    monkeypatch.setattr(bench, "run_bench", lambda quick=False, log=print, long=False: rows)
     assert bench.main() == 0
     out = capsys.readouterr().out
     assert "PASS" in out and "FAIL" in out and "1 of 2 targets missed" in out

@@ -116,15 +116,67 @@ def test_bad_sweep_commands_print_one_line_and_exit_2(argv, needle, tmp_path, ca
     assert len(err.splitlines()) == 1 and needle in err, err
 
 
-def test_parquet_needs_pyarrow(tmp_path, capsys):
-    import importlib.util
+def test_parquet_needs_pyarrow(tmp_path, capsys, monkeypatch):
+    import sys
 
-    if importlib.util.find_spec("pyarrow") is None:
-        code = main(["sweep", "sliding-particle", "--grid", "gamma1=-1,-2", "--out", str(tmp_path / "s.parquet")])
-        err = capsys.readouterr().err
-        assert code == 2 and "pyarrow" in err and len(err.strip().splitlines()) == 1
-    else:
-        pytest.skip("pyarrow is installed")
+    for name in ("pyarrow", "pyarrow.parquet"):  # as if not installed (None in sys.modules: ImportError)
+        monkeypatch.setitem(sys.modules, name, None)
+    code = main(["sweep", "sliding-particle", "--grid", "gamma1=-1,-2", "--out", str(tmp_path / "s.parquet")])
+    err = capsys.readouterr().err
+    assert code == 2 and "pyarrow" in err and len(err.strip().splitlines()) == 1
+
+
+def test_parquet_rows_equal_the_csv_rows(tmp_path, capsys):
+    require("pyarrow")
+    spec = sweep_spec(grid=["integrator=rk4,kutta-merson"], log_grid=["gamma2=-10:-1000:3"])
+    csv_out, pq_out = str(tmp_path / "s.csv"), str(tmp_path / "s.parquet")
+    run_sweep(BASE, spec, csv_out, workers=1, progress=False)
+    argv = "sweep sliding-particle --t-final 0.5 --dt 0.01 --grid integrator=rk4,kutta-merson"
+    argv += " --log-grid gamma2=-10:-1000:3 --workers 1 --no-progress --out"
+    code = main([*argv.split(), pq_out])
+    assert code == 0, capsys.readouterr().err
+    c_cols, c_rows = read_rows(csv_out)
+    p_cols, p_rows = read_rows(pq_out)
+    assert p_cols == c_cols and len(p_rows) == len(c_rows) == 6
+
+    def same(r):  # wall time differs from run to run; everything else is equal, floats exactly
+        return {k: v for k, v in r.items() if k != "wall_time_s"}
+
+    key = ("integrator", "gamma2")
+    assert sorted(map(same, p_rows), key=lambda r: tuple(r[k] for k in key)) == sorted(
+        map(same, c_rows), key=lambda r: tuple(r[k] for k in key)
+    )
+    import pyarrow.parquet as pq
+
+    schema = pq.read_schema(pq_out)
+    assert str(schema.field("integrator").type) == "string" and str(schema.field("steps").type) == "int64"
+    assert str(schema.field("gamma2").type) == "double"
+    _check_rows_equal_direct(pq_out, ["integrator", "gamma2"], 6)
+
+
+def test_parquet_resume_after_an_interruption(tmp_path):
+    require("pyarrow")
+    spec = sweep_spec(grid=["gamma1=-40:-10:4", "gamma2=-100,-10"])
+    out = str(tmp_path / "s.parquet")
+    seen = []
+
+    def stop_after_three(rows):
+        seen.extend(rows)
+        if len(seen) >= 3:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        run_sweep(BASE, spec, out, workers=1, progress=False, on_rows=stop_after_three)
+    _, partial = read_rows(out)  # the rows written before the interruption are in the file
+    assert len(partial) == 3
+    res = run_sweep(BASE, spec, out, workers=1, progress=False)
+    assert res.skipped == 3 and res.ran == 5
+    rows = _check_rows_equal_direct(out, ["gamma1", "gamma2"], 8)
+    assert rows[:3] == partial  # the old rows first, unchanged
+    again = run_sweep(BASE, spec, out, workers=1, progress=False)
+    assert again.ran == 0 and again.skipped == 8
+    _, rows_again = read_rows(out)
+    assert rows_again == rows
 
 
 # ---------------------------------------------------------------- executors
@@ -149,9 +201,20 @@ def test_dask_local_cluster_equals_direct_runs(tmp_path):
         pids = set(ex.client.run(__import__("os").getpid).values())
         assert len(pids) == 2  # two worker processes
         res = run_sweep(BASE, spec, out, executor=ex, progress=False)
+        # a second sweep on the same client, with other base settings (the scattered base of
+        # the first must not collide with this one's: it once did, key by key)
+        out2 = str(tmp_path / "s2.csv")
+        res2 = run_sweep(
+            {**BASE, "t_final": 0.3}, sweep_spec(grid=["gamma1=-20,-10"]), out2, executor=ex, progress=False
+        )
+        assert res2.ran == 2 and res2.statuses == {"ok": 2}
     assert res.executor == "dask" and res.ran == 4
     rows = _check_rows_equal_direct(out, ["integrator", "params.m"], 4)
     assert {r["integrator"] for r in rows} == {"rk4", "kutta-merson"}
+    _, rows2 = read_rows(out2)
+    for r in rows2:
+        want = simulate({**BASE, "t_final": 0.3, "gamma1": r["gamma1"]}, progress=False).summary
+        assert r["max_abs_violation.surface"] == want["max_abs_violation"]["surface"] and r["steps"] == 30
 
 
 def test_resume_after_an_interruption(tmp_path):
@@ -332,3 +395,28 @@ def test_rest_bad_sweeps_are_422(api, body, field, needle):
     assert r.status_code == 422, r.text
     detail = r.json()["detail"][0]
     assert detail["loc"][1] == field and needle in detail["msg"], detail
+
+
+def test_bench_sweep_rows_measure_and_compare_rows(monkeypatch):
+    """The bench's sweep rows on a small grid: every executor's rows equal the one-core rows,
+    and the streaming-memory probe measures a real ``nmkane sweep`` process."""
+    require("distributed")
+    import nmkane_core.sweep.bench as sb
+
+    monkeypatch.setattr(sb, "GRID", ["gamma1=-40,-5", "gamma2=-400,-25"])
+    monkeypatch.setattr(sb, "TINY_GRID", ["gamma1=-40:-1:4", "gamma2=-400:-10:2"])
+    got = []
+
+    def add(workload, wall, evals=None, target=None, ok=None, note=""):
+        got.append((workload, wall, target, ok, note))
+
+    sb.sweep_rows(add, quick=True)
+    names = [a[0] for a in got]
+    assert any("one core" in n for n in names) and any("local executor" in n for n in names)
+    assert any("Dask LocalCluster" in n for n in names) and any("Dask overhead" in n for n in names)
+    for a in got:
+        assert a[1] > 0 and "DIFFERENT" not in a[-1]
+        if "executor" in a[0] or "LocalCluster" in a[0]:
+            assert "rows equal" in a[-1]
+    mb, wall = sb._sweep_peak_rss(6, 1)
+    assert 10 < mb < 4000 and wall > 0

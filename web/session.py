@@ -24,6 +24,7 @@ from .controls import ControlPanel, settings_from
 from .generic import GenericView, scene_choices
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
+from .study import StudyPanel
 
 
 class MechanismApp:
@@ -110,6 +111,8 @@ class MechanismApp:
         self.view_reset.on_click(lambda _: self.reset_view())
         self.fit_view.on_click(lambda _: self.reset_view())
         self.follow.on_update(lambda _: self._aim_camera(reset=True) if self.follow.value else None)
+        with gui.add_folder("Γ study", expand_by_default=False):  # web/study.py; follows the scene itself
+            self.study = StudyPanel(gui, self)
 
     def _add_view_gui(self, view, visible: bool, order: float | None = None) -> None:
         """A view's simulation folder (controls, parameters, reset button), wired to re-simulate."""

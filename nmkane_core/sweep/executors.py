@@ -238,8 +238,10 @@ class DaskExecutor(_Executor):
         from distributed import as_completed
 
         it = _batches(points, size)
-        # base and options travel once per worker, not once per task
-        base_f = self.client.scatter(base, broadcast=True)
+        # base and options travel once per worker, not once per task; as a list of one under a
+        # fresh key (a dict would be scattered value by value under its own keys, "dt", ..., which
+        # the next sweep on this client reuses while the cluster releases the old ones)
+        base_f = self.client.scatter([base], broadcast=True, hash=False)[0]
 
         def submit(b):
             return self.client.submit(
