@@ -114,7 +114,7 @@ def test_holonomic_gains_and_a_generic_system(app):
     s = _direct(g, 1, 2)
     assert g.z(next(iter(METRICS)))[2, 1] == _log(max(s["max_abs_violation"].values()))
     assert st.load((2, 1))
-    assert app.control("gamma2").value == g.gains[1] and app.traj.main.settings["gamma2"] == g.gains[1]  # (the last runs logged are the ghosts)
+    assert app.control("gamma2").value == g.gains[1] and app.traj.main.settings["gamma2"] == g.gains[1]
 
     app.scene_choice.value = _title(app, "knife-edge")  # a system from its declaration alone
     assert app.study.grid is None and app.study.gain.options == ("Γ",)
