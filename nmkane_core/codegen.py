@@ -40,6 +40,12 @@ _LOCK = threading.Lock()
 
 #: expression trees larger than this (nodes, summed over one function) skip cse's pre-optimizations
 CSE_BASIC_MAX_NODES = 20_000
+#: a model's ``terms`` with more statements than this is called by the right-hand side, not pasted
+#: into it: numba then compiles it once (~10 s for a thousand statements) and every loop links that
+#: compiled code (~1 s), where a pasted copy is compiled again in each loop that uses it; the call
+#: costs nothing measurable against such a body, while small models keep the pasted body (a call
+#: costs them ~20% of the loop's time)
+INLINE_TERMS_MAX_STATEMENTS = 300
 _LOADED: dict[str, object] = {}
 
 
@@ -207,7 +213,8 @@ def generate_source(derivation) -> str:
         f"\n\n# ---- generic part: nmkane_core/{name} ----\n" + (Path(__file__).parent / name).read_text()
         for name in GENERIC_FILES
     )
-    return inline_marked("\n\n".join(parts) + generic)
+    large = parts[1].count("\n") > INLINE_TERMS_MAX_STATEMENTS
+    return inline_marked("\n\n".join(parts) + generic, keep_calls={"terms"} if large else ())
 
 
 class _Rename(ast.NodeTransformer):
@@ -255,7 +262,7 @@ def _inline_body(fn: ast.FunctionDef, args: list, target, tag: str) -> list:
     return out
 
 
-def inline_marked(source: str) -> str:
+def inline_marked(source: str, keep_calls=()) -> str:
     """Inline at source level every call marked ``# INLINE`` in the module ``source``.
 
     A marked statement is ``f(args)  # INLINE`` or ``target = f(args)  # INLINE`` with ``f``
@@ -265,6 +272,7 @@ def inline_marked(source: str) -> str:
     for every call site (seconds of compilation for the right-hand side), and a plain call
     costs ~20% of the loop's time and keeps LLVM from forwarding the stores into the work
     array to their loads.  Functions without marked calls keep their text and comments.
+    Calls of the functions named in ``keep_calls`` stay calls even when marked.
     """
     lines = source.splitlines()
     tree = ast.parse(source)
@@ -283,6 +291,7 @@ def inline_marked(source: str) -> str:
                         and isinstance(call, ast.Call)
                         and isinstance(call.func, ast.Name)
                         and call.func.id in funcs
+                        and call.func.id not in keep_calls
                     ):
                         return st
                     count[0] += 1
