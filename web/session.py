@@ -21,6 +21,7 @@ from nmkane_core.simulate import simulate as core_simulate
 
 from .camera import CameraRig
 from .controls import ControlPanel, settings_from
+from . import stability
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
 from .systems import VIEWS, AppellHamelView, scene_choices
@@ -158,6 +159,7 @@ class MechanismApp:
             self._add_view_gui(view, visible=False, order=getattr(first, "order", None))
             with self.plots_folder:
                 self.plots.add_view(self.gui, view)
+                stability.attach(self, view)  # eigenvalue plot of a declared stability sweep
         return self.views[kind]
 
     @property
@@ -264,6 +266,7 @@ class MechanismApp:
                     self._writing_time = False
                 self._installs += 1
                 self.plots.write(traj, self.t_now)
+                stability.update(self, traj)  # the run's value marked on the eigenvalue plot
                 self.show_time(self.t_now)
                 self._refresh(force=True)
                 self.runner.record_install(traj)
