@@ -76,7 +76,8 @@ def crossings(
     system: System | str, rows: list[dict], params: Mapping[str, float] | None = None, xtol: float = 1e-11
 ) -> list[dict]:
     """Where the number of eigenvalues with a positive real part changes between rows of
-    :func:`sweep`, refined by bisection (the kind: a complex pair's or a real one's crossing): ``[{"name", "kind" ("complex"|"real"), "value", "reference"}]`` (``name`` and
+    :func:`sweep`, refined by bisection (the kind: a complex pair's or a real one's crossing):
+    ``[{"name", "kind" ("complex"|"real"), "value", "reference"}]`` (``name`` and
     ``reference`` from the declaration, None when it has none)."""
     system, st = _declared(system)
     out = []

@@ -69,7 +69,9 @@ def _generate(events: dict, state_names, param_names) -> str:
         try:
             e = _plain(e, names)
         except (sp.SympifyError, TypeError, AttributeError):
-            raise InputError(f"events.{k}", e, "a sympy expression of the state and parameters", "not an expression")
+            raise InputError(
+                f"events.{k}", e, "a sympy expression of the state and parameters", "not an expression"
+            ) from None
         bad = sorted(s.name for s in e.free_symbols if s.name not in names)
         if bad:
             raise InputError(f"events.{k}", bad[0], "names of coordinates, speeds and parameters", "unknown name")

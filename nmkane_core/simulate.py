@@ -75,8 +75,8 @@ def simulate(
         ``t``, ``state`` (by coordinate and speed name, plus the model's outputs),
         ``energy`` (None when the model declares none), ``violation`` (φ and ψ by
         constraint name, then monitors), ``settings`` (fully resolved) and ``summary``:
-        ``status`` — ``"ok"`` (reached t_final), ``"event"`` (a declared event fired), ``"singular"`` (J2 or T became singular
-        or ill-conditioned: reciprocal condition estimate ≤ ``rcond_min``),
+        ``status`` — ``"ok"`` (reached t_final), ``"event"`` (a declared event fired),
+        ``"singular"`` (J2 or T became singular or ill-conditioned: reciprocal condition estimate ≤ ``rcond_min``),
         ``"diverged"`` (the state or its derivative stopped being finite: an unstable
         step, or the model's expressions undefined where the motion went — a square root
         of a negative number, a zero denominator), ``"timeout"`` (time limit or

@@ -40,5 +40,3 @@ class Stability:
     value_of: Callable[[Mapping[str, float], Mapping[str, float]], float] | None = None
     names: Mapping[str, str] = field(default_factory=dict)
     reference: Mapping[str, float] = field(default_factory=dict)
-
-

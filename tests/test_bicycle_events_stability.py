@@ -93,7 +93,13 @@ def test_a_user_system_declares_an_event():
         x, v = plain_symbols("x v")
         g = sp.Symbol("g", positive=True)
         return MechanicalModel(
-            q=(x,), u=(v,), params=(g,), C=sp.eye(1), D=sp.zeros(1, 1), Q=sp.eye(1), P=sp.Matrix([-g]),
+            q=(x,),
+            u=(v,),
+            params=(g,),
+            C=sp.eye(1),
+            D=sp.zeros(1, 1),
+            Q=sp.eye(1),
+            P=sp.Matrix([-g]),
             energy=v**2 / 2 + g * x,
         )
 
@@ -103,8 +109,17 @@ def test_a_user_system_declares_an_event():
 
     from nmkane_core import Parameter
 
-    register(System(name="test-falling-ball", variants=model, parameters={"g": Parameter(9.81, 0, 100)},
-                    default_initial={"x": 1.0, "v": 0.0}, default_dt=0.001, default_t_final=2.0, events=events))
+    register(
+        System(
+            name="test-falling-ball",
+            variants=model,
+            parameters={"g": Parameter(9.81, 0, 100)},
+            default_initial={"x": 1.0, "v": 0.0},
+            default_dt=0.001,
+            default_t_final=2.0,
+            events=events,
+        )
+    )
     try:
         run = simulate({"system": "test-falling-ball", "every": 7}, progress=False)
         assert run.status == "event" and run.summary["event"]["name"] == "lands"

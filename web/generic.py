@@ -71,9 +71,7 @@ def initial_control(name: str, default: float, prefix: str, declared=None) -> Co
     """An initial value's slider: ``declared`` (min, max, label) from the System, else around the default."""
     span = max(3.0 * abs(default), 2.0)
     lo, hi, label = declared or (default - span, default + span, f"{name}(0)")
-    return Control(
-        f"{prefix}i_{name}", label, f"initial.{name}", default, min=lo, max=hi, step=_step(lo, hi)
-    )
+    return Control(f"{prefix}i_{name}", label, f"initial.{name}", default, min=lo, max=hi, step=_step(lo, hi))
 
 
 def generic_controls(core, prefix: str) -> tuple[Control, ...]:

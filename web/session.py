@@ -19,9 +19,9 @@ import viser
 
 from nmkane_core.simulate import simulate as core_simulate
 
+from . import stability
 from .camera import CameraRig
 from .controls import ControlPanel, settings_from
-from . import stability
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
 from .systems import VIEWS, AppellHamelView, scene_choices

@@ -62,8 +62,15 @@ def plot(system, rows: list[dict], found: list[dict], path: str) -> None:
         )
     for name, ref in st.reference.items():
         ax.axvline(ref, color="tab:red", ls=":", lw=1.2)
-        ax.annotate(f"{name} (published) {ref:.6f}", (ref, 0), xytext=(-12, 40), textcoords="offset points",
-                    color="tab:red", rotation=90, fontsize=8)
+        ax.annotate(
+            f"{name} (published) {ref:.6f}",
+            (ref, 0),
+            xytext=(-12, 40),
+            textcoords="offset points",
+            color="tab:red",
+            rotation=90,
+            fontsize=8,
+        )
     fast = st.names.get("fast")
     if fast:
         low = ev.real.min(axis=1)  # the most negative real part: where it is about −8, inside the axes

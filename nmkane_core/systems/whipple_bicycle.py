@@ -142,13 +142,12 @@ def _geometry():
     return q, u, par, frames, points, (d1, d2, d3, root)
 
 
-def _model():
-    import sympy as sp
+def _mechanics():
+    """Bodies, loads and constraints (sympy.physics.mechanics), as a dict, for :func:`_model`
+    and for the sympy-route benchmark (:mod:`nmkane_core.bench`)."""
     from sympy.physics import mechanics as me
 
-    from ..model import MechanicalModel
-
-    q, u, par, fr, pt, (d1, d2, d3, root) = _geometry()
+    q, u, par, fr, pt, (_, _, _, root) = _geometry()
     t = me.dynamicsymbols._t
     P = dict(zip(PARAM_NAMES, par, strict=True))
     g, rR, rF = P["g"], P["rR"], P["rF"]
@@ -195,6 +194,26 @@ def _model():
     kinetic = sum(b.kinetic_energy(N) for b in bodies)
     potential = -g * sum(m * p.pos_from(dn).dot(N.z) for p, m in ((do, mR), (bo, mB), (ho, mH), (fo, mF)))
     kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
+    return dict(
+        q=q,
+        u=u,
+        par=par,
+        N=N,
+        kd=kd,
+        bodies=bodies,
+        loads=loads,
+        nonholonomic=nonholonomic,
+        holonomic=holonomic,
+        energy=kinetic + potential,
+    )
+
+
+def _model():
+    from ..model import MechanicalModel
+
+    m = _mechanics()
+    q, u, par, N, kd, bodies, loads = (m[k] for k in ("q", "u", "par", "N", "kd", "bodies", "loads"))
+    nonholonomic, holonomic = m["nonholonomic"], m["holonomic"]
     return MechanicalModel.from_mechanics(
         "default",
         q=q,
@@ -208,7 +227,7 @@ def _model():
         holonomic=holonomic,
         u_independent=(u[3], u[5], u[6]),
         q_dependent=(q[4],),
-        energy=kinetic + potential,
+        energy=m["energy"],
         description="Carvallo–Whipple bicycle, Moore's coordinates, Meijaard's benchmark parameters",
     )
 
@@ -222,7 +241,7 @@ def _drawn():
     """World points (z up: Moore's N turned by π about x) of the drawing and the event."""
     import sympy as sp
 
-    q, u, par, fr, pt, (d1, _, _, _) = _geometry()
+    q, _, par, fr, pt, (d1, _, _, _) = _geometry()
     P = dict(zip(PARAM_NAMES, par, strict=True))
     w, c, lam, rR = P["w"], P["c"], P["lam"], P["rR"]
     N, Cb, Eb = fr["N"], fr["Cb"], fr["Eb"]
@@ -290,12 +309,14 @@ def _visuals():
         box("head_tube", "front", (0.05, 0.05, HEAD_TOP - HEAD_BOTTOM), offset=(0, 0, 0), color=(60, 60, 70)),
         sphere("head", 0.11, frame="rear", offset=(0.48, 0, -1.58 + rR), color=(230, 190, 150)),
         sphere("rear_mass_centre", 0.04, at=world(pt["bo"]), color=(20, 20, 20)),
-        trace("rear_contact", tuple(world(pt["dn"])[:2]) + (0.002,), color=(214, 48, 39)),
-        trace("front_contact", tuple(world(pt["fn"])[:2]) + (0.002,), color=(40, 110, 214)),
+        trace("rear_contact", (*world(pt["dn"])[:2], 0.002), color=(214, 48, 39)),
+        trace("front_contact", (*world(pt["fn"])[:2], 0.002), color=(40, 110, 214)),
     ]
     frames = (
         frame("rear", "do", "Cb"),
-        Frame("front", tuple((a + b) / 2 for a, b in zip(*map(world, _head_ends(d)), strict=True)), flip * N.dcm(fr["E"])),
+        Frame(
+            "front", tuple((a + b) / 2 for a, b in zip(*map(world, _head_ends(d)), strict=True)), flip * N.dcm(fr["E"])
+        ),
         frame("rear_wheel", "do", "D"),
         frame("front_wheel", "fo", "F"),
     )
