@@ -12,11 +12,11 @@ def test_plot_data_has_every_eigenvalue_and_no_nan():
         {"value": 1.0, "eigenvalues": [[-5.0, 0.0], [1.0, 2.0], [1.0, -2.0], [-30.0, 0.0]]},
         {"value": 2.0, "eigenvalues": [[-4.0, 0.0], [0.5, 3.0], [0.5, -3.0], [-31.0, 0.0]]},
     ]
-    x, re, im = StabilityPlot.data(rows)
-    assert len(x) == len(re) == len(im) == 8
-    assert np.all(np.isfinite(re)) and np.all(np.isfinite(im))
-    assert re.min() == -20.0  # clipped into the plot's range
-    assert sorted(im[[1, 2]]) == [2.0, 2.0]
+    x, *re, im = StabilityPlot.data(rows)
+    assert list(x) == [1.0, 2.0] and len(re) == 4
+    assert all(np.all(np.isfinite(r)) for r in re) and np.all(np.isfinite(im))
+    assert re[0][0] == -12.0 and re[3][0] == 1.0  # sorted, clipped just outside ±10
+    assert list(im) == [2.0, 3.0]
 
 
 def test_bicycle_declares_a_speed_sweep_with_the_benchmark_references():

@@ -20,6 +20,7 @@ from . import plots as pl
 
 KEY = "stability"
 COLORS = ("#222222", "#1f77b4")
+YMAX = 10.0  # the y range shown, ±1/s (Meijaard et al. 2007, Fig. 3)
 
 
 class StabilityPlot:
@@ -31,17 +32,20 @@ class StabilityPlot:
         self.params_key: tuple | None = None
         self.value = 0.0
         self._lock = threading.Lock()
+        n = len(self.st.keep)
         z = np.zeros(2)
+        series = [uplot.Series(label=f"{self.st.over} [{self.st.unit}]")]
+        series += [uplot.Series(label=f"Re λ{i + 1}", stroke=COLORS[0], width=1.5) for i in range(n)]
+        series.append(uplot.Series(label="max |Im λ|", stroke=COLORS[1], width=1.5, dash=(5.0, 3.0)))
         self.handle = gui.add_uplot(
             order=order,
-            data=(z, z, z),
-            series=(
-                uplot.Series(label=f"{self.st.over} [{self.st.unit}]"),
-                uplot.Series(label="Re λ", stroke=COLORS[0], width=0, points={"show": True, "size": 3}),
-                uplot.Series(label="|Im λ|", stroke=COLORS[1], width=0, points={"show": True, "size": 3}),
-            ),
+            data=(z,) * (n + 2),
+            series=tuple(series),
             title=f"Eigenvalues against {self.st.over} (current marked)",
-            scales={"x": uplot.Scale(time=False, auto=False, range=(self.st.start, self.st.stop))},
+            scales={
+                "x": uplot.Scale(time=False, auto=False, range=(self.st.start, self.st.stop)),
+                "y": uplot.Scale(auto=False, range=(-YMAX, YMAX)),
+            },
             axes=pl.marker_axes(0.0),
             aspect=1.4,
             visible=False,
@@ -49,20 +53,15 @@ class StabilityPlot:
 
     @staticmethod
     def data(rows: list[dict]) -> tuple[np.ndarray, ...]:
-        """uPlot data: every eigenvalue is one point (x repeated per eigenvalue, sorted by x);
-        the imaginary parts of real eigenvalues are left out (at 0 they would hide the axis)."""
-        xs, re, im = [], [], []
-        for r in rows:
-            for a, b in r["eigenvalues"]:
-                xs.append(r["value"])
-                re.append(a)
-                im.append(abs(b) if abs(b) > 1e-9 else None)
-        x = np.asarray(xs, float)
-        re_arr = np.clip(np.asarray(re, float), -20.0, 20.0)
-        im_arr = np.array([np.nan if v is None else min(v, 20.0) for v in im])
-        # uPlot breaks on NaN: real eigenvalues' imaginary parts repeat the real part there
-        im_arr = np.where(np.isfinite(im_arr), im_arr, re_arr)
-        return x, re_arr, im_arr
+        """uPlot data: the swept values, the real parts sorted (each a continuous curve of
+        the value) and the largest imaginary part (0 where every eigenvalue is real), all
+        finite and clipped just outside the plot's y range (uPlot drops a series holding a NaN)."""
+        x = np.array([r["value"] for r in rows], float)
+        ev = np.array([[complex(a, b) for a, b in r["eigenvalues"]] for r in rows])
+        re = np.sort(ev.real, axis=1)
+        im = np.abs(ev.imag).max(axis=1)
+        clip = lambda a: np.clip(np.nan_to_num(a, nan=0.0), -1.2 * YMAX, 1.2 * YMAX)  # noqa: E731
+        return (x, *[clip(re[:, j]) for j in range(re.shape[1])], clip(im))
 
     def update(self, params: dict, initial: dict) -> None:
         """Mark the value of a run with ``initial`` values; recompute the sweep (in a thread)
