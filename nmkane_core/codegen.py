@@ -187,6 +187,9 @@ def generate_source(derivation) -> str:
             assign.append((f"w[{off['OQ'] + i * N + j}]", kt.Q[i, j], f"Q[{i},{j}]"))
         assign.append((f"w[{off['OP'] + i}]", kt.P[i], f"P[{i}]"))
         assign.append((f"w[{off['OQD'] + i}]", kt.qdot[i], f"qdot[{i}]"))
+    # the velocity-level constraint quantities alone (J, φ, ψ̇), for completing and checking
+    # initial states (state_terms): without Q and P, which for a large model are most of ``terms``
+    cons = [a for a in assign if a[2].startswith(("J[", "phi[", "psidot["))]
     kin = [(f"w[{off['OPSI'] + i}]", e, f"psi[{i}]") for i, e in enumerate(kt.psi)]
     psi_q = kt.psi.jacobian(sp.Matrix(kt.args_x[:N])) if d["MH"] else sp.zeros(0, N)
     for i in range(d["MH"]):
@@ -199,6 +202,7 @@ def generate_source(derivation) -> str:
     parts = [
         "\n".join(head),
         _block("terms", "t, x, p, w", kt, assign),
+        _block("constraint_terms", "t, x, p, w", kt, cons),
         _block("positions", "t, x, p, w", kt, kin),
         _block(
             "diagnostics",
