@@ -20,7 +20,7 @@ class RunSettings(CoreRunSettings):
     model_config = ConfigDict(strict=True)
 
 
-STATUSES = Literal["ok", "singular", "diverged", "timeout", "failed"]
+STATUSES = Literal["ok", "event", "singular", "diverged", "timeout", "failed"]
 
 
 class Health(BaseModel):

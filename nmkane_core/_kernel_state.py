@@ -45,7 +45,7 @@ def state_terms(t, x, p):
     """Constraint quantities at one state, for completing and checking initial states:
     (J = ∂[φ; ψ̇]/∂u in the model's speed order, [φ; ψ̇], ψ, ∂ψ/∂q, reported violations)."""
     w = make_workspace()
-    terms_call(t, x, p, w)
+    constraint_terms(t, x, p, w)  # J, φ, ψ̇ only (no Q, P: a small compile)
     positions(t, x, p, w)
     J = np.empty((M, N))
     for a in range(M):

@@ -339,6 +339,22 @@ def _bicycle_rows(add, quick: bool) -> None:
         wall <= 0.1,
         f"({evals:,} rhs evaluations)",
     )
+    # the same model through sympy's KanesMethod + lambdify + a numeric solve per call
+    from .oracle_bicycle import bicycle_sympy_rhs
+
+    t0 = time.perf_counter()
+    sym = bicycle_sympy_rhs()
+    derive = time.perf_counter() - t0
+    add("Whipple bicycle, sympy route: KanesMethod + constraint derivatives + lambdify", derive, None)
+    x = plan.x0
+    sym_eps = _evals_per_s(sym, x)
+    add(
+        "Whipple bicycle, sympy route: per call (numpy solve of the multiplier system)",
+        1 / sym_eps,
+        sym_eps,
+        note=f"{sym_eps:,.0f} evals/s; the compiled loop: {evals / wall:,.0f} evals/s "
+        f"({evals / wall / sym_eps:,.0f}×); 10 s at dt=0.001 Kutta–Merson through it ≈ {evals / sym_eps:.1f} s",
+    )
     speeds = np.linspace(0.0, 10.0, 20 if quick else 100)
     bicycle_eigenvalues(speeds[:2])  # warm
     wall, _ = _best(lambda: bicycle_eigenvalues(speeds), repeat=2)

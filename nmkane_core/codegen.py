@@ -40,6 +40,12 @@ _LOCK = threading.Lock()
 
 #: expression trees larger than this (nodes, summed over one function) skip cse's pre-optimizations
 CSE_BASIC_MAX_NODES = 20_000
+#: a model's ``terms`` with more statements than this is called by the right-hand side, not pasted
+#: into it: numba then compiles it once (~10 s for a thousand statements) and every loop links that
+#: compiled code (~1 s), where a pasted copy is compiled again in each loop that uses it; the call
+#: costs nothing measurable against such a body, while small models keep the pasted body (a call
+#: costs them ~20% of the loop's time)
+INLINE_TERMS_MAX_STATEMENTS = 300
 _LOADED: dict[str, object] = {}
 
 
@@ -181,6 +187,9 @@ def generate_source(derivation) -> str:
             assign.append((f"w[{off['OQ'] + i * N + j}]", kt.Q[i, j], f"Q[{i},{j}]"))
         assign.append((f"w[{off['OP'] + i}]", kt.P[i], f"P[{i}]"))
         assign.append((f"w[{off['OQD'] + i}]", kt.qdot[i], f"qdot[{i}]"))
+    # the velocity-level constraint quantities alone (J, φ, ψ̇), for completing and checking
+    # initial states (state_terms): without Q and P, which for a large model are most of ``terms``
+    cons = [a for a in assign if a[2].startswith(("J[", "phi[", "psidot["))]
     kin = [(f"w[{off['OPSI'] + i}]", e, f"psi[{i}]") for i, e in enumerate(kt.psi)]
     psi_q = kt.psi.jacobian(sp.Matrix(kt.args_x[:N])) if d["MH"] else sp.zeros(0, N)
     for i in range(d["MH"]):
@@ -193,6 +202,7 @@ def generate_source(derivation) -> str:
     parts = [
         "\n".join(head),
         _block("terms", "t, x, p, w", kt, assign),
+        _block("constraint_terms", "t, x, p, w", kt, cons),
         _block("positions", "t, x, p, w", kt, kin),
         _block(
             "diagnostics",
@@ -207,7 +217,8 @@ def generate_source(derivation) -> str:
         f"\n\n# ---- generic part: nmkane_core/{name} ----\n" + (Path(__file__).parent / name).read_text()
         for name in GENERIC_FILES
     )
-    return inline_marked("\n\n".join(parts) + generic)
+    large = parts[1].count("\n") > INLINE_TERMS_MAX_STATEMENTS
+    return inline_marked("\n\n".join(parts) + generic, keep_calls={"terms"} if large else ())
 
 
 class _Rename(ast.NodeTransformer):
@@ -255,7 +266,7 @@ def _inline_body(fn: ast.FunctionDef, args: list, target, tag: str) -> list:
     return out
 
 
-def inline_marked(source: str) -> str:
+def inline_marked(source: str, keep_calls=()) -> str:
     """Inline at source level every call marked ``# INLINE`` in the module ``source``.
 
     A marked statement is ``f(args)  # INLINE`` or ``target = f(args)  # INLINE`` with ``f``
@@ -265,6 +276,7 @@ def inline_marked(source: str) -> str:
     for every call site (seconds of compilation for the right-hand side), and a plain call
     costs ~20% of the loop's time and keeps LLVM from forwarding the stores into the work
     array to their loads.  Functions without marked calls keep their text and comments.
+    Calls of the functions named in ``keep_calls`` stay calls even when marked.
     """
     lines = source.splitlines()
     tree = ast.parse(source)
@@ -283,6 +295,7 @@ def inline_marked(source: str) -> str:
                         and isinstance(call, ast.Call)
                         and isinstance(call.func, ast.Name)
                         and call.func.id in funcs
+                        and call.func.id not in keep_calls
                     ):
                         return st
                     count[0] += 1

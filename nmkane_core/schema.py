@@ -12,7 +12,7 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "LIMITS", "REST_DEFAULT_LIMITS", "Gain"]
+__all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "Event", "LIMITS", "REST_DEFAULT_LIMITS", "Gain"]
 
 #: Library-wide limits (the REST service may impose lower ones; see /api/systems).
 LIMITS: dict[str, Any] = {
@@ -149,8 +149,15 @@ class Switch(BaseModel):
     model_config = ConfigDict(populate_by_name=True)
 
 
+class Event(BaseModel):
+    """The event that ended a run (a system's declared events, nmkane_core.events)."""
+
+    name: str = Field(description="the event's name, as the system declares it")
+    t: float = Field(description="when it fired, s (interpolated between output rows)")
+
+
 class RunSummary(BaseModel):
-    status: Literal["ok", "singular", "diverged", "timeout", "failed"]
+    status: Literal["ok", "event", "singular", "diverged", "timeout", "failed"]
     message: str
     steps: int
     rhs_evals: int
@@ -168,6 +175,7 @@ class RunSummary(BaseModel):
         default_factory=dict, description="change made by project_initial, per state"
     )
     switches: list[Switch] = Field(default_factory=list)
+    event: Event | None = Field(None, description="the declared event that ended the run (status 'event'), if any")
 
 
 class RunResult(BaseModel):

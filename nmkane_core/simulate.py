@@ -75,8 +75,8 @@ def simulate(
         ``t``, ``state`` (by coordinate and speed name, plus the model's outputs),
         ``energy`` (None when the model declares none), ``violation`` (φ and ψ by
         constraint name, then monitors), ``settings`` (fully resolved) and ``summary``:
-        ``status`` — ``"ok"`` (reached t_final), ``"singular"`` (J2 or T became singular
-        or ill-conditioned: reciprocal condition estimate ≤ ``rcond_min``),
+        ``status`` — ``"ok"`` (reached t_final), ``"event"`` (a declared event fired),
+        ``"singular"`` (J2 or T became singular or ill-conditioned: reciprocal condition estimate ≤ ``rcond_min``),
         ``"diverged"`` (the state or its derivative stopped being finite: an unstable
         step, or the model's expressions undefined where the motion went — a square root
         of a negative number, a zero denominator), ``"timeout"`` (time limit or
@@ -84,6 +84,8 @@ def simulate(
         used up, a projection or scipy failure) — and ``message`` saying why, with
         steps, evaluations, wall time, ``t_end``, maxima of |violation| and of the
         energy drift, the smallest condition estimates, model switches and warnings.
+        A system that declares events (:mod:`nmkane_core.events`) ends ``"event"`` at the
+        first one that fires, with ``summary["event"] = {"name": ..., "t": ...}``.
 
     Guarantees: every number returned is finite (a run that cannot go on stops and keeps
     what was computed up to its last good step); output is bounded by
@@ -108,6 +110,10 @@ def simulate(
     finally:
         bar.close()
     run = finish(plan, mod, out, time.perf_counter() - start)
+    if plan.system.events is not None:
+        from .events import apply_events
+
+        apply_events(run, plan.system)  # cut at the first declared event (nmkane_core.events)
     run.summary["kernel_load_s"] = setup
     return run
 

@@ -150,6 +150,16 @@ class System:
         ``t_final`` (numbers), ``variant``, ``integrator``, ``compare`` (the runs drawn as
         ghosts beside the shown one: ``"off"``, a variant name, ``"Γ = 0"`` or ``"all"``) and
         ``speed`` (playback).  Runs through the CLI and REST are not affected.
+    events:
+        A zero-argument function returning ``{name: expression}`` (sympy, of the state and
+        parameters, negative in normal motion): a run ends with status ``"event"`` when one
+        reaches zero (:mod:`nmkane_core.events`).
+    initial_controls:
+        ``{name: (min, max, label)}``: the initial values a user interface offers (sliders),
+        with their ranges; empty: every independent value, ranges from the defaults.
+    stability:
+        A :class:`~nmkane_core.stability.Stability`: what ``nmkane stability`` and the web
+        app's eigenvalue plot sweep (the value, the state at it, the values linearized).
     source_files:
         Extra files the models are built from.  The files that define the variant
         functions are found by themselves; list helper modules they import, so that a
@@ -177,6 +187,9 @@ class System:
     visuals: Callable[[], Any] | None = None
     what_to_try: str = ""
     showcase: Mapping[str, Any] = field(default_factory=dict)
+    events: Callable[[], Any] | None = None
+    stability: Any = None
+    initial_controls: Mapping[str, tuple[float, float, str]] = field(default_factory=dict)
     _models: dict = field(default_factory=dict, repr=False)
     _derivations: dict = field(default_factory=dict, repr=False)
     _kernels: dict = field(default_factory=dict, repr=False)

@@ -79,17 +79,11 @@ def parameter_control(p, prefix: str) -> Control:
     )
 
 
-def initial_control(name: str, default: float, prefix: str) -> Control:
+def initial_control(name: str, default: float, prefix: str, declared=None) -> Control:
+    """An initial value's slider: ``declared`` (min, max, label) from the System, else around the default."""
     span = max(3.0 * abs(default), 2.0)
-    return Control(
-        f"{prefix}i_{name}",
-        f"{name}(0)",
-        f"initial.{name}",
-        default,
-        min=default - span,
-        max=default + span,
-        step=_step(0, 2 * span),
-    )
+    lo, hi, label = declared or (default - span, default + span, f"{name}(0)")
+    return Control(f"{prefix}i_{name}", label, f"initial.{name}", default, min=lo, max=hi, step=_step(lo, hi))
 
 
 def compare_choices(core) -> tuple[str, ...]:
@@ -178,8 +172,9 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
             step=_step(0, max(5 * tf, 10.0)),
         )
     )
-    for name in core.independent:
-        out.append(initial_control(name, float(core.default_initial.get(name, 0.0)), prefix))
+    shown = getattr(core, "initial_controls", None) or dict.fromkeys(core.independent)
+    for name, declared in shown.items():
+        out.append(initial_control(name, float(core.default_initial.get(name, 0.0)), prefix, declared))
     names = core.state_names
     out.append(Control(f"{prefix}plot", "Plotted coordinate", "option.plot", names[0], kind="dropdown", options=names))
     return tuple(out)

@@ -19,6 +19,7 @@ import viser
 
 from nmkane_core.simulate import simulate as core_simulate
 
+from . import stability
 from .camera import CameraRig
 from .controls import ControlPanel, settings_from
 from .generic import GenericView, scene_choices
@@ -143,6 +144,7 @@ class MechanismApp:
             self._add_view_gui(view, visible=False, order=getattr(first, "order", None))
             with self.plots_folder:
                 self.plots.add_view(self.gui, view)
+                stability.attach(self, view)  # eigenvalue plot of a declared stability sweep
         return self.views[kind]
 
     @property
@@ -262,6 +264,7 @@ class MechanismApp:
                     self._writing_time = False
                 self._installs += 1
                 self.plots.write(traj, self.t_now)
+                stability.update(self, traj)  # the run's value marked on the eigenvalue plot
                 self.show_time(self.t_now)
                 self._refresh(force=True)
                 self.runner.record_install(traj)

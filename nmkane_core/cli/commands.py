@@ -43,13 +43,24 @@ def contributed() -> list[Command]:
 
 
 def builtin() -> list[Command]:
-    from . import analysis_cmd, bench_cmd, cache_cmd, figures_cmd, matrices_cmd, run_cmd, sweep_cmd, tune_cmd
+    from . import (
+        analysis_cmd,
+        bench_cmd,
+        cache_cmd,
+        figures_cmd,
+        matrices_cmd,
+        run_cmd,
+        stability_cmd,
+        sweep_cmd,
+        tune_cmd,
+    )
 
     return [
         run_cmd.COMMAND,
         matrices_cmd.COMMAND,
         analysis_cmd.ACCELERATIONS,
         analysis_cmd.LINEARIZE,
+        stability_cmd.COMMAND,
         sweep_cmd.COMMAND,
         tune_cmd.COMMAND,
         bench_cmd.COMMAND,

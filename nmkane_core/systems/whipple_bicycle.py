@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import math
 
+from ..stability import Stability
 from ..system import Parameter, System
 
 NAME = "whipple-bicycle"
@@ -89,44 +90,19 @@ DEFAULT_INITIAL = {
 }
 
 
-def _model():
+def _geometry():
+    """Symbols, frames and points of the bicycle (sympy.physics.mechanics), shared by the
+    model, the visuals and the events: (q, u, par, frames, points), ``par`` the parameters
+    in :data:`PARAM_NAMES` order, ``frames``/``points`` dicts by the names used below."""
     import sympy as sp
     from sympy.physics import mechanics as me
 
-    from ..model import MechanicalModel
-
     q = me.dynamicsymbols("q1:9")
     u = me.dynamicsymbols("u1:9")
-    t = me.dynamicsymbols._t
     par = sp.symbols(" ".join(PARAM_NAMES), real=True)
-    (
-        w,
-        c,
-        lam,
-        g,
-        rR,
-        mR,
-        IRxx,
-        IRyy,
-        xB,
-        zB,
-        mB,
-        IBxx,
-        IByy,
-        IBzz,
-        IBxz,
-        xH,
-        zH,
-        mH,
-        IHxx,
-        IHyy,
-        IHzz,
-        IHxz,
-        rF,
-        mF,
-        IFxx,
-        IFyy,
-    ) = par
+    P = dict(zip(PARAM_NAMES, par, strict=True))
+    w, c, lam, rR, rF = P["w"], P["c"], P["lam"], P["rR"], P["rF"]
+    xB, zB, xH, zH = P["xB"], P["zB"], P["xH"], P["zH"]
 
     # Moore's offsets in the benchmark parameters: d1 rear wheel centre → steer axis (along
     # C.x), d3 steer axis → front wheel centre (along E.x), d2 between their feet along the axis
@@ -146,29 +122,55 @@ def _model():
     D = C.orientnew("D", "Axis", (q[5], C.y))  # rear wheel
     E = C.orientnew("E", "Axis", (q[6], C.z))  # steer: front frame
     F = E.orientnew("F", "Axis", (q[7], E.y))  # front wheel
+    Cb = C.orientnew("Cb", "Axis", (-lam, C.y))  # benchmark axes of the rear frame
+    Eb = E.orientnew("Eb", "Axis", (-lam, E.y))  # benchmark axes of the front frame
+
+    O = me.Point("O")
+    dn = O.locatenew("dn", q[0] * N.x + q[1] * N.y)  # rear contact point
+    do = dn.locatenew("do", -rR * B.z)  # rear wheel centre
+    ce = do.locatenew("ce", d1 * C.x)  # on the steer axis
+    bo = do.locatenew("bo", l1 * C.x + l2 * C.z)  # rear frame mass centre
+    fo = ce.locatenew("fo", d2 * C.z + d3 * E.x)  # front wheel centre
+    ho = ce.locatenew("ho", l3 * E.x + l4 * E.z)  # front frame mass centre
+    # contact geometry: s = E.y·A.z; the front contact lies rF from the centre along the
+    # wheel plane's steepest descent (A.z − s E.y)/√(1 − s²)
+    s = E.y.dot(A.z)
+    root = sp.sqrt(1 - s**2)
+    fn = fo.locatenew("fn", rF * (A.z - s * E.y) / root)  # front contact point
+    frames = dict(N=N, A=A, B=B, C=C, D=D, E=E, F=F, Cb=Cb, Eb=Eb)
+    points = dict(O=O, dn=dn, do=do, ce=ce, bo=bo, fo=fo, ho=ho, fn=fn)
+    return q, u, par, frames, points, (d1, d2, d3, root)
+
+
+def _mechanics():
+    """Bodies, loads and constraints (sympy.physics.mechanics), as a dict, for :func:`_model`
+    and for the sympy-route benchmark (:mod:`nmkane_core.bench`)."""
+    from sympy.physics import mechanics as me
+
+    q, u, par, fr, pt, (_, _, _, root) = _geometry()
+    t = me.dynamicsymbols._t
+    P = dict(zip(PARAM_NAMES, par, strict=True))
+    g, rR, rF = P["g"], P["rR"], P["rF"]
+    mR, mB, mH, mF = P["mR"], P["mB"], P["mH"], P["mF"]
+    N, A, B, C, D, E, F, Cb, Eb = (fr[k] for k in ("N", "A", "B", "C", "D", "E", "F", "Cb", "Eb"))
+    O, dn, do, ce, bo, fo, ho = (pt[k] for k in ("O", "dn", "do", "ce", "bo", "fo", "ho"))
     A.set_ang_vel(N, u[2] * N.z)
     B.set_ang_vel(A, u[3] * A.x)
     C.set_ang_vel(B, u[4] * B.y)
     D.set_ang_vel(C, u[5] * C.y)
     E.set_ang_vel(C, u[6] * C.z)
     F.set_ang_vel(E, u[7] * E.y)
-    Cb = C.orientnew("Cb", "Axis", (-lam, C.y))  # benchmark axes of the rear frame
-    Eb = E.orientnew("Eb", "Axis", (-lam, E.y))  # benchmark axes of the front frame
-
-    O = me.Point("O")
     O.set_vel(N, 0)
-    dn = O.locatenew("dn", q[0] * N.x + q[1] * N.y)  # rear contact point
     dn.set_vel(N, u[0] * N.x + u[1] * N.y)
-    do = dn.locatenew("do", -rR * B.z)  # rear wheel centre
     do.v2pt_theory(dn, N, B)
-    ce = do.locatenew("ce", d1 * C.x)  # on the steer axis
     ce.v2pt_theory(do, N, C)
-    bo = do.locatenew("bo", l1 * C.x + l2 * C.z)  # rear frame mass centre
     bo.v2pt_theory(do, N, C)
-    fo = ce.locatenew("fo", d2 * C.z + d3 * E.x)  # front wheel centre
     fo.v2pt_theory(ce, N, E)
-    ho = ce.locatenew("ho", l3 * E.x + l4 * E.z)  # front frame mass centre
     ho.v2pt_theory(ce, N, E)
+    IRxx, IRyy, IFxx, IFyy = P["IRxx"], P["IRyy"], P["IFxx"], P["IFyy"]
+    IBxx, IByy, IBzz, IBxz = P["IBxx"], P["IByy"], P["IBzz"], P["IBxz"]
+    IHxx, IHyy, IHzz, IHxz = P["IHxx"], P["IHyy"], P["IHzz"], P["IHxz"]
+    s = E.y.dot(A.z)
 
     rear = me.RigidBody("R", do, D, mR, (me.inertia(C, IRxx, IRyy, IRxx), do))
     frame = me.RigidBody("B", bo, C, mB, (me.inertia(Cb, IBxx, IByy, IBzz, 0, 0, IBxz), bo))
@@ -177,10 +179,6 @@ def _model():
     bodies = [rear, frame, fork, front]
     loads = [(p, m * g * N.z) for p, m in ((do, mR), (bo, mB), (ho, mH), (fo, mF))]
 
-    # contact geometry: s = E.y·A.z; the front contact lies rF from the centre along the
-    # wheel plane's steepest descent (A.z − s E.y)/√(1 − s²)
-    s = E.y.dot(A.z)
-    root = sp.sqrt(1 - s**2)
     to_front_contact = rF * (A.z - s * E.y) / root
     v_rear = do.vel(N) + D.ang_vel_in(N).cross(rR * B.z)  # material contact points
     v_front = fo.vel(N) + F.ang_vel_in(N).cross(to_front_contact)
@@ -196,6 +194,26 @@ def _model():
     kinetic = sum(b.kinetic_energy(N) for b in bodies)
     potential = -g * sum(m * p.pos_from(dn).dot(N.z) for p, m in ((do, mR), (bo, mB), (ho, mH), (fo, mF)))
     kd = [qi.diff(t) - ui for qi, ui in zip(q, u, strict=True)]
+    return dict(
+        q=q,
+        u=u,
+        par=par,
+        N=N,
+        kd=kd,
+        bodies=bodies,
+        loads=loads,
+        nonholonomic=nonholonomic,
+        holonomic=holonomic,
+        energy=kinetic + potential,
+    )
+
+
+def _model():
+    from ..model import MechanicalModel
+
+    m = _mechanics()
+    q, u, par, N, kd, bodies, loads = (m[k] for k in ("q", "u", "par", "N", "kd", "bodies", "loads"))
+    nonholonomic, holonomic = m["nonholonomic"], m["holonomic"]
     return MechanicalModel.from_mechanics(
         "default",
         q=q,
@@ -209,9 +227,143 @@ def _model():
         holonomic=holonomic,
         u_independent=(u[3], u[5], u[6]),
         q_dependent=(q[4],),
-        energy=kinetic + potential,
+        energy=m["energy"],
         description="Carvallo–Whipple bicycle, Moore's coordinates, Meijaard's benchmark parameters",
     )
+
+
+#: drawn geometry (not in the benchmark): the head tube's top and bottom heights, the
+#: handlebar's half width (its grips are what touches the ground first in a fall)
+HEAD_TOP, HEAD_BOTTOM, BAR_HALF_WIDTH = 1.0, 0.65, 0.3
+
+
+def _drawn():
+    """World points (z up: Moore's N turned by π about x) of the drawing and the event."""
+    import sympy as sp
+
+    q, _, par, fr, pt, (d1, _, _, _) = _geometry()
+    P = dict(zip(PARAM_NAMES, par, strict=True))
+    w, c, lam, rR = P["w"], P["c"], P["lam"], P["rR"]
+    N, Cb, Eb = fr["N"], fr["Cb"], fr["Eb"]
+    cl, sl = sp.cos(lam), sp.sin(lam)
+    flip = sp.diag(1, -1, -1)
+
+    def world(point):
+        return tuple(flip * point.pos_from(pt["O"]).to_matrix(N))
+
+    def rear(x, z):  # a rear-frame point at benchmark (x, z) (upright: from the rear contact, z down)
+        return pt["do"].locatenew("r", x * Cb.x + (z + rR) * Cb.z)
+
+    def front(x, z):  # a front-frame point at benchmark (x, z) (upright, unsteered)
+        xc, zc = d1 * cl, -rR - d1 * sl  # the steer axis point ce in benchmark coordinates
+        return pt["ce"].locatenew("f", (x - xc) * Eb.x + (z - zc) * Eb.z)
+
+    def on_axis(height):  # the steer axis at a height (upright): it meets the ground at x = w + c
+        return (w + c - height * sl / cl, -height)
+
+    head_top, head_bottom = front(*on_axis(HEAD_TOP)), front(*on_axis(HEAD_BOTTOM))
+    bar = pt["ce"].locatenew("bar", head_top.pos_from(pt["ce"]) - 0.12 * Eb.x)
+    grips = [bar.locatenew(f"g{k}", k * BAR_HALF_WIDTH * Eb.y) for k in (-1, 1)]
+    seat, crank = rear(0.25, -0.85), rear(0.45, -0.3)
+    shoulder = rear(0.42, -1.45)
+    return {
+        "world": world,
+        "flip": flip,
+        "q": q,
+        "par": P,
+        "frames": fr,
+        "points": pt,
+        "lines": {
+            "rear_frame": [(pt["do"], crank), (crank, seat), (seat, pt["do"]), (seat, head_top), (crank, head_bottom)],
+            "fork": [(head_top, pt["fo"]), (head_top, bar), (grips[0], grips[1])],
+            "rider": [(shoulder, grips[0]), (shoulder, grips[1]), (seat, crank)],
+        },
+        "grips": grips,
+    }
+
+
+def _visuals():
+    from ..visuals import Frame, Visuals, box, cylinder, ground, segments, sphere, trace
+
+    d = _drawn()
+    world, flip, fr, pt, P = d["world"], d["flip"], d["frames"], d["points"], d["par"]
+    N = fr["N"]
+    rR, rF = P["rR"], P["rF"]
+
+    def frame(name, point, body):
+        return Frame(name, world(pt[point]), flip * N.dcm(fr[body]))
+
+    wheel, spoke, frame_col = (40, 40, 45), (230, 200, 60), (200, 40, 40)
+    shapes = [ground(0)]
+    for name, r in (("rear_wheel", rR), ("front_wheel", rF)):
+        shapes += [
+            cylinder(name, name, r, 0.04, axis="y", color=wheel),
+            cylinder(f"{name}_hub", name, 0.05, 0.08, axis="y", color=(160, 160, 170)),
+            box(f"{name}_spoke", name, (1.9 * r, 0.05, 0.04), color=spoke),  # the rotation made visible
+            box(f"{name}_spoke2", name, (0.04, 0.05, 1.9 * r), color=(90, 90, 100)),
+        ]
+    for group, color in (("rear_frame", frame_col), ("fork", (60, 60, 70)), ("rider", (40, 90, 160))):
+        shapes.append(segments(group, [(world(a), world(b)) for a, b in d["lines"][group]], color=color))
+    shapes += [
+        box("torso", "rear", (0.22, 0.36, 0.6), offset=(0.36, 0, -1.15 + rR), color=(40, 90, 160)),
+        box("head_tube", "front", (0.05, 0.05, HEAD_TOP - HEAD_BOTTOM), offset=(0, 0, 0), color=(60, 60, 70)),
+        sphere("head", 0.11, frame="rear", offset=(0.48, 0, -1.58 + rR), color=(230, 190, 150)),
+        sphere("rear_mass_centre", 0.04, at=world(pt["bo"]), color=(20, 20, 20)),
+        trace("rear_contact", (*world(pt["dn"])[:2], 0.002), color=(214, 48, 39)),
+        trace("front_contact", (*world(pt["fn"])[:2], 0.002), color=(40, 110, 214)),
+    ]
+    frames = (
+        frame("rear", "do", "Cb"),
+        Frame(
+            "front", tuple((a + b) / 2 for a, b in zip(*map(world, _head_ends(d)), strict=True)), flip * N.dcm(fr["E"])
+        ),
+        frame("rear_wheel", "do", "D"),
+        frame("front_wheel", "fo", "F"),
+    )
+    return Visuals(frames=frames, shapes=tuple(shapes))
+
+
+def _head_ends(d):
+    rf = d["lines"]["rear_frame"]
+    return rf[3][1], rf[4][1]  # head tube top, bottom (the ends of the top and down tubes)
+
+
+def _events():
+    """The grips of the handlebar reaching the ground: the bicycle has fallen."""
+    import sympy as sp
+
+    d = _drawn()
+    heights = [d["world"](g)[2] for g in d["grips"]]
+    return {"handlebar_touches_ground": -sp.Min(*heights)}
+
+
+def _stability_state(speed, params):
+    return {"u6": -speed / params["rR"]}
+
+
+def _speed_of(initial, params):
+    return -float(initial.get("u6", 0.0)) * params["rR"]
+
+
+#: the benchmark's weave and capsize speeds (Meijaard et al. 2007, Table 2)
+WEAVE_SPEED, CAPSIZE_SPEED = 4.29238253634111, 6.02426201538837
+
+#: the initial values offered as sliders (range, label)
+INITIAL_CONTROLS = {
+    "u6": (-40.0, 0.0, "rear wheel rate u6 = −speed/rR [rad/s] (−16.7: 5 m/s)"),
+    "q4": (-0.6, 0.6, "roll q4 [rad]"),
+    "q7": (-0.6, 0.6, "steer q7 [rad]"),
+    "u4": (-2.0, 2.0, "roll rate u4 [rad/s]"),
+    "u7": (-2.0, 2.0, "steer rate u7 [rad/s]"),
+    "q3": (-3.2, 3.2, "heading q3 [rad]"),
+}
+
+WHAT_TO_TRY = (
+    "At 5 m/s (u6 = −16.7 rad/s) give it a roll rate u4 = 0.5 rad/s: the wobble dies out — the "
+    "bicycle is self-stable between the weave speed 4.29 m/s and the capsize speed 6.02 m/s. At 3 m/s "
+    "(u6 = −10) the same push makes it fall: the run stops with the event handlebar_touches_ground. "
+    "Above 6 m/s (u6 = −25) it capsizes slowly. The eigenvalue plot shows why."
+)
 
 
 def whipple_bicycle() -> System:
@@ -226,4 +378,20 @@ def whipple_bicycle() -> System:
         default_integrator="kutta-merson",
         description="Carvallo–Whipple bicycle with the benchmark parameters of Meijaard et al. (2007): "
         "rolling without slip (nonholonomic), front wheel ground contact (holonomic).",
+        visuals=_visuals,
+        events=_events,
+        what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
+        stability=Stability(
+            over="speed",
+            unit="m/s",
+            start=0.0,
+            stop=10.0,
+            count=101,
+            state=_stability_state,
+            keep=("q4", "q7", "u4", "u7"),
+            value_of=_speed_of,
+            names={"complex": "weave", "real": "capsize", "fast": "castor"},
+            reference={"weave": WEAVE_SPEED, "capsize": CAPSIZE_SPEED},
+        ),
     )
