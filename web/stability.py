@@ -1,6 +1,6 @@
 """The eigenvalues-versus-swept-value plot of a system that declares a stability sweep
 (``System(stability=Stability(...))``, :mod:`nmkane_core.stability`): real and imaginary
-parts of the linearized motion's eigenvalues against the swept value (a bicycle's speed),
+parts of the linearized motion's eigenvalues against the swept value (e.g. a forward speed),
 with the current run's value marked — the classic self-stability picture.
 
 Two hooks from the page: :func:`attach` when a system's view is built (adds the plot under
