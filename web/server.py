@@ -34,6 +34,7 @@ import viser
 from nmkane_core.registry import get_system
 from nmkane_core.simulate import simulate as core_simulate
 
+from . import fastpath
 from . import matrices as mx
 from .generic import warm_systems
 from .session import MechanismApp
@@ -104,6 +105,21 @@ def _release_memory() -> None:
             _trim_lock.release()
 
 
+def _backlog(client) -> int:
+    """Messages queued for a browser that its connection has not taken yet (0 for a test's
+    shared server, or when viser's internals differ from 1.1's; -1 once the connection is
+    closed: nothing sent to it would be delivered)."""
+    try:
+        conn = client._websock_connection
+        buf = conn.get_message_buffer()
+        cursor = buf.generator_cursors.get(conn.client_id)
+    except AttributeError:
+        return 0
+    if buf.done:
+        return -1
+    return 0 if cursor is None else max(0, buf.message_counter - 1 - cursor)
+
+
 def _max_sessions_default() -> int:
     raw = os.environ.get("NMKANE_MAX_SESSIONS", "").strip()
     if not raw:
@@ -141,6 +157,7 @@ class WebApp:
         self._admitted: set[int] = set()  # connections past the gate (sessions or about to be)
         self._trim_due: float | None = None  # when to return closed sessions' memory (monotonic)
         self.rejected = 0
+        fastpath.install()  # the per-frame pose updates without viser's numpy overhead
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
         ws = self.server._websock_server  # the gate runs before anything is sent
         ws.on_client_connect(self._gate)
@@ -159,6 +176,8 @@ class WebApp:
         self._simulate = simulate
         self.frame_times: list[float] = []
         self.frame_work_s: list[float] = []
+        self._owed: dict[int, float] = {}  # animation time owed to sessions whose frames were skipped
+        self.skipped = 0  # session frames skipped (browser not keeping up)
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
         self._warm_thread = threading.Thread(target=warm, daemon=True, name="nmkane-warm")
@@ -227,6 +246,7 @@ class WebApp:
     def _disconnect(self, client: viser.ClientHandle) -> None:
         with self._lock:
             session = self.sessions.pop(client.client_id, None)
+        self._owed.pop(client.client_id, None)
         if session is not None:
             session.close()
             del session
@@ -242,10 +262,18 @@ class WebApp:
             if refresh:
                 last_refresh = t0
             with self._lock:
-                sessions = list(self.sessions.values())
-            for s in sessions:  # a session whose browser left skips itself
+                sessions = list(self.sessions.items())
+            for cid, s in sessions:  # a session whose browser left skips itself
+                owed = self._owed.pop(cid, 0.0) + dt_wall
+                backlog = _backlog(s.client)
+                if backlog < 0:  # closed: its session is about to be dropped
+                    continue
+                if backlog > 0:  # its browser has not taken the last frame yet: skip this one
+                    self._owed[cid] = min(owed, 0.25)
+                    self.skipped += 1
+                    continue
                 with contextlib.suppress(Exception):  # a client gone mid-frame: skip it this frame
-                    s.tick(dt_wall, refresh)
+                    s.tick(owed, refresh)
             sessions = s = None  # hold no closed session until the next frame
             if self._trim_due is not None and time.monotonic() >= self._trim_due:
                 self._trim_due = None
