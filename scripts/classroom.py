@@ -99,7 +99,7 @@ def _browser_worker(port: int, m: int, start_at: float, seconds: float, out) -> 
             for page in pages:
                 page.evaluate(BODY_MOVES)
             t0 = time.monotonic()
-            time.sleep(max(0.0, start_at + seconds - time.monotonic()))
+            time.sleep(max(5.0, start_at + seconds - time.monotonic()))  # pages may load slowly
             fps = []
             for page in pages:
                 frames = page.evaluate("window.__frames.length")
@@ -138,6 +138,19 @@ def cpu_seconds_single(pid: int) -> float:
         return 0.0
 
 
+def _wait_web_quiet(pid: int, timeout_s: float) -> float:
+    """Wait until the web app's process (the descendants of ``pid``) has finished warming up
+    (compiling or loading every system's kernels and matrices in the background): under
+    0.05 cores over 2 s.  Returns the seconds waited."""
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        c0 = _cpu_split(pid)[1]
+        time.sleep(2)
+        if (_cpu_split(pid)[1] - c0) / 2 < 0.05:
+            break
+    return time.monotonic() - t0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sessions", type=int, default=30, help="headless websocket clients (1..100)")
@@ -146,6 +159,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seconds", type=float, default=60.0, help="the measured window (5..600 s)")
     ap.add_argument("--baseline-seconds", type=float, default=10.0, help="REST alone before the web load")
     ap.add_argument("--web-only-seconds", type=float, default=10.0, help="web load alone (CPU per session)")
+    ap.add_argument("--warm-timeout", type=float, default=600.0, help="wait at most this for the web app's warm-up")
     ap.add_argument("--min-fps", type=float, default=20.0)
     ap.add_argument("--max-p99-ms", type=float, default=250.0)
     args = ap.parse_args(argv)
@@ -170,6 +184,8 @@ def main(argv=None) -> int:
 def _measure(args, proc, base: str, web_port: int) -> int:
     ok = True
     print(f"server   nmkane serve, pids {tree_pids(proc.pid)}, {os.cpu_count()} CPU cores, load {os.getloadavg()}")
+    waited = _wait_web_quiet(proc.pid, args.warm_timeout)
+    print(f"server   web app warmed up (kernels, matrices) after {waited:.0f} s more")
     rss0 = rss_mib(proc.pid)
     base_p50 = base_p99 = float("nan")
     if args.rest_clients and args.baseline_seconds:
@@ -223,18 +239,23 @@ def _measure(args, proc, base: str, web_port: int) -> int:
     errors = []
     for frames, error, _, _ in results["ws"]:
         fps.append(sum(1 for t in frames if t0 <= t < t1) / (t1 - t0))
-        if error:
-            errors.append(error)
+        if error or not frames:
+            errors.append(error or "no frame received")
     fps.sort()
     web_s = t_web1 - t_web0
     web_cpu = (cpu_web1[1] - cpu_web0[1]) / web_s
+    web_frames = sum(sum(1 for t in frames if t_web0 <= t < t_web1) for frames, _, _, _ in results["ws"])
+    ms_per_frame = 1e3 * web_cpu * web_s / max(web_frames, 1)
     print(
         f"web      {args.sessions} websocket clients: frames/s min {fps[0]:.1f}, median {statistics.median(fps):.1f}, "
         f"max {fps[-1]:.1f}; errors {len(errors)} {errors[:3] if errors else ''}"
     )
     print(
-        f"web      alone: web app process {web_cpu:.2f} cores = {100 * web_cpu / args.sessions:.1f} % of a core "
-        f"per session; API process {(cpu_web1[0] - cpu_web0[0]) / web_s:.2f} cores"
+        f"web      alone: {web_frames / web_s / args.sessions:.1f} frames/s per client; web app process "
+        f"{web_cpu:.2f} cores = {100 * web_cpu / args.sessions:.1f} % of a core per session, "
+        f"{ms_per_frame:.2f} ms of CPU per frame delivered (one core animates "
+        f"{1e3 / max(ms_per_frame, 1e-3) / (args.min_fps or 20):.0f} sessions at {args.min_fps or 20:g} frames/s); "
+        f"API process {(cpu_web1[0] - cpu_web0[0]) / web_s:.2f} cores"
     )
     if br is not None:
         kind, what = results.get("br", ("error", "no answer"))

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import atexit
 import os
 import random
 import socket
@@ -92,6 +93,7 @@ def main(argv=None) -> int:
             if time.time() > deadline or proc.poll() is not None:
                 raise SystemExit("soak: the service did not start")
             time.sleep(0.2)
+    atexit.register(lambda: proc.poll() is None and proc.kill())  # a soak that fails leaves no server
     rss_start = rss_mib(proc.pid)
     start = time.perf_counter()
     end = start + args.minutes * 60
@@ -131,18 +133,27 @@ def main(argv=None) -> int:
     for th in threads:
         th.start()
     rss_mid = []
+    last_line = time.perf_counter()
+    print(f"soak: started, server RSS {rss_start:.0f} MiB", flush=True)
     while any(th.is_alive() for th in threads):
         time.sleep(5)
         rss_mid.append(rss_mib(proc.pid))
+        if time.perf_counter() - last_line >= 60:  # progress, so a cut-short soak still says something
+            last_line = time.perf_counter()
+            with lock:
+                n5 = sum(n for (k, c), n in answers.items() if c >= 500)
+                line = f"{len(acked)} acknowledged, {sum(answers.values())} answers, {n5} 5xx, {dict(transport) or 0}"
+            extra = f", web sessions so far {web.report['sessions']}" if web is not None else ""
+            print(f"soak: {(last_line - start) / 60:.0f} min: {line}; RSS {rss_mid[-1]:.0f} MiB{extra}", flush=True)
     for th in threads:
         th.join()
     wall = time.perf_counter() - start
     web_report = web.join() if web is not None else None
     time.sleep(5)  # closed sessions' memory is returned a little later
     rss_end = rss_mib(proc.pid)
-    stored = httpx.get(f"{base}/api/health").json()["runs_stored"]
+    stored = httpx.get(f"{base}/api/health", timeout=120).json()["runs_stored"]
     with httpx.Client(base_url=base, timeout=60) as c:
-        lost = [i for i in acked if not i or c.head(f"/api/runs/{i}").status_code != 200]
+        lost = [i for i in acked if not i or c.head(f"/api/runs/{i}", timeout=120).status_code != 200]
     status = stop_serve(proc) if web is not None else (proc.terminate(), proc.wait(30))[1]
 
     def p99(window):

@@ -15,6 +15,19 @@ with code 1002, which viser's client shows as a "Connection rejected" notice wit
 reason; it retries every second while its tab has focus, and gets in when a seat is free.
 (viser 1.1 has no public hook for this: the gate is registered on its websocket server,
 ``ViserServer._websock_server``, and reads the handshake from ``_live_connections``.)
+
+viser's HTTP server (the page and its scripts, on the same port) answers the same Host
+allow-list: a request naming another host gets 403 (:meth:`WebApp._guard_http` wraps the
+``process_request`` hook of viser's ``websockets`` server, found once at start).
+
+Capacity: the animation thread poses every session at ``FPS``, or less with many sessions:
+it works at most ``DUTY`` of its time (a frame that took w seconds of work is followed by
+at least w·(1/DUTY − 1) of rest), so however many browsers are connected the animation
+leaves CPU for the REST API and the websocket sends (measured, see README "Classroom");
+plot markers, the scrubber and readouts follow at
+``REFRESH_HZ``; a session whose browser has not yet taken its previous frame skips frames
+(its animation time is carried over, so it plays at the right speed, just less smoothly),
+and :mod:`web.fastpath` keeps the per-frame work of viser's handles small.
 """
 
 from __future__ import annotations
@@ -40,7 +53,8 @@ from .generic import warm_systems
 from .session import MechanismApp
 from .systems import VIEWS
 
-FPS = 40.0  # poses sent per second (the target is ≥ 30)
+FPS = 40.0  # poses sent per second at most (the target is ≥ 30 for a few browsers, ≥ 20 for a classroom)
+DUTY = 0.6  # at most this share of the animation thread's time is work: many sessions lower the rate
 REFRESH_HZ = 4.0  # plot markers, scrubber, readouts
 MAX_SESSIONS = 40  # browsers served at once by default (NMKANE_MAX_SESSIONS)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
@@ -169,6 +183,7 @@ class WebApp:
         if preset is not None:
             self.server.initial_camera.look_at, self.server.initial_camera.position = preset
         self.port = self.server.get_port()
+        self._guard_http()
         self.host = host
         self.sessions: dict[int, MechanismApp] = {}
         self._lock = threading.Lock()
@@ -210,6 +225,38 @@ class WebApp:
             if not secrets.compare_digest(given.encode(), self.token.encode()):
                 return "access token missing or wrong: open the URL nmkane serve printed"
         return None
+
+    def _guard_http(self) -> None:
+        """Make viser's HTTP server (the page) answer 403 to a Host not allowed (see the module
+        docstring); RuntimeError if viser's server cannot be found (a viser other than 1.1)."""
+        import gc
+        from http import HTTPStatus
+
+        from websockets.asyncio.server import Server
+
+        found = [
+            o
+            for o in gc.get_objects()
+            if isinstance(o, Server)
+            and o.server is not None
+            and any(sock.getsockname()[1] == self.port for sock in o.server.sockets)
+        ]
+        if len(found) != 1:
+            raise RuntimeError(f"viser's HTTP server on port {self.port} not found (viser {viser.__version__})")
+        server = found[0]
+        original = server.process_request
+
+        def process_request(connection, request):
+            if request.headers.get("Upgrade", "").lower() != "websocket":  # the websocket: see _gate
+                name = _host_name(request.headers.get("Host", ""))
+                if name not in self.allowed_hosts and not _is_ip(name):
+                    self.rejected += 1
+                    return connection.respond(
+                        HTTPStatus.FORBIDDEN, f"host {name[:40]!r} not allowed (nmkane serve --allow-host)\n"
+                    )
+            return original(connection, request) if original is not None else None
+
+        server.process_request = process_request
 
     async def _gate(self, conn) -> None:
         """On the websocket server's event loop, before any message is sent to the connection."""
@@ -281,7 +328,9 @@ class WebApp:
             self.frame_times.append(t0)
             self.frame_work_s.append(time.perf_counter() - t0)
             del self.frame_times[:-400], self.frame_work_s[:-400]
-            next_frame = max(next_frame + period, time.perf_counter())  # fixed rate, no drift
+            now = time.perf_counter()
+            rest = (now - t0) * (1.0 / DUTY - 1.0)  # many sessions: a lower rate, never a busy thread
+            next_frame = max(next_frame + period, now + rest)  # a fixed rate, no drift, when there is time
             self._stop.wait(max(0.0, next_frame - time.perf_counter()))
 
     def fps(self, last: int = 120) -> float:
