@@ -62,3 +62,65 @@ def test_the_classroom_script_end_to_end(tmp_path):
         ]
     )
     assert code == 0
+
+
+def test_the_fast_pose_setter_behaves_as_visers():
+    """web.fastpath's replacement of viser's _set_pose_vector: the same change test
+    (np.allclose's tolerances), the state updated in place, one message per change, the
+    same error on a wrong length — checked against viser's own function."""
+    import numpy as np
+    import pytest
+    from viser import _scene_handles
+
+    from web import fastpath
+
+    assert fastpath.install()
+    original = fastpath._set_pose_vector  # ours
+    cases = [
+        ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
+        ((1.0, 2.0, 3.0), (1.0, 2.0, 3.0 + 1e-9)),  # within allclose: no message
+        ((1.0, 2.0, 3.0), (1.0, 2.0, 3.001)),
+        ((1e6, 0.0, 0.0), (1e6 + 5.0, 0.0, 0.0)),  # relative tolerance
+        ((1e6, 0.0, 0.0), (1e6 + 50.0, 0.0, 0.0)),
+        ((0.0, 0.0, 0.0), np.array([0.5, -0.5, 2.0])),
+    ]
+    for current, value in cases:
+        sent, cur = [], np.array(current, float)
+        original(cur, value, 3, sent.append, lambda v: v)
+        changed = not np.allclose(np.asarray(value, float), np.array(current, float))
+        assert len(sent) == int(changed), (current, value)
+        if changed:
+            assert sent[0] == tuple(float(x) for x in value) and np.array_equal(cur, np.asarray(value, float))
+    for bad in ((1.0, 2.0), np.zeros(4)):
+        with pytest.raises(ValueError):
+            original(np.zeros(3), bad, 3, lambda m: None, lambda v: v)
+    assert _scene_handles._set_pose_vector is original
+
+
+def test_following_camera_sends_position_then_look_at():
+    """web.fastpath.follow_camera: the two messages the setters send (position, then
+    look_at), nothing when unchanged, viser's camera state kept; non-finite input refused."""
+    from types import SimpleNamespace
+
+    import numpy as np
+    import pytest
+
+    from web.fastpath import follow_camera
+
+    sent = []
+    conn = SimpleNamespace(queue_message=sent.append)
+    state = SimpleNamespace(
+        client=SimpleNamespace(_websock_connection=conn),
+        position=np.zeros(3),
+        look_at=np.array([0.0, 1.0, 0.0]),
+        update_timestamp=0.0,
+    )
+    cam = SimpleNamespace(_state=state)
+    follow_camera(cam, np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.0, 1.0]))
+    assert [type(m).__name__ for m in sent] == ["SetCameraPositionMessage", "SetCameraLookAtMessage"]
+    assert sent[0].position == (1.0, 2.0, 3.0) and sent[1].look_at == (0.0, 0.0, 1.0)
+    assert np.array_equal(state.position, [1.0, 2.0, 3.0]) and state.update_timestamp > 0
+    follow_camera(cam, np.array([1.0, 2.0, 3.0]), np.array([0.0, 0.0, 1.0]))
+    assert len(sent) == 2  # unchanged: nothing sent
+    with pytest.raises(ValueError, match="finite"):
+        follow_camera(cam, np.array([np.nan, 0.0, 0.0]), np.zeros(3))
