@@ -21,8 +21,8 @@ allow-list: a request naming another host gets 403 (:meth:`WebApp._guard_http` w
 ``process_request`` hook of viser's ``websockets`` server, found once at start).
 
 Capacity: the animation thread poses every session at ``FPS``, or less with many sessions:
-it works at most ``DUTY`` of its time (a frame that took w seconds of work is followed by
-at least w·(1/DUTY − 1) of rest), so however many browsers are connected the animation
+it works at most ``DUTY`` of its time (a frame that took w seconds of the thread's CPU
+time is followed by at least w·(1/DUTY − 1) of rest), so however many browsers are connected the animation
 leaves CPU for the REST API and the websocket sends (measured, see README "Classroom");
 plot markers, the scrubber and readouts follow at
 ``REFRESH_HZ``; a session whose browser has not yet taken its previous frame skips frames
@@ -303,7 +303,7 @@ class WebApp:
         period = 1.0 / FPS
         last = last_refresh = next_frame = time.perf_counter()
         while not self._stop.is_set():
-            t0 = time.perf_counter()
+            t0, cpu0 = time.perf_counter(), time.thread_time()
             dt_wall, last = min(t0 - last, 0.25), t0
             refresh = t0 - last_refresh >= 1.0 / REFRESH_HZ
             if refresh:
@@ -329,7 +329,8 @@ class WebApp:
             self.frame_work_s.append(time.perf_counter() - t0)
             del self.frame_times[:-400], self.frame_work_s[:-400]
             now = time.perf_counter()
-            rest = (now - t0) * (1.0 / DUTY - 1.0)  # many sessions: a lower rate, never a busy thread
+            # CPU time, not wall time: on a busy machine waiting for a core is no reason to slow down
+            rest = (time.thread_time() - cpu0) * (1.0 / DUTY - 1.0)  # many sessions: a lower rate
             next_frame = max(next_frame + period, now + rest)  # a fixed rate, no drift, when there is time
             self._stop.wait(max(0.0, next_frame - time.perf_counter()))
 
