@@ -5,8 +5,13 @@ is found through the entry-point group ``nmkane.apps`` (``web = "web.app:launch_
 pyproject.toml), so the service and the web app do not import each other.  An app entry
 is a callable ``launch_app(host, port, **options)`` returning a handle with ``.port`` and
 ``.stop()``.  viser runs its own websocket server on its own port, so the two are separate
-servers in one process: uvicorn in a thread, the web app in its own threads, and the main
-thread waiting for Ctrl-C or SIGTERM, then stopping both.
+servers: uvicorn in a thread of this process, the web app in a child process of its own
+(:class:`AppProcess`, ``multiprocessing`` spawn), and the main thread waiting for Ctrl-C or
+SIGTERM, then stopping both.  Why a process: the web app animates every browser's scene
+many times a second in Python, and in one process it shared the GIL with the REST API —
+measured, 8 browsers raised REST p50 from 11 to 109 ms.  The child ignores SIGINT (a
+Ctrl-C reaches the whole process group; the parent stops it in order) and stops when the
+parent says so or when the parent is gone (its end of the pipe closes).
 
 Exposure: on a loopback address (the default) nothing changes.  Bound to another address,
 ``serve`` makes an access token (``secrets``) and prints it, as Jupyter does: REST writes
@@ -25,7 +30,10 @@ else is stopped and flushed (nothing is left to tear down: the store is closed).
 
 from __future__ import annotations
 
+import contextlib
+import importlib.util
 import logging
+import multiprocessing
 import os
 import signal
 import sys
@@ -41,7 +49,7 @@ from .app import create_app
 from .config import Settings
 from .guard import allowed_host_names, is_loopback, new_token, read_deadline_protocol
 
-__all__ = ["serve", "APP_GROUP", "WARM_JOIN_S"]
+__all__ = ["serve", "AppProcess", "APP_GROUP", "WARM_JOIN_S"]
 
 APP_GROUP = "nmkane.apps"
 WARM_JOIN_S = 5.0  # stop: how long to wait for a background compilation before abandoning it
@@ -90,19 +98,95 @@ def _web_app() -> Callable[..., Any]:
     return found[0].load()
 
 
-def _abandon_compilation() -> None:
+def _check_web_app() -> None:
+    """ImportError if the web app's entry or its module cannot be found (without importing
+    it here: the child process does)."""
+    found = [ep for ep in entry_points(group=APP_GROUP) if ep.name == "web"]
+    if not found:
+        raise ImportError(f"no 'web' entry in the {APP_GROUP} entry-point group (is nmkane installed?)")
+    module = found[0].module
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError) as e:
+        raise ImportError(f"{module}: {e}") from None
+    if spec is None:
+        raise ImportError(f"no module named {module!r}")
+
+
+def _app_child(conn, host: str, port: int, options: dict) -> None:
+    """The child process of :class:`AppProcess`: launch the web app, report its port and URL
+    (or the error), serve until told to stop or until the parent is gone."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C: the parent stops us in order
+    try:
+        handle = _web_app()(host, port, **options)
+    except BaseException as e:  # reported to the parent, which serves the REST API alone
+        conn.send(("error", f"{type(e).__name__}: {e}"))
+        return
+    conn.send(("ok", handle.port, getattr(handle, "url", None)))
+    try:
+        conn.recv()  # "stop", or EOFError: the parent is gone
+    except (EOFError, OSError):
+        pass
+    finally:
+        handle.stop()
+        _abandon_compilation(quiet=True)  # the web app warms kernels in the background too
+
+
+class AppProcess:
+    """The web app in a child process: ``.port``, ``.url`` and ``.stop()`` like the app's own
+    handle.  ``timeout_s``: how long to wait for it to start (it imports viser and numpy)."""
+
+    def __init__(self, host: str, port: int, options: dict, timeout_s: float = 300.0):
+        ctx = multiprocessing.get_context("spawn")  # no fork of a process with threads
+        self._conn, child_conn = ctx.Pipe()
+        self.process = ctx.Process(
+            target=_app_child, args=(child_conn, host, port, options), name="nmkane-web", daemon=True
+        )
+        self.process.start()
+        child_conn.close()
+        if not self._conn.poll(timeout_s):
+            self.stop()
+            raise RuntimeError(f"the 3D web app did not start within {timeout_s:.0f} s")
+        try:
+            answer = self._conn.recv()
+        except EOFError:
+            self.process.join(5)
+            raise RuntimeError(f"the 3D web app's process ended at start (status {self.process.exitcode})") from None
+        if answer[0] != "ok":
+            self.process.join(10)
+            raise RuntimeError(f"the 3D web app could not start: {answer[1]}")
+        _, self.port, self.url = answer
+
+    def stop(self, timeout_s: float = 20.0) -> None:
+        """Ask the child to stop and wait for it (then terminate, then kill)."""
+        with contextlib.suppress(OSError, ValueError):  # the child is gone already
+            self._conn.send("stop")
+        self.process.join(timeout_s)
+        if self.process.is_alive():
+            self.process.terminate()
+            self.process.join(5)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join(5)
+        self._conn.close()
+
+
+def _abandon_compilation(quiet: bool = False) -> None:
     """Wait ``WARM_JOIN_S`` for background compilation threads; if one is still running, end
-    the process now (see the module docstring: an exit while LLVM compiles can crash)."""
+    the process now (see the module docstring: an exit while LLVM compiles can crash).
+    ``quiet``: print nothing (the web app's child process)."""
     deadline = time.monotonic() + WARM_JOIN_S
     for t in threading.enumerate():
         if t.name.startswith(WARM_THREAD_PREFIX) and t is not threading.current_thread():
             t.join(max(0.0, deadline - time.monotonic()))
     busy = [t.name for t in threading.enumerate() if t.name.startswith(WARM_THREAD_PREFIX) and t.is_alive()]
     if busy:
-        print(
-            "nmkane: stopped (a background kernel compilation was abandoned; the next start compiles what is missing)",
-            flush=True,
-        )
+        if not quiet:
+            print(
+                "nmkane: stopped (a background kernel compilation was abandoned; "
+                "the next start compiles what is missing)",
+                flush=True,
+            )
         sys.stderr.flush()
         logging.shutdown()
         os._exit(0)
@@ -128,6 +212,7 @@ def serve(
     auth: bool = True,
     max_sessions: int | None = None,
     app_options: dict | None = None,
+    app_process: bool = True,
 ) -> None:
     """Serve until SIGINT or SIGTERM, then stop both servers. Binds to loopback by default.
 
@@ -135,7 +220,9 @@ def serve(
     names clients may use besides the loopback names and ``host``; ``auth``: on a
     non-loopback ``host``, ask for an access token (printed at start); ``max_sessions``:
     browsers the web app serves at once (None: its default); ``app_options``: passed on to
-    the web app's ``launch_app`` (e.g. ``scene``: the system new browsers open on).
+    the web app's ``launch_app`` (e.g. ``scene``: the system new browsers open on);
+    ``app_process``: run the web app in a child process (:class:`AppProcess`, the default)
+    rather than in threads of this one.
 
     In the main thread, ``serve`` handles SIGINT and SIGTERM itself.  Once a signal has
     asked it to stop, further SIGINT/SIGTERM are ignored (``SIG_IGN``) from then on: the
@@ -179,7 +266,7 @@ def serve(
             print(f"nmkane access token {settings.token}   (REST writes: 'Authorization: Bearer <token>')", flush=True)
         if web:
             try:
-                launch_app = _web_app()
+                _check_web_app() if app_process else _web_app()
             except ImportError as e:  # the 3D web app is optional for the API
                 log.warning("3D web app not available (%s); serving the REST API only", e)
                 print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
@@ -187,7 +274,10 @@ def serve(
                 options = {**(app_options or {}), "token": settings.token, "allowed_hosts": settings.allowed_hosts}
                 if max_sessions is not None:
                     options["max_sessions"] = max_sessions
-                handle = launch_app(host, viser_port, **options)
+                if app_process:
+                    handle = AppProcess(host, viser_port, options)
+                else:
+                    handle = _web_app()(host, viser_port, **options)
                 web_url = getattr(handle, "url", None) or f"http://{url_host}:{handle.port}/{query}"
                 print(f"nmkane 3D web app  {web_url}", flush=True)
         print("press Ctrl-C to stop", flush=True)

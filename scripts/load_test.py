@@ -91,6 +91,47 @@ def _pct(sorted_values: list[float], p: float) -> float:
     return sorted_values[k] * 1e3
 
 
+class Record:
+    """What REST clients saw, shared between threads: latencies (s), answers by status,
+    transport errors by kind, acknowledged run ids; ``lock`` guards them."""
+
+    def __init__(self, latencies=None, codes=None, errors=None, acked=None, lock=None):
+        self.latencies: list[float] = [] if latencies is None else latencies
+        self.codes: Counter = Counter() if codes is None else codes
+        self.errors: Counter = Counter() if errors is None else errors
+        self.acked: list[str] = [] if acked is None else acked
+        self.lock = threading.Lock() if lock is None else lock
+
+
+def post_runs(base: str, keep_going, record: Record, body: dict = SMALL) -> None:
+    """One client: post ``body`` to ``base``/api/runs back to back on one keep-alive
+    connection while ``keep_going()`` says so, reading each whole answer into ``record``."""
+    with httpx.Client(base_url=base, timeout=30) as c:
+        while keep_going():
+            t0 = time.perf_counter()
+            try:
+                r = c.post("/api/runs", json=body)
+                content = r.content  # the whole document is read
+            except httpx.HTTPError as e:
+                with record.lock:
+                    record.errors[type(e).__name__] += 1
+                continue
+            dt = time.perf_counter() - t0
+            # the id from Location: parsing 570 kB of JSON here would load the shared CPUs
+            run_id = (
+                r.headers.get("location", "").rsplit("/", 1)[-1] or None
+                if r.status_code == 201 and len(content) > 100_000
+                else None
+            )
+            with record.lock:
+                record.codes[r.status_code] += 1
+                record.latencies.append(dt)
+                if run_id:
+                    record.acked.append(run_id)
+                elif r.status_code == 201:
+                    record.errors["short 201 body"] += 1
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--clients", type=int, default=16, help="concurrent clients (1..64)")
@@ -131,35 +172,16 @@ def _run(args, base: str, proc: subprocess.Popen | None) -> int:
     stop_at = [0.0]
 
     def client():
-        with httpx.Client(base_url=base, timeout=30) as c:
-            start_gate.wait()
-            while time.perf_counter() < stop_at[0]:
-                with lock:
-                    if sent[0] >= args.max_requests:
-                        return
-                    sent[0] += 1
-                t0 = time.perf_counter()
-                try:
-                    r = c.post("/api/runs", json=SMALL)
-                    body = r.content  # the whole document is read
-                except httpx.HTTPError as e:
-                    with lock:
-                        errors[type(e).__name__] += 1
-                    continue
-                dt = time.perf_counter() - t0
-                # the id from Location: parsing 570 kB of JSON here would load the shared CPUs
-                run_id = (
-                    r.headers.get("location", "").rsplit("/", 1)[-1] or None
-                    if r.status_code == 201 and len(body) > 100_000
-                    else None
-                )
-                with lock:
-                    codes[r.status_code] += 1
-                    latencies.append(dt)
-                    if run_id:
-                        acked.append(run_id)
-                    elif r.status_code == 201:
-                        errors["short 201 body"] += 1
+        start_gate.wait()
+
+        def keep_going() -> bool:
+            with lock:
+                if time.perf_counter() >= stop_at[0] or sent[0] >= args.max_requests:
+                    return False
+                sent[0] += 1
+                return True
+
+        post_runs(base, keep_going, Record(latencies, codes, errors, acked, lock))
 
     threads = [threading.Thread(target=client, daemon=True) for _ in range(args.clients)]
     for th in threads:

@@ -118,6 +118,29 @@ def test_a_foreign_host_name_is_refused_loopback_and_ip_pass(web):
         ws.close()
 
 
+def _get_page(app, host: str) -> tuple[int, bytes]:
+    """GET / from viser's HTTP server with this Host header: (status, body)."""
+    with socket.create_connection(("127.0.0.1", app.port), timeout=20) as sock:
+        sock.sendall(f"GET / HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n".encode())
+        data = b""
+        while chunk := sock.recv(65536):
+            data += chunk
+    head, _, body = data.partition(b"\r\n\r\n")
+    return int(head.split()[1]), body
+
+
+def test_the_page_is_served_only_to_allowed_host_names(web):
+    """viser's own HTTP server served the page for any Host (DNS rebinding); now it answers
+    the same allow-list as the websocket."""
+    app = web(allowed_hosts=("classroom.example",))
+    for host in (f"evil.example:{app.port}", "evil.example", f"localhost.evil.example:{app.port}"):
+        code, body = _get_page(app, host)
+        assert code == 403 and b"not allowed" in body and b"<html" not in body.lower(), host
+    for host in (f"127.0.0.1:{app.port}", f"localhost:{app.port}", f"classroom.example:{app.port}", "[::1]"):
+        code, body = _get_page(app, host)
+        assert code == 200 and b"<html" in body.lower(), host
+
+
 def test_the_token_is_needed_when_set(web):
     app = web(token="s" * 32)
     assert "token%3D" + "s" * 32 in app.url and "?websocket=" in app.url

@@ -14,6 +14,8 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .fastpath import follow_camera
+
 CATCH_UP_S = 15.0  # how long reports that do not show our preset are taken as stale (a slow browser)
 
 
@@ -48,8 +50,11 @@ class CameraRig:
                 self.offset = view.camera_offset(row, view_name)
             if self.offset is None:
                 return
-            cam.position = target + self.offset  # moves look_at along by the same amount
-            cam.look_at = target
+            if reset:
+                cam.position = target + self.offset  # moves look_at along by the same amount
+                cam.look_at = target
+            else:  # every frame while following: the same two messages, without viser's orientation math
+                follow_camera(cam, target + self.offset, target)
         except (AssertionError, ValueError):  # no camera message from the browser yet
             pass
 

@@ -15,6 +15,19 @@ with code 1002, which viser's client shows as a "Connection rejected" notice wit
 reason; it retries every second while its tab has focus, and gets in when a seat is free.
 (viser 1.1 has no public hook for this: the gate is registered on its websocket server,
 ``ViserServer._websock_server``, and reads the handshake from ``_live_connections``.)
+
+viser's HTTP server (the page and its scripts, on the same port) answers the same Host
+allow-list: a request naming another host gets 403 (:meth:`WebApp._guard_http` wraps the
+``process_request`` hook of viser's ``websockets`` server, found once at start).
+
+Capacity: the animation thread poses every session at ``FPS``, or less with many sessions:
+it works at most ``DUTY`` of its time (a frame that took w seconds of the thread's CPU
+time is followed by at least w·(1/DUTY − 1) of rest), so however many browsers are connected the animation
+leaves CPU for the REST API and the websocket sends (measured, see README "Classroom");
+plot markers, the scrubber and readouts follow at
+``REFRESH_HZ``; a session whose browser has not yet taken its previous frame skips frames
+(its animation time is carried over, so it plays at the right speed, just less smoothly),
+and :mod:`web.fastpath` keeps the per-frame work of viser's handles small.
 """
 
 from __future__ import annotations
@@ -34,11 +47,13 @@ import viser
 from nmkane_core.registry import get_system
 from nmkane_core.simulate import simulate as core_simulate
 
+from . import fastpath
 from . import matrices as mx
 from .generic import warm_systems
 from .session import MechanismApp
 
-FPS = 40.0  # poses sent per second (the target is ≥ 30)
+FPS = 40.0  # poses sent per second at most (the target is ≥ 30 for a few browsers, ≥ 20 for a classroom)
+DUTY = 0.6  # at most this share of the animation thread's time is work: many sessions lower the rate
 REFRESH_HZ = 4.0  # plot markers, scrubber, readouts
 MAX_SESSIONS = 40  # browsers served at once by default (NMKANE_MAX_SESSIONS)
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
@@ -103,6 +118,21 @@ def _release_memory() -> None:
             _trim_lock.release()
 
 
+def _backlog(client) -> int:
+    """Messages queued for a browser that its connection has not taken yet (0 for a test's
+    shared server, or when viser's internals differ from 1.1's; -1 once the connection is
+    closed: nothing sent to it would be delivered)."""
+    try:
+        conn = client._websock_connection
+        buf = conn.get_message_buffer()
+        cursor = buf.generator_cursors.get(conn.client_id)
+    except AttributeError:
+        return 0
+    if buf.done:
+        return -1
+    return 0 if cursor is None else max(0, buf.message_counter - 1 - cursor)
+
+
 def _max_sessions_default() -> int:
     raw = os.environ.get("NMKANE_MAX_SESSIONS", "").strip()
     if not raw:
@@ -140,6 +170,7 @@ class WebApp:
         self._admitted: set[int] = set()  # connections past the gate (sessions or about to be)
         self._trim_due: float | None = None  # when to return closed sessions' memory (monotonic)
         self.rejected = 0
+        fastpath.install()  # the per-frame pose updates without viser's numpy overhead
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
         ws = self.server._websock_server  # the gate runs before anything is sent
         ws.on_client_connect(self._gate)
@@ -148,6 +179,7 @@ class WebApp:
         self.server.scene.set_up_direction("+z")
         self.scene = scene  # the system new browsers open on (None: the first)
         self.port = self.server.get_port()
+        self._guard_http()
         self.host = host
         self.sessions: dict[int, MechanismApp] = {}
         self._lock = threading.Lock()
@@ -155,6 +187,8 @@ class WebApp:
         self._simulate = simulate
         self.frame_times: list[float] = []
         self.frame_work_s: list[float] = []
+        self._owed: dict[int, float] = {}  # animation time owed to sessions whose frames were skipped
+        self.skipped = 0  # session frames skipped (browser not keeping up)
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
         self._warm_thread = threading.Thread(target=warm, daemon=True, name="nmkane-warm")
@@ -187,6 +221,38 @@ class WebApp:
             if not secrets.compare_digest(given.encode(), self.token.encode()):
                 return "access token missing or wrong: open the URL nmkane serve printed"
         return None
+
+    def _guard_http(self) -> None:
+        """Make viser's HTTP server (the page) answer 403 to a Host not allowed (see the module
+        docstring); RuntimeError if viser's server cannot be found (a viser other than 1.1)."""
+        import gc
+        from http import HTTPStatus
+
+        from websockets.asyncio.server import Server
+
+        found = [
+            o
+            for o in gc.get_objects()
+            if isinstance(o, Server)
+            and o.server is not None
+            and any(sock.getsockname()[1] == self.port for sock in o.server.sockets)
+        ]
+        if len(found) != 1:
+            raise RuntimeError(f"viser's HTTP server on port {self.port} not found (viser {viser.__version__})")
+        server = found[0]
+        original = server.process_request
+
+        def process_request(connection, request):
+            if request.headers.get("Upgrade", "").lower() != "websocket":  # the websocket: see _gate
+                name = _host_name(request.headers.get("Host", ""))
+                if name not in self.allowed_hosts and not _is_ip(name):
+                    self.rejected += 1
+                    return connection.respond(
+                        HTTPStatus.FORBIDDEN, f"host {name[:40]!r} not allowed (nmkane serve --allow-host)\n"
+                    )
+            return original(connection, request) if original is not None else None
+
+        server.process_request = process_request
 
     async def _gate(self, conn) -> None:
         """On the websocket server's event loop, before any message is sent to the connection."""
@@ -223,6 +289,7 @@ class WebApp:
     def _disconnect(self, client: viser.ClientHandle) -> None:
         with self._lock:
             session = self.sessions.pop(client.client_id, None)
+        self._owed.pop(client.client_id, None)
         if session is not None:
             session.close()
             del session
@@ -232,16 +299,24 @@ class WebApp:
         period = 1.0 / FPS
         last = last_refresh = next_frame = time.perf_counter()
         while not self._stop.is_set():
-            t0 = time.perf_counter()
+            t0, cpu0 = time.perf_counter(), time.thread_time()
             dt_wall, last = min(t0 - last, 0.25), t0
             refresh = t0 - last_refresh >= 1.0 / REFRESH_HZ
             if refresh:
                 last_refresh = t0
             with self._lock:
-                sessions = list(self.sessions.values())
-            for s in sessions:  # a session whose browser left skips itself
+                sessions = list(self.sessions.items())
+            for cid, s in sessions:  # a session whose browser left skips itself
+                owed = self._owed.pop(cid, 0.0) + dt_wall
+                backlog = _backlog(s.client)
+                if backlog < 0:  # closed: its session is about to be dropped
+                    continue
+                if backlog > 0:  # its browser has not taken the last frame yet: skip this one
+                    self._owed[cid] = min(owed, 0.25)
+                    self.skipped += 1
+                    continue
                 with contextlib.suppress(Exception):  # a client gone mid-frame: skip it this frame
-                    s.tick(dt_wall, refresh)
+                    s.tick(owed, refresh)
             sessions = s = None  # hold no closed session until the next frame
             if self._trim_due is not None and time.monotonic() >= self._trim_due:
                 self._trim_due = None
@@ -249,7 +324,10 @@ class WebApp:
             self.frame_times.append(t0)
             self.frame_work_s.append(time.perf_counter() - t0)
             del self.frame_times[:-400], self.frame_work_s[:-400]
-            next_frame = max(next_frame + period, time.perf_counter())  # fixed rate, no drift
+            now = time.perf_counter()
+            # CPU time, not wall time: on a busy machine waiting for a core is no reason to slow down
+            rest = (time.thread_time() - cpu0) * (1.0 / DUTY - 1.0)  # many sessions: a lower rate
+            next_frame = max(next_frame + period, now + rest)  # a fixed rate, no drift, when there is time
             self._stop.wait(max(0.0, next_frame - time.perf_counter()))
 
     def fps(self, last: int = 120) -> float:
