@@ -25,7 +25,8 @@ _FACTORIES: dict[str, Callable[[], System]] = {}
 _BUILT: dict[str, System] = {}
 _USED: set[str] = set()
 _LOCK = threading.RLock()
-_builtin_loaded = False
+_builtin_loaded = False  # the load has started
+_builtin_ready = False  # the load has finished
 _generation = 0  # counts changes, so that caches of the catalogue know when to refresh
 
 
@@ -107,20 +108,21 @@ def generation() -> int:
 
 
 def _load_builtin() -> None:
-    global _builtin_loaded
-    if _builtin_loaded:
+    global _builtin_loaded, _builtin_ready
+    if _builtin_ready:  # another thread may be loading: only a finished load skips the lock
         return
     with _LOCK:
-        if _builtin_loaded:
+        if _builtin_loaded:  # loaded, or being loaded by this very thread (plug-ins registering)
             return
         _builtin_loaded = True
         from .systems import BUILTIN
 
         for name, factory in BUILTIN.items():
             _FACTORIES.setdefault(name, factory)
-    from .plugins import load_default_plugins
+        from .plugins import load_default_plugins
 
-    load_default_plugins()
+        load_default_plugins()
+        _builtin_ready = True
 
 
 def system_names() -> tuple[str, ...]:

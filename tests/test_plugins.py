@@ -172,3 +172,23 @@ def test_the_readme_user_system_example_runs_as_written():
     exec(compile(block, "README.md", "exec"), namespace)
     run = namespace["run"]
     assert run.status == "ok"
+
+
+def test_threads_asking_at_once_all_see_the_builtin_systems():
+    """The first use registers the built-ins; a second thread asking meanwhile got an empty
+    list (the web app then failed to build a browser's page: StopIteration)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import threading\n"
+        "from nmkane_core.registry import system_names\n"
+        "out = []\n"
+        "ts = [threading.Thread(target=lambda: out.append(len(system_names()))) for _ in range(8)]\n"
+        "[t.start() for t in ts]; [t.join() for t in ts]\n"
+        "print(out)\n"
+        "assert min(out) > 0, out\n"
+    )
+    for _ in range(3):
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 0, r.stdout + r.stderr[-500:]

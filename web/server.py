@@ -283,8 +283,13 @@ class WebApp:
     def _connect(self, client: viser.ClientHandle) -> None:
         cid = client.client_id
         session = MechanismApp(client, simulate=self._simulate, connected=lambda: self.connected(cid), scene=self.scene)
-        with self._lock:
-            self.sessions[cid] = session
+        with self._lock:  # viser pops a leaving client before its disconnect callbacks run
+            if self.connected(cid):
+                self.sessions[cid] = session
+                return
+        # the browser left while its page was built: its disconnect callback found no session
+        session.close()
+        self._trim_due = time.monotonic() + TRIM_DELAY_S
 
     def _disconnect(self, client: viser.ClientHandle) -> None:
         with self._lock:
