@@ -1,6 +1,6 @@
 """``nmkane bench`` rows of the sweep issue: scaling over cores and streaming memory.
 
-* a 64-run sweep (sliding particle, Δt = 0.001, 100 s each; 20 s with ``--quick``) on one
+* a 64-run sweep (sliding particle, Δt = 0.001, 500 s each; 20 s with ``--quick``) on one
   core (this process), on the local process executor and on a Dask ``LocalCluster`` of
   ``workers`` processes: the speedup over the one-core rate (targets ≥ 1.8× and ≥ 1.7× on 2
   cores).  Executors are started and warmed before the clock starts (their start-up time is
