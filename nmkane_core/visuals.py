@@ -7,7 +7,8 @@ the pose functions are not cached yet) returns a :class:`Visuals`:
 * :class:`Frame` ``(name, origin, rotation)`` — origin a 3-vector and rotation a 3×3
   matrix (body axes in world coordinates, columns) of the state names and parameters
   (plain symbols or ``dynamicsymbols``; :func:`rot_x`, :func:`rot_y`, :func:`rot_z` or
-  ``N.dcm(B)`` build rotations);
+  ``N.dcm(B)`` build rotations), or ``Frame.of(name, B, P, N, O)`` from a
+  sympy.physics.mechanics ReferenceFrame ``B`` and Point ``P`` (``N``, ``O``: the ground);
 * shapes attached to a frame (``frame=None``: the world) — :func:`box`, :func:`cylinder`
   (a disk is a short one), :func:`sphere`; sizes and offsets are expressions of the
   parameters only;
@@ -80,6 +81,12 @@ class Frame:
     name: str
     origin: Any
     rotation: Any = None
+
+    @classmethod
+    def of(cls, name: str, frame, point, inertial, origin) -> Frame:
+        """From sympy.physics.mechanics: the ReferenceFrame ``frame`` placed at the Point
+        ``point``, both seen from the ``inertial`` frame and its fixed Point ``origin``."""
+        return cls(name, tuple(point.pos_from(origin).to_matrix(inertial)), inertial.dcm(frame))
 
 
 @dataclass(frozen=True)
