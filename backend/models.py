@@ -55,7 +55,8 @@ class Catalog(BaseModel):
 
     systems: list[dict] = Field(
         description="name, parameters with defaults and ranges, models or "
-        "formulations, coordinates and speeds, constraint names, defaults"
+        "formulations, coordinates and speeds, constraint names, defaults, what to try, the stability "
+        "sweep a system declares (or null)"
     )
     integrators: dict[str, str] = Field(description="name: description")
     projections: list[str]

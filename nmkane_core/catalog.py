@@ -40,6 +40,18 @@ def catalog() -> dict:
                 "independent": list(s.independent),
                 "default_initial": dict(s.default_initial),
                 "constraint_names": {v: list(s.constraint_names(v)) for v in s.variants},
+                "what_to_try": s.what_to_try,
+                "stability": None
+                if s.stability is None
+                else {  # what `nmkane stability` sweeps by default
+                    "over": s.stability.over,
+                    "unit": s.stability.unit,
+                    "start": s.stability.start,
+                    "stop": s.stability.stop,
+                    "count": s.stability.count,
+                    "keep": list(s.stability.keep),
+                    "reference": dict(s.stability.reference),
+                },
                 "defaults": {
                     "dt": s.default_dt,
                     "t_final": s.default_t_final,

@@ -127,3 +127,15 @@ def test_a_user_system_declares_an_event():
         assert run.state["x"][-1] == pytest.approx(0.0, abs=1e-4)
     finally:
         unregister("test-falling-ball")
+
+
+def test_the_catalogue_lists_the_stability_sweep_and_what_to_try():
+    """GET /api/systems (the library's catalog) says what `nmkane stability` sweeps."""
+    from nmkane_core.catalog import catalog
+
+    systems = {s["name"]: s for s in catalog()["systems"]}
+    st = systems["whipple-bicycle"]["stability"]
+    assert st["over"] == "speed" and st["keep"] == ["q4", "q7", "u4", "u7"]
+    assert st["reference"]["weave"] == 4.29238253634111
+    assert systems["knife-edge"]["stability"] is None
+    assert "5 m/s" in systems["whipple-bicycle"]["what_to_try"]

@@ -110,7 +110,7 @@ def status_text(traj, installs: int) -> str:
     for label, run in traj.runs.items():  # runs with the same outcome share a line
         groups.setdefault((run.summary["status"], run.summary["message"]), []).append(label)
     for (status, message), labels in groups.items():
-        flag = "" if status == "ok" else "⚠ "
+        flag = {"ok": "", "event": "⏹ "}.get(status, "⚠ ")  # an event ends a run as declared: no warning
         lines.append(f"{flag}**{', '.join(labels)}: {status}** — {message}")
     for label, run in traj.runs.items():
         s = run.summary
