@@ -39,6 +39,15 @@ def _png(data: bytes) -> np.ndarray:
     return imread(io.BytesIO(data), format="png")[..., :3]
 
 
+def _colored(img: np.ndarray) -> np.ndarray:
+    return np.abs(img - img.mean(axis=2, keepdims=True)).max(axis=2) > 0.15
+
+
+def _drawn(img: np.ndarray) -> bool:
+    """More than the grey ground plane is visible."""
+    return bool(_colored(img).mean() > 0.002)
+
+
 def test_each_system_is_drawn_and_recognizably_different(tmp_path):
     assert load_systems([str(EXAMPLE)]) == []
     app = launch(port=0)
@@ -64,7 +73,12 @@ def test_each_system_is_drawn_and_recognizably_different(tmp_path):
                     want = view.camera_target(None, "") + session.camera.offset
                     np.testing.assert_allclose(cam.position, want, atol=1e-3 * (1 + np.linalg.norm(want)))
                     np.testing.assert_allclose(session.camera.offset, view.camera_offset(None, ""), atol=1e-6)
-                    data = page.screenshot(timeout=120000)
+                    deadline = time.monotonic() + 60  # a loaded machine: the nodes may arrive late
+                    while True:
+                        data = page.screenshot(timeout=120000)
+                        if _drawn(_png(data)[:, :650]) or time.monotonic() > deadline:
+                            break
+                        time.sleep(0.5)
                     if SHOTS:
                         Path(SHOTS, f"{name}.png").write_bytes(data)
                     text = page.inner_text("body")
@@ -78,8 +92,7 @@ def test_each_system_is_drawn_and_recognizably_different(tmp_path):
     for name, img in shots.items():
         gray = img.mean(axis=2)
         assert gray.std() > 0.03, f"{name}: the 3D view is blank"
-        colored = np.abs(img - img.mean(axis=2, keepdims=True)).max(axis=2) > 0.15
-        assert colored.mean() > 0.002, f"{name}: nothing but the grey ground plane is visible"
+        assert _drawn(img), f"{name}: nothing but the grey ground plane is visible"
     names = list(shots)
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
