@@ -7,10 +7,15 @@ keep their own sub-folders next to it, keyed by :meth:`nmkane_core.System.kernel
 
 from __future__ import annotations
 
+import hashlib
+import inspect
+import json
 import os
+import threading
+from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["cache_root", "kernel_dir", "write_kernel", "import_kernel"]
+__all__ = ["cache_root", "declared_data", "kernel_dir", "write_kernel", "import_kernel"]
 
 
 def cache_root() -> Path:
@@ -19,6 +24,38 @@ def cache_root() -> Path:
     if env:
         return Path(env)
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "nmkane"
+
+
+def declared_data(system, declaration, kind: str, generator: str, version: str, build: Callable[[], dict]) -> dict:
+    """JSON data generated from a system's declaration (its visuals, its events): read from
+    ``<cache root>/KIND/``, or ``build()`` (sympy work) and stored there.  The file is keyed by
+    the system's kernel key, the file defining ``declaration``, the ``generator`` module's file
+    and its ``version``; a declaration with no file (defined interactively) is never cached."""
+    path = None
+    key = system.kernel_key(system.default_variant)
+    try:
+        src = inspect.getsourcefile(declaration)
+    except TypeError:
+        src = None
+    if key is not None and src is not None and not src.startswith("<"):
+        h = hashlib.sha256(f"{key}\0{version}".encode())
+        h.update(Path(src).read_bytes())
+        h.update(Path(generator).read_bytes())
+        path = cache_root() / kind / f"{h.hexdigest()[:24]}.json"
+        try:
+            return json.loads(path.read_text())
+        except (OSError, ValueError):
+            pass
+    data = build()
+    if path is not None:
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            tmp = path.with_suffix(f".{os.getpid()}.{threading.get_ident()}.tmp")
+            tmp.write_text(json.dumps(data))
+            tmp.replace(path)
+        except OSError:
+            pass
+    return data
 
 
 def kernel_dir() -> Path:

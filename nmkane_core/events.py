@@ -24,11 +24,7 @@ Compiled once into numpy source (no sympy afterwards), cached under
 
 from __future__ import annotations
 
-import hashlib
-import inspect
-import json
 import threading
-from pathlib import Path
 
 import numpy as np
 
@@ -88,22 +84,6 @@ def _generate(events: dict, state_names, param_names) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _cache_file(system) -> Path | None:
-    from .cache import cache_root
-
-    key = system.kernel_key(system.default_variant)
-    try:
-        src = inspect.getsourcefile(system.events)
-    except TypeError:
-        src = None
-    if key is None or src is None or src.startswith("<"):
-        return None
-    h = hashlib.sha256(f"{key}\0{GENERATOR_VERSION}".encode())
-    h.update(Path(src).read_bytes())
-    h.update(Path(__file__).read_bytes())
-    return cache_root() / "events" / f"{h.hexdigest()[:24]}.json"
-
-
 def compile_events(system) -> CompiledEvents | None:
     """A system's compiled events (None if it declares none): from memory, the disk cache,
     or generated (sympy) and cached.  ``system`` is a :class:`~nmkane_core.system.System`."""
@@ -113,30 +93,21 @@ def compile_events(system) -> CompiledEvents | None:
         memo = _MEMO.get(id(system))
         if memo is not None and memo[0] is system:
             return memo[1]
-    path = _cache_file(system)
-    data = None
-    if path is not None and path.exists():
-        try:
-            data = json.loads(path.read_text())
-        except (OSError, ValueError):
-            data = None
-    if data is None:
+    from .cache import declared_data
+
+    def build() -> dict:
         from .errors import InputError
 
         declared = system.events()
         if not isinstance(declared, dict) or not all(isinstance(k, str) for k in declared):
             raise InputError(f"{system.name}: events", type(declared).__name__, "a function returning {name: expr}", "")
         info = system.info(system.default_variant)
-        source = _generate(declared, tuple(info.q) + tuple(info.u), system.param_names)
-        data = {"names": list(declared), "source": source}
-        if path is not None:
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                tmp = path.with_suffix(f".tmp{id(data)}")
-                tmp.write_text(json.dumps(data))
-                tmp.replace(path)
-            except OSError:
-                pass
+        return {
+            "names": list(declared),
+            "source": _generate(declared, tuple(info.q) + tuple(info.u), system.param_names),
+        }
+
+    data = declared_data(system, system.events, "events", __file__, GENERATOR_VERSION, build)
     compiled = CompiledEvents(data["names"], data["source"])
     with _LOCK:
         _MEMO[id(system)] = (system, compiled)

@@ -35,15 +35,11 @@ so a later process loads it without sympy.
 
 from __future__ import annotations
 
-import hashlib
-import inspect
 import itertools
-import json
 import math
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -389,24 +385,6 @@ _MEMO: dict = {}
 _LOCK = threading.Lock()
 
 
-def _cache_file(system) -> Path | None:
-    from .cache import cache_root
-
-    key = system.kernel_key(system.default_variant)
-    if key is None:
-        return None
-    try:
-        vis_file = inspect.getsourcefile(system.visuals)
-    except TypeError:
-        vis_file = None
-    if vis_file is None or vis_file.startswith("<"):
-        return None
-    h = hashlib.sha256(f"{key}\0{GENERATOR_VERSION}".encode())
-    h.update(Path(vis_file).read_bytes())
-    h.update(Path(__file__).read_bytes())
-    return cache_root() / "visuals" / f"{h.hexdigest()[:24]}.json"
-
-
 def compile_visuals(system) -> CompiledVisuals | None:
     """A system's compiled visuals (None if it declares none): from memory, the disk cache,
     or generated (sympy) and cached.  ``system`` is a :class:`~nmkane_core.system.System`."""
@@ -416,14 +394,9 @@ def compile_visuals(system) -> CompiledVisuals | None:
         memo = _MEMO.get(id(system))
         if memo is not None and memo[0] is system:
             return memo[1]
-    path = _cache_file(system)
-    data = None
-    if path is not None and path.exists():
-        try:
-            data = json.loads(path.read_text())
-        except (OSError, ValueError):
-            data = None
-    if data is None:
+    from .cache import declared_data
+
+    def build() -> dict:
         from .errors import InputError
 
         vis = system.visuals()
@@ -435,15 +408,9 @@ def compile_visuals(system) -> CompiledVisuals | None:
         state_names = tuple(info.q) + tuple(info.u) + tuple(info.outputs)
         shapes, frames, source = _generate(vis, state_names, system.param_names)
         view = None if vis.view is None else [float(c) for c in vis.view]
-        data = {"shapes": shapes, "frames": frames, "source": source, "view": view}
-        if path is not None:
-            try:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                tmp = path.with_suffix(".tmp")
-                tmp.write_text(json.dumps(data))
-                tmp.replace(path)
-            except OSError:
-                pass
+        return {"shapes": shapes, "frames": frames, "source": source, "view": view}
+
+    data = declared_data(system, system.visuals, "visuals", __file__, GENERATOR_VERSION, build)
     view = data.get("view")
     compiled = CompiledVisuals(data["shapes"], data["frames"], data["source"], None if view is None else tuple(view))
     with _LOCK:

@@ -21,3 +21,27 @@ def require(module: str):
     if os.environ.get("CI") == "true":
         return importlib.import_module(module)
     return pytest.importorskip(module)
+
+
+def require_browser():
+    """Chromium's path and Playwright's ``sync_playwright`` for a browser test module: skipped on
+    a developer machine without them, an error under CI (``.ci/run`` installs Chromium)."""
+    import os
+
+    import pytest
+
+    from web.screenshot import chromium_path
+
+    in_ci = os.environ.get("CI") == "true"
+    chromium = chromium_path()
+    if chromium is None:
+        if in_ci:
+            raise RuntimeError("CI=true but Chromium is not installed: .ci/run must `apt-get install -y chromium`")
+        pytest.skip("headless Chromium not installed (apt-get install chromium) — skipped", allow_module_level=True)
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        if in_ci:
+            raise
+        pytest.skip("playwright not installed (pip install playwright) — skipped", allow_module_level=True)
+    return chromium, sync_playwright

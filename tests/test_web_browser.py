@@ -4,29 +4,16 @@ Skips with a message when Chromium or Playwright is absent on a developer machin
 CI=true it must run (``.ci/run`` installs Chromium), so a missing browser is an error."""
 
 import io
-import os
 import re
 import time
 
 import numpy as np
 import pytest
 
-from web.screenshot import CHROMIUM_ARGS, chromium_path, close_toasts, input_of, open_page
+from tests._helpers import require_browser
+from web.screenshot import CHROMIUM_ARGS, close_toasts, input_of, open_page
 
-IN_CI = os.environ.get("CI") == "true"
-CHROMIUM = chromium_path()
-if CHROMIUM is None:
-    if IN_CI:
-        raise RuntimeError("CI=true but Chromium is not installed: .ci/run must `apt-get install -y chromium`")
-    pytest.skip(
-        "headless Chromium not installed (apt-get install chromium) — browser test skipped", allow_module_level=True
-    )
-try:
-    from playwright.sync_api import sync_playwright
-except ImportError:
-    if IN_CI:
-        raise
-    pytest.skip("playwright not installed (pip install playwright) — browser test skipped", allow_module_level=True)
+CHROMIUM, sync_playwright = require_browser()
 
 from web.app import launch
 

@@ -9,20 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from web.screenshot import CHROMIUM_ARGS, chromium_path, close_toasts, open_page
+from tests._helpers import require_browser
+from web.screenshot import CHROMIUM_ARGS, close_toasts, open_page
 
-IN_CI = os.environ.get("CI") == "true"
-CHROMIUM = chromium_path()
-if CHROMIUM is None:
-    if IN_CI:
-        raise RuntimeError("CI=true but Chromium is not installed")
-    pytest.skip("headless Chromium not installed — browser test skipped", allow_module_level=True)
-try:
-    from playwright.sync_api import sync_playwright
-except ImportError:
-    if IN_CI:
-        raise
-    pytest.skip("playwright not installed — browser test skipped", allow_module_level=True)
+CHROMIUM, sync_playwright = require_browser()
 
 from nmkane_core.plugins import load_systems
 from web.app import launch
