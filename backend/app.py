@@ -36,8 +36,8 @@ from fastapi.responses import JSONResponse, RedirectResponse, Response, Streamin
 from fastapi_offline import FastAPIOffline
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
-from nmkane_core.catalog import catalog
-from nmkane_core.run import Run
+from nmkane_core.run.catalog import catalog
+from nmkane_core.run.result import Run
 from nmkane_core.schema import RunResult
 
 from .config import LIMIT_DESCRIPTIONS, Settings
@@ -172,7 +172,7 @@ def _too_large(size, limit: int) -> dict:
 
 
 def _catalog() -> dict:
-    from nmkane_core.registry import generation
+    from nmkane_core.run.registry import generation
 
     return _catalog_at(generation())
 

@@ -55,7 +55,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.max_sessions is not None and args.max_sessions < 1:
         raise InputError("max_sessions", args.max_sessions, "an integer ≥ 1")
     if args.scene is not None:
-        from nmkane_core.registry import get_system
+        from nmkane_core.run.registry import get_system
 
         get_system(args.scene, "--scene")  # an unknown name: one line naming the option and the choices
     try:

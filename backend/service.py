@@ -19,14 +19,14 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 import orjson
 
-from nmkane_core.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK, kernel_for
 from nmkane_core.errors import InputError
-from nmkane_core.integrators import ScipyMethod
-from nmkane_core.plan import Plan, min_every, output_rows, raise_all, resolve, round_up
-from nmkane_core.registry import get_system, system_names
-from nmkane_core.run import Run
+from nmkane_core.integrate.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK, kernel_for
+from nmkane_core.integrate.methods import ScipyMethod
+from nmkane_core.run.plan import Plan, min_every, output_rows, raise_all, resolve, round_up
+from nmkane_core.run.registry import get_system, system_names
+from nmkane_core.run.result import Run
+from nmkane_core.run.simulate import simulate
 from nmkane_core.schema import RunSettings, RunSummary
-from nmkane_core.simulate import simulate
 
 from .config import Settings
 from .store import RunStore
@@ -244,7 +244,7 @@ class RunService:
             system = get_system(name)
             for variant in system.variants:
                 # generated now, every new kernel starts compiling its loop in a child process
-                # (nmkane_core.precompile) while the steps below run
+                # (nmkane_core.kernel.precompile) while the steps below run
                 kernel_for(system, variant)
                 base = {"system": name, system.option: variant, "t_final": 0.05}
                 adaptive = {**base, "integrator": "kutta-merson-adaptive"}

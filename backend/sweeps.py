@@ -217,7 +217,7 @@ def _unprocessable(e: InputError):
 
 
 def _check_limits(base: dict, spec: SweepSpec, max_steps: int) -> None:
-    from nmkane_core.plan import resolve
+    from nmkane_core.run.plan import resolve
     from nmkane_core.sweep.runner import _axis_values
     from nmkane_core.sweep.spec import apply_point
 

@@ -47,7 +47,7 @@ def bowl_visuals():
     import sympy as sp
 
     from nmkane_core import plain_symbols
-    from nmkane_core.visuals import Visuals, polyline, sphere, trace
+    from nmkane_core.declare.visuals import Visuals, polyline, sphere, trace
 
     x, y, z = plain_symbols("x y z")
     R = sp.Symbol("R", positive=True)

@@ -48,7 +48,7 @@ def skate_visuals():
     import sympy as sp
 
     from nmkane_core import plain_symbols
-    from nmkane_core.visuals import Frame, Visuals, box, rot_y, rot_z, strip, trace
+    from nmkane_core.declare.visuals import Frame, Visuals, box, rot_y, rot_z, strip, trace
 
     x, y, th = plain_symbols("x y theta")
     alpha = sp.Symbol("alpha", positive=True)

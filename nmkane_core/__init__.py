@@ -4,26 +4,23 @@ Describe a system with sympy (:class:`MechanicalModel`), derive the paper's matr
 once (:func:`derive`), and simulate with compiled kernels (:func:`simulate`).
 """
 
+from .declare.system import Parameter, System
 from .errors import ConvergenceError, InconsistentStateError, InputError, NmkaneError
-from .registry import get_system, register, system_names
+from .run.registry import get_system, register, system_names
+
+# Bound eagerly (numpy and pydantic only): what every run needs.
+from .run.simulate import resolve, simulate, simulate_many
 from .schema import RunResult, RunSettings
 
-# Bound eagerly (numpy and pydantic only): the function ``simulate`` shares its name with
-# its module, and once anything imports ``nmkane_core.simulate`` the import system sets
-# that attribute of the package to the module — a lazy name would then hand users the
-# module instead of the function.
-from .simulate import resolve, simulate, simulate_many
-from .system import Parameter, System
-
 _LAZY = {
-    "Derivation": "derivation",
-    "derive": "derivation",
-    "MechanicalModel": "model",
-    "plain_symbols": "model",
-    "accelerations": "analysis",
-    "linearize": "analysis",
-    "load_systems": "plugins",
-    "unregister": "registry",
+    "Derivation": "symbolic.derivation",
+    "derive": "symbolic.derivation",
+    "MechanicalModel": "symbolic.model",
+    "plain_symbols": "symbolic.model",
+    "accelerations": "analysis.at_state",
+    "linearize": "analysis.at_state",
+    "load_systems": "run.plugins",
+    "unregister": "run.registry",
 }  # sympy is imported only when symbolic work is asked for
 
 

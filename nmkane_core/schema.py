@@ -71,7 +71,7 @@ class RunSettings(BaseModel):
     projection: Literal["none", "blajer", "yoon"] = Field(
         "none",
         description="post-step constraint correction (geometric elimination): none | blajer "
-        "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.projection",
+        "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.integrate.projection",
     )
     projection_weight: Literal["identity", "mass"] | None = Field(
         None, description="override the projection's weighting matrix W"
@@ -150,7 +150,7 @@ class Switch(BaseModel):
 
 
 class Event(BaseModel):
-    """The event that ended a run (a system's declared events, nmkane_core.events)."""
+    """The event that ended a run (a system's declared events, nmkane_core.run.events)."""
 
     name: str = Field(description="the event's name, as the system declares it")
     t: float = Field(description="when it fired, s (interpolated between output rows)")

@@ -9,7 +9,7 @@ This module is the app's public face; the parts live in:
   and trajectory wired together;
 * :mod:`web.generic` — the one system view, :class:`~web.generic.GenericView`: controls,
   runs (with compare ghosts), plots and scene from the core system's declaration;
-* :mod:`web.declared` — the visuals a system declares (:mod:`nmkane_core.visuals`) as a
+* :mod:`web.declared` — the visuals a system declares (:mod:`nmkane_core.declare.visuals`) as a
   viser scene, and the camera framing;
 * :mod:`web.controls` — control handles built from data, and the guard that refuses
   non-finite or out-of-range slider values;

@@ -1,4 +1,4 @@
-"""A system's declared visuals (:mod:`nmkane_core.visuals`) as a viser scene.
+"""A system's declared visuals (:mod:`nmkane_core.declare.visuals`) as a viser scene.
 
 Scene tree per system: ``/sys/<name>`` (hidden while another system is chosen), under it
 ``frames/<frame>`` (posed per animation frame: position and quaternion) with the shapes
@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from nmkane_core.visuals import AXES, axis_wxyz, compile_visuals, rotation_to_wxyz
+from nmkane_core.declare.visuals import AXES, axis_wxyz, compile_visuals, rotation_to_wxyz
 
 from . import geometry as geo
 

@@ -23,8 +23,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from nmkane_core.projection import PRESETS
-from nmkane_core.registry import get_system
+from nmkane_core.integrate.projection import PRESETS
+from nmkane_core.run.registry import get_system
 
 from . import geometry as geo
 from . import plots as pl
@@ -376,7 +376,7 @@ class GenericView:
 def scene_choices() -> dict[str, str]:
     """The scene dropdown: title -> system name for every registered system (built-in,
     catalogue, plugged in), in the registry's order."""
-    from nmkane_core.registry import system_names
+    from nmkane_core.run.registry import system_names
 
     out: dict[str, str] = {}
     for name in system_names():
@@ -394,9 +394,9 @@ def warm_systems(skip=()) -> list[tuple[str, str]]:
     (system, default variant) of each, for the matrices."""
     import contextlib
 
-    from nmkane_core.registry import system_names
-    from nmkane_core.simulate import simulate
-    from nmkane_core.visuals import compile_visuals
+    from nmkane_core.declare.visuals import compile_visuals
+    from nmkane_core.run.registry import system_names
+    from nmkane_core.run.simulate import simulate
 
     out = []
     for name in system_names():

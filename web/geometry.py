@@ -1,6 +1,6 @@
 """Small geometry helpers for the scene (pure numpy, no viser): quaternions, polylines as
 line segments, and sampling a trajectory's rows.  Nothing here knows a system: what a
-system looks like is declared with it (:mod:`nmkane_core.visuals`)."""
+system looks like is declared with it (:mod:`nmkane_core.declare.visuals`)."""
 
 from __future__ import annotations
 

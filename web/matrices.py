@@ -9,7 +9,7 @@ matrices, and the grid gets brackets.  The LaTeX source is kept for copying.
 Symbolic work is slow (about 8 s for the nonlinear model) and holds the GIL, which
 would stall the web server's threads, so :func:`panel` runs it in a child process
 (``python -m web.matrices SYSTEM VARIANT OUT``, once per model) and caches the result in
-memory and on disk under nmkane's cache root (:func:`nmkane_core.cache.cache_root`), keyed
+memory and on disk under nmkane's cache root (:func:`nmkane_core.kernel.cache.cache_root`), keyed
 by the model's :meth:`~nmkane_core.System.kernel_key` and this file: a restart shows the
 panels at once.  The web app warms the cache in a background thread at startup.
 """
@@ -98,7 +98,7 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
         env = dict(os.environ)
         root = str(Path(__file__).resolve().parents[1])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        from nmkane_core import plugins  # the child knows the systems plugged in here (--systems)
+        from nmkane_core.run.result import plugins  # the child knows the systems plugged in here (--systems)
 
         specs = [s for s in env.get(plugins.ENV_VAR, "").split(os.pathsep) if s.strip()]
         specs += [k for k in plugins.loaded_specs() if k not in specs]
@@ -136,7 +136,7 @@ def _disk_path(system: str, variant: str) -> Path | None:
     whenever the model does), matplotlib's version and this file; None: not cached."""
     try:
         from nmkane_core import get_system
-        from nmkane_core.cache import cache_root
+        from nmkane_core.kernel.cache import cache_root
 
         key = get_system(system).kernel_key(variant)
         if key is None:

@@ -53,7 +53,7 @@ class Runner:
     """Turns requests into trajectories for one session.
 
     ``session`` provides ``closed``, ``view_of(kind)``, ``current_kind()``, ``install(traj)``
-    and ``show_status(text)``; ``simulate`` is :func:`nmkane_core.simulate.simulate` (or a
+    and ``show_status(text)``; ``simulate`` is :func:`nmkane_core.run.simulate.simulate` (or a
     test's stand-in)."""
 
     def __init__(self, session, simulate: Callable, *, sync: bool = False):

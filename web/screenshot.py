@@ -76,7 +76,7 @@ def capture(out_dir: str = "docs/screenshots", names=None, fraction: float = 0.4
     each at ``fraction`` of its run's time.  Returns the files written."""
     from playwright.sync_api import sync_playwright
 
-    from nmkane_core.registry import system_names
+    from nmkane_core.run.registry import system_names
 
     from .app import launch
 
@@ -126,7 +126,7 @@ if __name__ == "__main__":
     ap.add_argument("names", nargs="*", help="systems to capture (default: all)")
     args = ap.parse_args()
     if args.systems:
-        from nmkane_core.plugins import load_systems
+        from nmkane_core.run.plugins import load_systems
 
         load_systems(args.systems)
     for path in capture(args.out, args.names or None):

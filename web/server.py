@@ -44,8 +44,8 @@ from urllib.parse import parse_qs, quote, urlsplit
 
 import viser
 
-from nmkane_core.registry import get_system
-from nmkane_core.simulate import simulate as core_simulate
+from nmkane_core.run.registry import get_system
+from nmkane_core.run.simulate import simulate as core_simulate
 
 from . import fastpath
 from . import matrices as mx

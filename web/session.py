@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import viser
 
-from nmkane_core.simulate import simulate as core_simulate
+from nmkane_core.run.simulate import simulate as core_simulate
 
 from . import stability
 from .camera import CameraRig

@@ -1,5 +1,5 @@
 """The eigenvalues-versus-swept-value plot of a system that declares a stability sweep
-(``System(stability=Stability(...))``, :mod:`nmkane_core.stability`): real and imaginary
+(``System(stability=Stability(...))``, :mod:`nmkane_core.declare.stability`): real and imaginary
 parts of the linearized motion's eigenvalues against the swept value (e.g. a forward speed),
 with the current run's value marked — the classic self-stability picture.
 
@@ -81,7 +81,7 @@ class StabilityPlot:
         threading.Thread(target=self._compute, args=(values, key), daemon=True).start()
 
     def _compute(self, values: dict, key: tuple) -> None:
-        from nmkane_core.eigensweep import sweep
+        from nmkane_core.analysis.eigensweep import sweep
 
         try:
             rows = sweep(self.core, None, values)

@@ -1,5 +1,5 @@
 """``nmkane accelerations SYSTEM`` and ``nmkane linearize SYSTEM``: the equations of motion
-at a state (see :mod:`nmkane_core.analysis`)."""
+at a state (see :mod:`nmkane_core.analysis.at_state`)."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _state(args):
-    from ..registry import get_system
+    from ..run.registry import get_system
 
     load_plugged_systems(args)
     system = get_system(args.system)
@@ -42,7 +42,7 @@ def _state(args):
     given = dict(args.at)
     if len(given) < len(system.state_names):
         from ..errors import InputError
-        from ..initial import initial_state
+        from ..run.initial import initial_state
 
         try:
             _, state = initial_state(system, system.check_variant(variant), system.resolve_params(params), given)
@@ -55,7 +55,7 @@ def _state(args):
 
 
 def _accelerations(args: argparse.Namespace) -> int:
-    from ..analysis import accelerations
+    from ..analysis.at_state import accelerations
 
     system, variant, state, params = _state(args)
     acc = accelerations(system, state, params, variant)
@@ -81,7 +81,7 @@ def _add_linearize(p: argparse.ArgumentParser) -> None:
 
 
 def _linearize(args: argparse.Namespace) -> int:
-    from ..analysis import linearize
+    from ..analysis.at_state import linearize
 
     system, variant, state, params = _state(args)
     lin = linearize(system, state, params, variant, keep=args.keep, step=args.step)

@@ -1,4 +1,4 @@
-"""``nmkane bench``: the speed table (see :mod:`nmkane_core.bench`)."""
+"""``nmkane bench``: the speed table (see :mod:`nmkane_core.bench.rows`)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ def _add_arguments(bench: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..bench import main as bench_main
+    from ..bench.rows import main as bench_main
 
     return bench_main(json_out=args.json, quick=args.quick, strict=args.strict, long=args.long)
 

@@ -1,4 +1,4 @@
-"""``nmkane cache info|clear|prune``: the on-disk kernel cache (see :mod:`nmkane_core.cache`)."""
+"""``nmkane cache info|clear|prune``: the on-disk kernel cache (see :mod:`nmkane_core.kernel.cache`)."""
 
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ def _mb(n: int) -> str:
 
 
 def _current_fingerprints() -> dict:
-    from ..registry import get_system, system_names
+    from ..run.registry import get_system, system_names
 
     out = {}
     for name in system_names():
@@ -41,7 +41,7 @@ def _current_fingerprints() -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from .. import cache
+    from ..kernel import cache
 
     if args.action == "info":
         data = cache.info()

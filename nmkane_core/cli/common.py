@@ -129,7 +129,7 @@ def add_systems_option(p: argparse.ArgumentParser) -> None:
 
 def load_plugged_systems(args: argparse.Namespace, strict: bool = True) -> None:
     """Load the ``--systems`` of a command (strict: the first failure is the command's error)."""
-    from ..plugins import load_systems
+    from ..run.plugins import load_systems
 
     for err in load_systems(getattr(args, "systems", []) or [], strict=strict):
         print(err, file=sys.stderr)

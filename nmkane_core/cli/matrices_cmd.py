@@ -21,7 +21,7 @@ def _add_arguments(mats: argparse.ArgumentParser) -> None:
 def _run(args: argparse.Namespace) -> int:
     import sympy as sp
 
-    from ..registry import get_system
+    from ..run.registry import get_system
 
     load_plugged_systems(args)
     system = get_system(args.system)

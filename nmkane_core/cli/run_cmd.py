@@ -16,7 +16,7 @@ from .common import add_systems_option, assignment, finite, load_plugged_systems
 
 def add_run_options(run: argparse.ArgumentParser) -> None:
     """The run settings as options (shared by every command that runs a system)."""
-    from ..integrators import integrator_names
+    from ..integrate.methods import integrator_names
 
     run.add_argument("system", metavar="SYSTEM", help="a registered system, e.g. appell-hamel")
     add_systems_option(run)
@@ -140,9 +140,9 @@ def settings_from_args(args: argparse.Namespace) -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..drivers import prepare
-    from ..plan import resolve, validate_settings
-    from ..simulate import simulate
+    from ..integrate.drivers import prepare
+    from ..run.plan import resolve, validate_settings
+    from ..run.simulate import simulate
 
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")

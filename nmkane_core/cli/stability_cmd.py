@@ -1,6 +1,6 @@
 """``nmkane stability SYSTEM``: eigenvalues of the linearized motion against the value a
 system declares to sweep (a bicycle's speed), the values where the stability changes beside
-published ones, and optionally the figure (see :mod:`nmkane_core.eigensweep`)."""
+published ones, and optionally the figure (see :mod:`nmkane_core.analysis.eigensweep`)."""
 
 from __future__ import annotations
 
@@ -90,9 +90,9 @@ def plot(system, rows: list[dict], found: list[dict], path: str) -> None:
 def _run(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from ..eigensweep import crossings, sweep
+    from ..analysis.eigensweep import crossings, sweep
     from ..errors import NmkaneError
-    from ..registry import get_system
+    from ..run.registry import get_system
 
     load_plugged_systems(args)
     system = get_system(args.system)

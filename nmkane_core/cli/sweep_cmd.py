@@ -71,7 +71,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..plan import validate_settings
+    from ..run.plan import validate_settings
     from ..sweep import read_rows, run_sweep, sweep_spec
     from ..sweep.output import check_out
 

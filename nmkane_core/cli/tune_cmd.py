@@ -138,7 +138,7 @@ def plot_tradeoff(res, path: str, title: str) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..plan import validate_settings
+    from ..run.plan import validate_settings
     from ..sweep.executors import make_executor
     from ..sweep.tune import tune
 

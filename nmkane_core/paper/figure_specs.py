@@ -215,7 +215,7 @@ FIGURES: tuple[FigureSpec, ...] = (
         "on its own; the post-step corrections of Blajer and of Yoon et al. leave the equations alone "
         "and, after every step, move the state back onto the surface (positions, then speeds). "
         "{f18_verdict} The two papers' texts were not available, so the presets follow the family "
-        "both belong to (see nmkane_core.projection and the claims table for the numbers).",
+        "both belong to (see nmkane_core.integrate.projection and the claims table for the numbers).",
         note="Fig. 18's horizon is not stated in the paper; 500 s is used, as for Figs. 11–15 (100 s in quick "
         "mode). The "
         "upper panel shows the maximum of |φ| per window on a log scale (a signed linear plot "

@@ -7,7 +7,7 @@ import html
 import time
 from dataclasses import asdict, dataclass, field
 
-from ..registry import get_system
+from ..run.registry import get_system
 from .claims import FAIL, INFO, NOT_RUN, PASS, Claim
 from .figure_specs import FigureResult
 from .runs import DT_AH, DT_FIG16_REF, DT_FIG16_REF_QUICK, T_AH, T_EX2, T_FIG18, T_FIG18_QUICK

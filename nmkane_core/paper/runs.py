@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import NmkaneError
-from ..registry import get_system
+from ..run.registry import get_system
 
 __all__ = ["Runs", "collect_runs", "run_plan", "RUN_LABELS"]
 
@@ -131,7 +131,7 @@ def collect_runs(quick: bool = False, progress: bool | None = None, keys=None) -
     A run whose settings the library refuses (for example a projection it does not offer
     yet) is recorded in ``errors`` instead of stopping the report.
     """
-    from ..simulate import resolve, simulate_many
+    from ..run.simulate import resolve, simulate_many
 
     plan = run_plan(quick)
     if keys is not None:
@@ -159,14 +159,14 @@ def collect_runs(quick: bool = False, progress: bool | None = None, keys=None) -
 
 
 def _oracle(runs: Runs) -> dict:
-    """Kane's minimal equations of Appell–Hamel from sympy's KanesMethod (nmkane_core.oracle,
+    """Kane's minimal equations of Appell–Hamel from sympy's KanesMethod (nmkane_core.systems.appell_hamel_oracle,
     an independent derivation), integrated with DOP853 at rtol 1e-11 on the output times."""
     if not runs.ok("ah-nonlinear"):
         return {"error": runs.errors.get("ah-nonlinear", "no nonlinear run")}
     try:
         from scipy.integrate import solve_ivp
 
-        from ..oracle import appell_hamel_minimal_rhs
+        from ..systems.appell_hamel_oracle import appell_hamel_minimal_rhs
 
         t_start = time.perf_counter()
         run = runs["ah-nonlinear"]
@@ -187,7 +187,7 @@ def _precorrection(run, settings: dict) -> dict:
     """|φ| one step after corrected states, taken without correction: the violation each
     post-step correction removes.  Sampled every k-th step so that about
     PRECORRECTION_SAMPLES states spread over the whole run (and over the motion's phase)."""
-    from ..simulate import simulate
+    from ..run.simulate import simulate
 
     dt = settings["dt"]
     stride = max(1, (len(run.t) - 1) // PRECORRECTION_SAMPLES)

@@ -49,9 +49,9 @@ def init_worker(systems: tuple[str, ...] = (), warm: tuple[dict, ...] = ()) -> N
     key = (tuple(systems), repr(warm))
     if key in _READY:
         return
-    from ..drivers import prepare
-    from ..plan import resolve
-    from ..plugins import load_systems
+    from ..integrate.drivers import prepare
+    from ..run.plan import resolve
+    from ..run.plugins import load_systems
 
     load_systems(list(systems), strict=True)
     for settings in warm:
@@ -65,7 +65,7 @@ def run_point(base: dict, point: dict, time_limit: float | None = None) -> dict:
 
     A point whose settings are refused gives status ``invalid`` and the reason in ``message``
     (a sweep does not stop for one bad combination)."""
-    from ..simulate import simulate
+    from ..run.simulate import simulate
 
     row = dict(point)
     try:

@@ -53,7 +53,7 @@ def check_spec(base: dict, spec: SweepSpec) -> None:
     """Every varied value (at most :data:`VALIDATE_VALUES` per axis; the ends of a sample
     range) is resolved against the base settings: a value the system refuses is an
     :class:`InputError` naming the option, before any run starts."""
-    from ..plan import resolve
+    from ..run.plan import resolve
 
     resolve(base)
     for name, values in _axis_values(spec):
@@ -74,7 +74,7 @@ def _variants(base: dict, spec: SweepSpec) -> list[dict]:
 
 def constraint_columns(base: dict, spec: SweepSpec) -> list[str]:
     """Constraint names over every variant the sweep uses, in first-seen order."""
-    from ..plan import resolve
+    from ..run.plan import resolve
 
     out: list[str] = []
     for s in _variants(base, spec):
@@ -108,8 +108,8 @@ def run_sweep(
     scheduler address; ``resume``: skip points already in ``out`` (False: start the file
     anew); ``on_rows``: called with each batch of rows as it is written; ``executor``: an
     executor to use instead of making one (left open)."""
-    from ..drivers import prepare
-    from ..plan import resolve
+    from ..integrate.drivers import prepare
+    from ..run.plan import resolve
 
     check_spec(base, spec)
     warm = _variants(base, spec)

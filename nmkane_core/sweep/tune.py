@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..integrators import Tableau
+from ..integrate.methods import Tableau
 
 __all__ = ["Candidate", "TuneResult", "real_stability_interval", "stability_polynomial", "stable_gains", "tune"]
 
@@ -139,8 +139,8 @@ def tune(base: dict, *, points: int = 10, energy_factor: float = 10.0, executor=
     ``points``: candidates per gain axis (Γ1 × Γ2 is a ``points`` × ``points`` grid, unstable
     pairs skipped); ``energy_factor``: the allowed energy drift as a multiple of the
     unstabilized run's; ``executor``: a sweep executor (default: this process)."""
-    from ..plan import resolve
-    from ..simulate import simulate
+    from ..run.plan import resolve
+    from ..run.simulate import simulate
     from .executors import SerialExecutor, batch_size
 
     if not 2 <= points <= 50:

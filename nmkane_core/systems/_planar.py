@@ -14,7 +14,7 @@ def blade_model(name: str, with_offset: bool):
     import sympy as sp
     from sympy.physics import mechanics as me
 
-    from ..model import MechanicalModel
+    from ..symbolic.model import MechanicalModel
 
     x, y, th = me.dynamicsymbols("x y theta")
     u1, u2, u3 = me.dynamicsymbols("u1 u2 u3")

@@ -22,7 +22,7 @@ load keeps falling below the plane (z < 0): its bar continues through a hole in 
 
 from __future__ import annotations
 
-from ..system import Parameter, System
+from ..declare.system import Parameter, System
 
 PARAMETERS = {
     "a": Parameter(1.0, 0.0, 1e3, "m", "wheel radius"),
@@ -72,7 +72,7 @@ def _model(name: str):
     import sympy as sp
     from sympy.physics import mechanics as me
 
-    from ..model import MechanicalModel, plain_symbols
+    from ..symbolic.model import MechanicalModel, plain_symbols
 
     th, ph, x, y, z = plain_symbols(COORDINATES)
     u1, u2, u3, u4, u5 = plain_symbols(SPEEDS)
@@ -125,8 +125,7 @@ FRAME_COLOR = (150, 160, 178)
 def _visuals():
     import sympy as sp
 
-    from ..model import plain_symbols
-    from ..visuals import (
+    from ..declare.visuals import (
         Frame,
         Visuals,
         box,
@@ -141,6 +140,7 @@ def _visuals():
         sphere,
         trace,
     )
+    from ..symbolic.model import plain_symbols
 
     th, ph, x, y, z = plain_symbols(COORDINATES)
     a, b, rho, z0 = sp.symbols("a b rho z0", real=True)

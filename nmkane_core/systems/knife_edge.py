@@ -7,7 +7,7 @@ tests compare with).  Model: :mod:`._planar` with the mass centre on the contact
 
 from __future__ import annotations
 
-from ..system import Parameter, System
+from ..declare.system import Parameter, System
 from ._planar import blade_model
 
 WHAT_TO_TRY = (
@@ -24,8 +24,8 @@ def _model():
 def _visuals():
     import sympy as sp
 
-    from ..model import plain_symbols
-    from ..visuals import Frame, Visuals, box, ground, rot_z, sphere, trace
+    from ..declare.visuals import Frame, Visuals, box, ground, rot_z, sphere, trace
+    from ..symbolic.model import plain_symbols
 
     x, y, th = plain_symbols("x y theta")
     return Visuals(

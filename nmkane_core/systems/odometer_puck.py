@@ -12,7 +12,7 @@ m + J/ρ² — than across it (m): the tests compare with these intrinsic equati
 
 from __future__ import annotations
 
-from ..system import Parameter, System
+from ..declare.system import Parameter, System
 
 WHAT_TO_TRY = (
     "With J = 0 the orbit is a fixed ellipse. Raise the flywheel's inertia J: the puck gets heavier "
@@ -24,7 +24,7 @@ WHAT_TO_TRY = (
 def _model():
     import sympy as sp
 
-    from ..model import MechanicalModel, plain_symbols
+    from ..symbolic.model import MechanicalModel, plain_symbols
 
     x, y, s = plain_symbols("x y s")
     u1, u2, u3 = plain_symbols("u1 u2 u3")
@@ -47,8 +47,8 @@ def _model():
 def _visuals():
     import sympy as sp
 
-    from ..model import plain_symbols
-    from ..visuals import Frame, Visuals, box, cylinder, ground, rot_z, segments, sphere, trace
+    from ..declare.visuals import Frame, Visuals, box, cylinder, ground, rot_z, segments, sphere, trace
+    from ..symbolic.model import plain_symbols
 
     x, y, s = plain_symbols("x y s")
     return Visuals(

@@ -14,7 +14,7 @@ upright rolling at speed v is stable for v² > g r / 3.
 
 from __future__ import annotations
 
-from ..system import Parameter, System
+from ..declare.system import Parameter, System
 
 WHAT_TO_TRY = (
     "Roll it upright (θ = 0) with spin φ̇ and a tiny lean rate θ̇: above the speed √(g r/3) "
@@ -28,7 +28,7 @@ def _model():
     import sympy as sp
     from sympy.physics import mechanics as me
 
-    from ..model import MechanicalModel
+    from ..symbolic.model import MechanicalModel
 
     x, y, psi, th, ph = q = me.dynamicsymbols("x y psi theta phi")
     u = me.dynamicsymbols("u1:6")
@@ -68,8 +68,8 @@ def _model():
 def _visuals():
     import sympy as sp
 
-    from ..model import plain_symbols
-    from ..visuals import Frame, Visuals, box, cylinder, ground, rot_x, rot_y, rot_z, trace
+    from ..declare.visuals import Frame, Visuals, box, cylinder, ground, rot_x, rot_y, rot_z, trace
+    from ..symbolic.model import plain_symbols
 
     x, y, psi, th, ph = plain_symbols("x y psi theta phi")
     r = sp.Symbol("r", positive=True)

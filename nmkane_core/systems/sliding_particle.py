@@ -15,7 +15,7 @@ minimal solution (M) and the same run undamped (N: Γ = 0).
 
 from __future__ import annotations
 
-from ..system import Parameter, System
+from ..declare.system import Parameter, System
 
 PARAMETERS = {
     "l0": Parameter(1.0, 0.0, 1e3, "m", "parabola parameter in ψ = y + x²/l0 − l0"),
@@ -27,7 +27,7 @@ PARAMETERS = {
 def _nonminimal():
     import sympy as sp
 
-    from ..model import MechanicalModel, plain_symbols
+    from ..symbolic.model import MechanicalModel, plain_symbols
 
     x, y = plain_symbols("x y")
     u1, u2 = plain_symbols("u1 u2")
@@ -53,7 +53,7 @@ def _minimal():
     import sympy as sp
     from sympy.physics import mechanics as me
 
-    from ..model import MechanicalModel
+    from ..symbolic.model import MechanicalModel
 
     x = me.dynamicsymbols("x")
     u1 = me.dynamicsymbols("u1")
@@ -85,8 +85,8 @@ def _minimal():
 def _visuals():
     import sympy as sp
 
-    from ..model import plain_symbols
-    from ..visuals import Visuals, sphere, strip
+    from ..declare.visuals import Visuals, sphere, strip
+    from ..symbolic.model import plain_symbols
 
     x, y = plain_symbols("x y")
     l0 = sp.Symbol("l0", real=True)

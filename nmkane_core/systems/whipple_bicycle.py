@@ -22,7 +22,7 @@ written directly in the benchmark parameters (Meijaard Table 1): the rear frame 
 benchmark frame turned by λ about y, so that C.z is the steer axis; d1, d2, d3 (Moore's
 offsets) and the mass centres l1..l4 follow from w, c, λ, rR, rF, xB, zB, xH, zH.
 
-:mod:`nmkane_core.bicycle` has the state of upright straight running at a speed and the
+:mod:`nmkane_core.systems.whipple_bicycle_analysis` has the state of upright straight running at a speed and the
 eigenvalues of the linearized roll/steer motion at speeds.
 """
 
@@ -30,8 +30,8 @@ from __future__ import annotations
 
 import math
 
-from ..stability import Stability
-from ..system import Parameter, System
+from ..declare.stability import Stability
+from ..declare.system import Parameter, System
 
 NAME = "whipple-bicycle"
 LAM = math.pi / 10
@@ -144,7 +144,7 @@ def _geometry():
 
 def _mechanics():
     """Bodies, loads and constraints (sympy.physics.mechanics), as a dict, for :func:`_model`
-    and for the sympy-route benchmark (:mod:`nmkane_core.bench`)."""
+    and for the sympy-route benchmark (:mod:`nmkane_core.bench.rows`)."""
     from sympy.physics import mechanics as me
 
     q, u, par, fr, pt, (_, _, _, root) = _geometry()
@@ -209,7 +209,7 @@ def _mechanics():
 
 
 def _model():
-    from ..model import MechanicalModel
+    from ..symbolic.model import MechanicalModel
 
     m = _mechanics()
     q, u, par, N, kd, bodies, loads = (m[k] for k in ("q", "u", "par", "N", "kd", "bodies", "loads"))
@@ -283,7 +283,7 @@ def _drawn():
 
 
 def _visuals():
-    from ..visuals import Frame, Visuals, box, cylinder, ground, segments, sphere, trace
+    from ..declare.visuals import Frame, Visuals, box, cylinder, ground, segments, sphere, trace
 
     d = _drawn()
     world, flip, fr, pt, P = d["world"], d["flip"], d["frames"], d["points"], d["par"]

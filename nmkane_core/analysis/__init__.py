@@ -1,0 +1,1 @@
+"""Analysis of any system at a state: accelerations, linearization, eigenvalue sweeps."""

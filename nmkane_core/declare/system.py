@@ -1,0 +1,461 @@
+"""Named systems: what a user declares once, bound by name, checked when registered.
+
+A :class:`System` gathers what users choose by name (``appell-hamel``, ``knife-edge``): its
+physical parameters (keyed by the model's own symbols or their names), its default initial
+state and its *variants* — equivalent models of the same mechanism (the Appell–Hamel
+constraint models ``nonlinear``/``linear``, the sliding particle's ``nonminimal`` and
+``minimal`` formulations).  A system with one variant gives just its model (or a function
+that builds it).  Everything else is taken from the model: coordinates and speeds from
+``q`` and ``u``, the independent values a user sets from ``u_independent`` and the
+coordinates not solved from holonomic constraints.  Each variant is a
+:class:`~nmkane_core.symbolic.model.MechanicalModel` built lazily (sympy work), derived once and
+compiled once (cached on disk, so a later process needs no sympy at all).
+
+:meth:`System.check` verifies the declaration against the models (parameter names, the
+default initial state) and :func:`nmkane_core.run.registry.register` runs it, so a mistake is
+reported when a system is registered, not at its first run.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+import threading
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING, Any
+
+from ..errors import InputError
+from .parameter import Parameter
+
+if TYPE_CHECKING:  # sympy is imported only when a model is actually built
+    import numpy as np
+
+    from ..kernel.info import ModelInfo
+    from ..symbolic.derivation import Derivation
+    from ..symbolic.model import MechanicalModel
+
+__all__ = ["Parameter", "System"]
+
+SINGLE_VARIANT = "default"  # the variant name of a system declared with one model
+
+
+def _name(key: Any) -> str:
+    """A symbol's name (sympy Symbol or dynamicsymbol) or a plain string key."""
+    if isinstance(key, str):
+        return key
+    text = str(getattr(key, "name", key))
+    return text.removesuffix("(t)")
+
+
+def _as_factory(v: Any) -> Callable[[], MechanicalModel]:
+    if callable(v) and not hasattr(v, "q"):
+        return v
+    return lambda: v
+
+
+SHOWCASE_NUMBERS = ("gamma", "gamma1", "gamma2", "dt", "t_final", "speed")
+
+
+@dataclass
+class System:
+    """A named mechanical system: one model, or equivalent variants of it.
+
+    Parameters
+    ----------
+    name:
+        The public name (``knife-edge``): CLI argument, REST ``system`` field.
+    variants:
+        A :class:`MechanicalModel`, a zero-argument function building one, or a mapping
+        variant name → model or function (equivalent models of one mechanism).
+    parameters:
+        ``{symbol or name: Parameter(default, min, max, unit, description)}`` for every
+        parameter symbol of the models (checked by name when registered).
+    default_initial:
+        ``{symbol or name: value}``: the independent values (the dependent ones are
+        completed from the constraints when the system is checked; values given for
+        dependent ones are the starting guesses of that completion, which pick the branch
+        of a constraint nonlinear in the speeds; missing values are 0) or a full
+        consistent state.
+    title, description:
+        Shown in the web app and ``GET /api/systems``.
+    option:
+        What the variants are called when there are several: ``"model"`` (CLI
+        ``--model``, REST ``model``) or ``"formulation"``.
+    default_variant, completion_variant:
+        The variant run when none is chosen (default: the first), and the one whose
+        constraints complete and check initial states (default: the default variant).
+    equivalents:
+        Variant → variants that describe the same motion, to switch to where the first is
+        singular (the Appell–Hamel nonlinear model's J2 where the wheel stops rolling).
+    singular_hints:
+        Variant → a sentence appended to a ``singular`` run's message (why it happens).
+    default_dt, default_t_final, default_integrator, default_gamma, default_gamma1, default_gamma2:
+        Run settings used when a request leaves them out.
+    visuals:
+        A zero-argument function returning :class:`~nmkane_core.declare.visuals.Visuals` (shapes on
+        frames and points, sympy expressions of the state and parameters), or None: the web
+        app draws what a system declares (compiled once, see :mod:`nmkane_core.declare.visuals`).
+    what_to_try:
+        A short teaching paragraph: experiments worth making with this system.
+    showcase:
+        The settings a viewer (the web page) starts with where they differ from the run
+        defaults above, e.g. a paper's figure: ``gamma``, ``gamma1``, ``gamma2``, ``dt``,
+        ``t_final`` (numbers), ``variant``, ``integrator``, ``compare`` (the runs drawn as
+        ghosts beside the shown one: ``"off"``, a variant name, ``"Γ = 0"`` or ``"all"``) and
+        ``speed`` (playback).  Runs through the CLI and REST are not affected.
+    events:
+        A zero-argument function returning ``{name: expression}`` (sympy, of the state and
+        parameters, negative in normal motion): a run ends with status ``"event"`` when one
+        reaches zero (:mod:`nmkane_core.run.events`).
+    initial_controls:
+        ``{name: (min, max, label)}``: the initial values a user interface offers (sliders),
+        with their ranges; empty: every independent value, ranges from the defaults.
+    stability:
+        A :class:`~nmkane_core.declare.stability.Stability`: what ``nmkane stability`` and the web
+        app's eigenvalue plot sweep (the value, the state at it, the values linearized).
+    source_files:
+        Extra files the models are built from.  The files that define the variant
+        functions are found by themselves; list helper modules they import, so that a
+        change there also invalidates the cached kernel.
+    """
+
+    name: str
+    variants: Any
+    parameters: Any = ()
+    default_initial: Mapping[Any, float] = field(default_factory=dict)
+    title: str = ""
+    description: str = ""
+    option: str = "model"
+    default_variant: str = ""  # "": the first variant
+    completion_variant: str = ""  # "": the default variant
+    equivalents: Mapping[str, tuple[str, ...]] = field(default_factory=dict)
+    singular_hints: Mapping[str, str] = field(default_factory=dict)
+    default_dt: float = 0.01
+    default_t_final: float = 20.0
+    default_integrator: str = "kutta-merson"
+    default_gamma: float = 0.0
+    default_gamma1: float = 0.0
+    default_gamma2: float = 0.0
+    source_files: tuple[str, ...] = ()
+    visuals: Callable[[], Any] | None = None
+    what_to_try: str = ""
+    showcase: Mapping[str, Any] = field(default_factory=dict)
+    events: Callable[[], Any] | None = None
+    stability: Any = None
+    initial_controls: Mapping[str, tuple[float, float, str]] = field(default_factory=dict)
+    _models: dict = field(default_factory=dict, repr=False)
+    _derivations: dict = field(default_factory=dict, repr=False)
+    _kernels: dict = field(default_factory=dict, repr=False)
+    _checked: bool = field(default=False, repr=False)
+    _lock: threading.RLock = field(default_factory=threading.RLock, repr=False)
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise InputError("System.name", self.name, "a non-empty string such as 'knife-edge'", "no name")
+        raw = self.variants
+        if isinstance(raw, Mapping):
+            if not raw:
+                raise InputError(f"{self.name}: variants", raw, "at least one model", "empty")
+            self.variants = {str(k): _as_factory(v) for k, v in raw.items()}
+        else:
+            self.variants = {SINGLE_VARIANT: _as_factory(raw)}
+        self._model_objects = {
+            k: v for k, v in (raw.items() if isinstance(raw, Mapping) else [(SINGLE_VARIANT, raw)]) if hasattr(v, "q")
+        }
+        if self.option not in ("model", "formulation"):
+            raise InputError(f"{self.name}: option", self.option, "model | formulation", "unknown")
+        names = " | ".join(self.variants)
+        self.default_variant = self.default_variant or next(iter(self.variants))
+        self.completion_variant = self.completion_variant or self.default_variant
+        for label in ("default_variant", "completion_variant"):
+            if getattr(self, label) not in self.variants:
+                raise InputError(f"{self.name}: {label}", getattr(self, label), names, "not a variant")
+        for v, alts in self.equivalents.items():
+            for a in (v, *alts):
+                if a not in self.variants:
+                    raise InputError(f"{self.name}: equivalents", a, names, "not a variant")
+        self.parameters = self._bind_parameters(self.parameters)
+        self.default_initial = {
+            _name(k): self._finite(f"default_initial.{_name(k)}", v) for k, v in dict(self.default_initial).items()
+        }
+        for label in ("default_dt", "default_t_final"):
+            v = getattr(self, label)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise InputError(f"{self.name}: {label}", v, "a positive finite number of seconds", "out of range")
+        self.showcase = dict(self.showcase)
+        for k, v in self.showcase.items():
+            if k in SHOWCASE_NUMBERS:
+                self._finite(f"showcase.{k}", v)
+            elif k not in ("variant", "integrator", "compare"):
+                allowed = " | ".join((*SHOWCASE_NUMBERS, "variant", "integrator", "compare"))
+                raise InputError(f"{self.name}: showcase", k, allowed, "unknown setting")
+        if self.showcase.get("variant", self.default_variant) not in self.variants:
+            raise InputError(f"{self.name}: showcase.variant", self.showcase["variant"], names, "not a variant")
+
+    def _finite(self, field_path: str, v) -> float:
+        try:
+            x = float(v)
+        except (TypeError, ValueError):
+            raise InputError(f"{self.name}: {field_path}", v, "a finite number", "not a number") from None
+        if not math.isfinite(x):
+            raise InputError(f"{self.name}: {field_path}", v, "a finite number", "not finite")
+        return x
+
+    def _bind_parameters(self, declared) -> tuple[Parameter, ...]:
+        if isinstance(declared, Mapping):
+            items = [(_name(k), p) for k, p in declared.items()]
+        else:
+            items = [(p.name, p) for p in declared]
+        out = []
+        for key, p in items:
+            if not isinstance(p, Parameter):
+                raise InputError(
+                    f"{self.name}: parameters.{key}",
+                    p,
+                    "Parameter(default, min, max, unit, description)",
+                    "not a Parameter",
+                )
+            if not key:
+                raise InputError(
+                    f"{self.name}: parameters",
+                    p,
+                    "parameters keyed by their symbols or names",
+                    "a Parameter without a name",
+                )
+            if p.name and p.name != key:
+                raise InputError(
+                    f"{self.name}: parameters.{key}",
+                    p.name,
+                    f"the key it is declared under ({key})",
+                    "two names for one parameter",
+                )
+            out.append(replace(p, name=key))
+        seen = [p.name for p in out]
+        dup = {n for n in seen if seen.count(n) > 1}
+        if dup:
+            raise InputError(f"{self.name}: parameters", sorted(dup), "each parameter once", "declared twice")
+        return tuple(out)
+
+    # ------------------------------------------------------------------ names, from the models
+    @property
+    def variant_names(self) -> tuple[str, ...]:
+        return tuple(self.variants)
+
+    @property
+    def coordinates(self) -> tuple[str, ...]:
+        return self.info(self.completion_variant).q
+
+    @property
+    def speeds(self) -> tuple[str, ...]:
+        return self.info(self.completion_variant).u
+
+    @property
+    def independent(self) -> tuple[str, ...]:
+        """The values a user sets: coordinates not solved from holonomic constraints and u_I."""
+        info = self.info(self.completion_variant)
+        return tuple(q for q in info.q if q not in info.q_dependent) + (info.u_independent if info.m else info.u)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return self.coordinates + self.speeds
+
+    @property
+    def param_names(self) -> tuple[str, ...]:
+        return tuple(p.name for p in self.parameters)
+
+    def parameter(self, name: str) -> Parameter:
+        for p in self.parameters:
+            if p.name == name:
+                return p
+        raise KeyError(name)
+
+    def check_variant(self, variant: str | None, field_path: str | None = None) -> str:
+        if variant is None:
+            return self.default_variant
+        if variant not in self.variants:
+            raise InputError(
+                field_path or self.option, variant, " | ".join(self.variants), f"unknown {self.option} of {self.name}"
+            )
+        return variant
+
+    # ------------------------------------------------------------------ models, derivations, kernels
+    def model(self, variant: str | None = None) -> MechanicalModel:
+        """The symbolic description of a variant (built once; needs sympy)."""
+        variant = self.check_variant(variant)
+        with self._lock:
+            if variant not in self._models:
+                try:
+                    model = self.variants[variant]()
+                except InputError:
+                    raise
+                except Exception as e:
+                    raise InputError(
+                        f"{self.name}: variant {variant}",
+                        type(e).__name__,
+                        "a function that builds a MechanicalModel",
+                        f"building it failed: {e}",
+                    ) from e
+                if not hasattr(model, "q") or not hasattr(model, "Q"):
+                    raise InputError(
+                        f"{self.name}: variant {variant}", type(model).__name__, "a MechanicalModel", "not a model"
+                    )
+                self._models[variant] = model
+            return self._models[variant]
+
+    def derivation(self, variant: str | None = None) -> Derivation:
+        """The paper's procedure applied to a variant (symbolic, once)."""
+        from ..symbolic.derivation import derive
+
+        variant = self.check_variant(variant)
+        with self._lock:
+            if variant not in self._derivations:
+                self._derivations[variant] = derive(self.model(variant))
+            return self._derivations[variant]
+
+    def _files(self, variant: str) -> tuple[str, ...] | None:
+        """The files a variant is built from (None: not known, e.g. typed interactively)."""
+        if variant in self._model_objects:
+            return None
+        try:
+            f = inspect.getsourcefile(self.variants[variant])
+        except TypeError:
+            f = None
+        if f is None or f.startswith("<"):
+            return None
+        return (f, *self.source_files)
+
+    def _factory_identity(self, variant: str) -> str:
+        """Which function of those files builds the variant: its name, code and simple closure
+        values (two models defined in one file, or one function called with other arguments
+        in a lambda, must not share a cached kernel)."""
+        import marshal
+
+        fn = self.variants[variant]
+        code = getattr(fn, "__code__", None)
+        parts = [getattr(fn, "__qualname__", repr(type(fn)))]
+        if code is not None:
+            parts.append(marshal.dumps(code).hex())
+        for cell in getattr(fn, "__closure__", None) or ():
+            try:
+                value = cell.cell_contents
+            except ValueError:
+                continue
+            if isinstance(value, (str, int, float, bool, tuple)):
+                parts.append(repr(value))
+        return "\0".join(parts)
+
+    def kernel_key(self, variant: str | None = None) -> str | None:
+        """A key that changes whenever the variant's compiled kernel would.
+
+        It hashes the files that define the variant (no sympy needed); for a model typed
+        interactively or given as an object it hashes the model's expressions instead.
+        Other caches derived from a model (the web app's rendered matrices) key on it."""
+        from ..kernel.codegen import fingerprint, model_fingerprint
+
+        variant = self.check_variant(variant)
+        files = self._files(variant)
+        if files is not None:
+            return fingerprint(self.name, variant, files, extra=self._factory_identity(variant))
+        return model_fingerprint(self.name, variant, self.model(variant))
+
+    def kernel(self, variant: str | None = None):
+        """(compiled kernel module, :class:`ModelInfo`) of a variant.
+
+        Loaded from the on-disk cache when the model is unchanged (no sympy work at all),
+        otherwise derived, generated, compiled and cached.
+        """
+        from ..kernel.codegen import kernel
+
+        variant = self.check_variant(variant)
+        with self._lock:
+            if variant not in self._kernels:
+                self._kernels[variant] = kernel(
+                    self.kernel_key(variant), lambda: self.derivation(variant), (self.name, variant)
+                )
+            return self._kernels[variant]
+
+    def info(self, variant: str | None = None) -> ModelInfo:
+        return self.kernel(variant)[1]
+
+    # ------------------------------------------------------------------ values
+    def resolve_params(self, given: Mapping[str, object] | None, field_path: str = "params") -> dict[str, float]:
+        """Defaults filled in, every value checked against its range."""
+        given = dict(given or {})
+        unknown = sorted(set(given) - set(self.param_names))
+        if unknown:
+            raise InputError(
+                f"{field_path}.{unknown[0]}",
+                given[unknown[0]],
+                f"parameters of {self.name}: {', '.join(self.param_names)}",
+                "unknown parameter",
+            )
+        return {p.name: p.check(given.get(p.name, p.default), f"{field_path}.{p.name}") for p in self.parameters}
+
+    def param_vector(self, variant: str | None, params: Mapping[str, float]) -> np.ndarray:
+        """The numeric parameter vector of a variant's kernel, bound by name (the model's order)."""
+        import numpy as np
+
+        return np.array([float(params[name]) for name in self.info(variant).params], dtype=float)
+
+    def constraint_names(self, variant: str | None = None) -> tuple[str, ...]:
+        """Names of the reported violations: the constraints, then any monitors."""
+        return self.info(variant).viol_names
+
+    # ------------------------------------------------------------------ the declaration, checked
+    def check(self, variants: tuple[str, ...] | None = None) -> None:
+        """Check the declaration against the models; raise :class:`InputError` saying what to change.
+
+        Each checked variant builds and derives (or loads from the cache); its parameter
+        symbols must be exactly the declared parameters; the default initial state must
+        name only state values and be consistent with the constraints (independent values
+        are completed).  ``variants``: which to check (default: the default and the
+        completion variant; the others are checked at their first use)."""
+        variants = variants or tuple(dict.fromkeys((self.default_variant, self.completion_variant)))
+        for v in variants:
+            self._check_params(v)
+        names = self.state_names
+        for k, val in self.default_initial.items():
+            if k not in names:
+                raise InputError(
+                    f"{self.name}: default_initial.{k}",
+                    val,
+                    f"state names of {self.name}: {', '.join(names)}",
+                    "not a coordinate or speed",
+                )
+        from ..run.initial import initial_state
+
+        params = self.resolve_params({})
+        independent = set(self.independent)
+        given = {k: v for k, v in self.default_initial.items() if k in independent}
+        if len(self.default_initial) == len(names):
+            given = dict(self.default_initial)  # a full state: checked as it is
+        try:
+            _, full = initial_state(self, self.default_variant, params, given, complete_always=True)
+        except InputError as e:
+            raise InputError(
+                f"{self.name}: default_initial",
+                dict(self.default_initial),
+                "independent values (the rest is completed) or a full consistent state",
+                f"{e.field}: {e.reason or e.allowed}",
+            ) from None
+        self.default_initial = full
+        self._checked = True
+
+    def _check_params(self, variant: str) -> None:
+        model_params = self.info(variant).params
+        declared = self.param_names
+        missing = [p for p in model_params if p not in declared]
+        extra = [p for p in declared if p not in model_params]
+        if missing or extra:
+            what = []
+            if missing:
+                what.append(f"declare {', '.join(missing)}")
+            if extra:
+                what.append(f"remove {', '.join(extra)} (no symbol of the model)")
+            raise InputError(
+                f"{self.name}: parameters",
+                list(declared),
+                f"the parameter symbols of the {variant} {self.option}: {', '.join(model_params)}",
+                "; ".join(what),
+            )

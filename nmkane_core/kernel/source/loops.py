@@ -1,0 +1,494 @@
+# ruff: noqa: F821
+"""Generic compiled kernel: the paper's numeric solve and the integrator loops.
+
+This file is *not imported*.  :mod:`nmkane_core.kernel.codegen` appends its source to every
+generated kernel module, after the model-specific part that defines the dimensions
+``N, M, MNH, MH, PI, NV`` (n speeds, m constraints of which MNH nonholonomic and MH
+holonomic, p = PI independent speeds, NV reported violations), the permutation ``PERM``
+from [u_I, u_D] back to the model's speeds, and the straight-line functions ``terms`` and
+``diagnostics``.  The integrators are tableau-driven (methods are data): one fixed-step
+loop and one adaptive loop serve every explicit Runge–Kutta tableau.
+
+The loops' status codes (``STATUS_*``), the layout of their ``stats`` array (``STATS_*``)
+and the adaptive step control (``STEP_*``) are the plain literals just below, defined once:
+:mod:`nmkane_core.kernel.interface` reads them from this file for the Python side.
+
+Every function is compiled with ``error_model="numpy"`` (as are the generated ones): a
+division by zero gives ±inf or NaN, as the square root of a negative number does, instead
+of raising ZeroDivisionError out of compiled code.  The loops' own finiteness checks turn
+such values into a status (``STATUS_DIVERGED``; the adaptive loop first rejects the trial
+step and shrinks it), so no exception from the model's expressions reaches the caller.
+
+``proj`` (int64 array) = [weight (0 identity, 1 mass), position iterations, Newton (1
+updated Jacobian, 0 frozen), energy correction (0/1), N, M, MNH, MH], or None for no
+projection (numba then prunes the projection from the loop's compile).
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+# ---- loop constants: plain literals only (nmkane_core.kernel.interface reads them from this source) ----
+# status codes returned by the loops
+STATUS_OK = 0
+STATUS_J2_SINGULAR = 1  # J2 ill-conditioned: rcond ≤ rcond_min
+STATUS_T_SINGULAR = 2  # T ill-conditioned: rcond ≤ rcond_min
+STATUS_DIVERGED = 3  # the state (or a diagnostic) stopped being finite
+STATUS_FAILED = 4  # step size underflow (adaptive); Python drivers: any other failure
+STATUS_BUDGET = 5  # the step budget of this call is used up (adaptive): call again
+STATUS_PROJECTION_FAILED = 6  # a projection's correction matrix was singular
+# stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, max|viol_i| for each violation]
+STATS_E0 = 0
+STATS_MAX_DRIFT = 1
+STATS_FINAL_DRIFT = 2
+STATS_RCOND_J2 = 3
+STATS_RCOND_T = 4
+STATS_VIOL = 5  # first of the NV running maxima of |violation|
+# adaptive step control: h ← h · clamp(STEP_SAFETY · err^(−1/(q+1)), STEP_FAC_MIN, STEP_FAC_MAX)
+STEP_SAFETY = 0.9
+STEP_FAC_MIN = 0.2  # the most a step shrinks at once (also after a non-finite error)
+STEP_FAC_MAX = 5.0  # the most a step grows at once (also after a zero error)
+STEP_LAST_REL = 1e-12  # a remainder below this fraction of t_final joins the current step
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
+    """Solve A X = B in place in the flat work array ``w`` (LU with partial pivoting).
+
+    A is n×n at offset ``oa`` with row stride ``lda``; B is n×k at ``ob`` with row
+    stride ``ldb`` and receives X.  Returns min|pivot|/max|pivot| (0 when singular): the
+    reciprocal-condition estimate the kernels compare with ``rcond_min``.  One return, at
+    the end, so that the right-hand side can inline it (``# INLINE``, codegen.inline_marked);
+    cold paths call it.
+    """
+    pmax = 0.0
+    pmin = 1e308
+    singular = False
+    for c in range(n):
+        piv = c
+        big = abs(w[oa + c * lda + c])
+        for i in range(c + 1, n):
+            v = abs(w[oa + i * lda + c])
+            if v > big:
+                big = v
+                piv = i
+        if not (big > 0.0):  # zero or NaN pivot
+            singular = True
+            break
+        if piv != c:
+            for j in range(n):
+                tmp = w[oa + c * lda + j]
+                w[oa + c * lda + j] = w[oa + piv * lda + j]
+                w[oa + piv * lda + j] = tmp
+            for j in range(k):
+                tmp = w[ob + c * ldb + j]
+                w[ob + c * ldb + j] = w[ob + piv * ldb + j]
+                w[ob + piv * ldb + j] = tmp
+        if big > pmax:
+            pmax = big
+        if big < pmin:
+            pmin = big
+        inv = 1.0 / w[oa + c * lda + c]
+        for i in range(c + 1, n):
+            f = w[oa + i * lda + c] * inv
+            if f != 0.0:
+                for j in range(c + 1, n):
+                    w[oa + i * lda + j] -= f * w[oa + c * lda + j]
+                for j in range(k):
+                    w[ob + i * ldb + j] -= f * w[ob + c * ldb + j]
+    rc = 1.0
+    if singular:
+        rc = 0.0
+    elif n > 0:
+        for c in range(n - 1, -1, -1):
+            inv = 1.0 / w[oa + c * lda + c]
+            for j in range(k):
+                acc = w[ob + c * ldb + j]
+                for l in range(c + 1, n):
+                    acc -= w[oa + c * lda + l] * w[ob + l * ldb + j]
+                w[ob + c * ldb + j] = acc * inv
+        rc = pmin / pmax
+    return rc
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def terms_call(t, x, p, w):
+    """``terms`` compiled once as a function, for cold paths (projection, completion)."""
+    terms(t, x, p, w)
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def make_workspace():
+    """The flat scratch array of one right-hand side evaluation (allocated once per run).
+
+    Layout (offsets are constants of the generated module): J = [J1 J2] at OJ (m×n),
+    b = B1u + B2 at OB, φ at OPHIN, ψ̇ at OPSID, ψ at OPSI, Q at OQ (n×n), P at OP,
+    C u + D at OQD, R = [−J1 | −b + s] → [A | B̂] at OR (m×(p+1)), W = Q A2ᵀ at OW
+    (n×p), A2 Q A2ᵀ at OMR (p×p), P − Q_{·D}B̂ at OY, A2(P − Q_{·D}B̂) → u̇_I at OUI,
+    (rcond J2, rcond T) at ORC.
+    """
+    w = np.zeros(WSIZE)
+    w[ORC] = 1.0
+    w[ORC + 1] = 1.0
+    return w
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def rhs_ws(t, x, p, G, G1, G2, K, row, w):
+    """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
+    terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (codegen.inline_marked)
+    for i in range(N):
+        K[row, i] = w[OQD + i]
+    w[ORC] = 1.0
+    if M > 0:
+        # R = [−J1 | −b + s], s = [Γφ; Γ1ψ̇ + Γ2ψ]   (105), (112)
+        for i in range(M):
+            for j in range(PI):
+                w[OR + i * (PI + 1) + j] = -w[OJ + i * N + j]
+            s = 0.0
+            if i < MNH:
+                for k in range(MNH):
+                    s += G[i, k] * w[OPHIN + k]
+            else:
+                ih = i - MNH
+                for k in range(MH):
+                    s += G1[ih, k] * w[OPSID + k] + G2[ih, k] * w[OPSI + k]
+            w[OR + i * (PI + 1) + PI] = -w[OB + i] + s
+        if SCALE_ROWS or NORM_ROWS:
+            # rows of J (and R: same solution) scaled for the condition estimate (kernel_terms.row_degrees):
+            # degree k > 1 in u: by 1/max(1, |u|∞)^(k−1); not polynomial (ROWDEG 0): by 1/max_j |J_ij|,
+            # and the estimate is at most the row's share on u_D, max_j |J2_ij| / max_j |J_ij|
+            un = 1.0
+            for j in range(N):
+                un = max(un, abs(x[N + j]))
+            inv = 1.0 / un
+            share = 1.0
+            for i in range(M):
+                sc = 1.0
+                if ROWDEG[i] > 1:
+                    sc = inv
+                    for _ in range(ROWDEG[i] - 2):
+                        sc *= inv
+                elif ROWDEG[i] == 0:
+                    big = 0.0
+                    big_d = 0.0
+                    for j in range(N):
+                        a = abs(w[OJ + i * N + j])
+                        if a > big:
+                            big = a
+                        if j >= PI and a > big_d:
+                            big_d = a
+                    if big > 0.0 and big < math.inf:  # a zero row is left to the LU (zero pivot), a
+                        sc = 1.0 / big  # non-finite one to the loops' finiteness checks
+                        share = min(share, big_d * sc)
+                if sc != 1.0:
+                    for j in range(N):
+                        w[OJ + i * N + j] *= sc
+                    for j in range(PI + 1):
+                        w[OR + i * (PI + 1) + j] *= sc
+        # J2 X = R  ->  X = [A | B̂]   (20), (108), (113)
+        w[ORC] = lu_solve_flat(w, OJ + PI, N, OR, PI + 1, M, PI + 1)  # INLINE
+        if NORM_ROWS:
+            if share < w[ORC]:
+                w[ORC] = share
+    if w[ORC] == 0.0:  # J2 singular: no u̇ (the loops stop on the rcond)
+        w[ORC + 1] = 0.0
+    else:
+        _reduced_solve(w, K, row)  # INLINE
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _reduced_solve(w, K, row):
+    """The rest of ``rhs_ws`` once [A | B̂] is known (pasted into it by the generator)."""
+    # T u̇ = V̂ with T = [A1; A2 Q], V̂ = [B̂; A2 P]  (22), (40), (44), (110), solved by block
+    # elimination on the identity block of A1 = [−A  I]:  u̇_D = A u̇_I + B̂  (106), then
+    # (A2 Q A2ᵀ) u̇_I = A2 (P − Q [0; B̂])  with A2ᵀ = [I; A]  — exact, allocation-free,
+    # and p×p instead of n×n.  (With no constraints this is Q u̇ = P.)
+    # W = Q A2ᵀ  (n×p)
+    for i in range(N):
+        for r in range(PI):
+            acc = w[OQ + i * N + r]
+            for k in range(M):
+                acc += w[OQ + i * N + PI + k] * w[OR + k * (PI + 1) + r]
+            w[OW + i * PI + r] = acc
+    # Mr = A2 W  (p×p),  y = P − Q_{·D} B̂,  rhs = A2 y
+    for r in range(PI):
+        for c in range(PI):
+            acc = w[OW + r * PI + c]
+            for k in range(M):
+                acc += w[OR + k * (PI + 1) + r] * w[OW + (PI + k) * PI + c]
+            w[OMR + r * PI + c] = acc
+    for i in range(N):
+        acc = w[OP + i]
+        for k in range(M):
+            acc -= w[OQ + i * N + PI + k] * w[OR + k * (PI + 1) + PI]
+        w[OY + i] = acc
+    for r in range(PI):
+        acc = w[OY + r]
+        for k in range(M):
+            acc += w[OR + k * (PI + 1) + r] * w[OY + PI + k]
+        w[OUI + r] = acc
+    # (111): u̇_I from the reduced system; its pivot ratio is the T condition estimate
+    w[ORC + 1] = lu_solve_flat(w, OMR, PI, OUI, 1, PI, 1)  # INLINE
+    for r in range(PI):
+        K[row, N + PERM[r]] = w[OUI + r]
+    for k in range(M):
+        acc = w[OR + k * (PI + 1) + PI]
+        for r in range(PI):
+            acc += w[OR + k * (PI + 1) + r] * w[OUI + r]
+        K[row, N + PERM[PI + k]] = acc
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
+    """Fill the stage derivatives K[i] of one explicit RK step; return a status code."""
+    S = TC.shape[0]
+    n2 = 2 * N
+    for i in range(S):
+        for j in range(n2):
+            xs[j] = x[j]
+        for l in range(i):
+            ha = h * TA[i, l]
+            if ha != 0.0:
+                for j in range(n2):
+                    xs[j] += ha * K[l, j]
+        total = 0.0
+        for j in range(n2):
+            total += abs(xs[j])
+        if not math.isfinite(total):  # a stage left the finite numbers: divergence
+            return STATUS_DIVERGED
+        rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)  # INLINE
+        rc0 = w[ORC]
+        rc1 = w[ORC + 1]
+        if rc0 <= rcond_min or rc1 <= rcond_min:
+            if not _finite_work(w):  # not singular: the model's expressions are not defined here
+                return STATUS_DIVERGED
+        if rc0 < stats[STATS_RCOND_J2]:
+            stats[STATS_RCOND_J2] = rc0
+        if rc1 < stats[STATS_RCOND_T]:
+            stats[STATS_RCOND_T] = rc1
+        if rc0 <= rcond_min:
+            return STATUS_J2_SINGULAR
+        if rc1 <= rcond_min:
+            return STATUS_T_SINGULAR
+    return STATUS_OK
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _finite_work(w):
+    """Whether the right-hand side's work array is finite (the cold path of a zero or tiny
+    condition estimate: a NaN pivot — √ of a negative number, 0/0 — also gives rcond 0)."""
+    for i in range(ORC):
+        if not math.isfinite(w[i]):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _record(t, x, p, viol, stats, nv):
+    """Diagnostics of an accepted state; running maxima in ``stats``. Returns E, or NaN
+    (and leaves the maxima untouched) when any diagnostic is not finite."""
+    E = diagnostics(t, x, p, viol)
+    dE = E - stats[STATS_E0]
+    if not math.isfinite(dE):
+        return np.nan
+    for i in range(nv):
+        if not math.isfinite(viol[i]):
+            return np.nan
+    if abs(dE) > stats[STATS_MAX_DRIFT]:
+        stats[STATS_MAX_DRIFT] = abs(dE)
+    stats[STATS_FINAL_DRIFT] = dE
+    for i in range(nv):
+        v = abs(viol[i])
+        if v > stats[STATS_VIOL + i]:
+            stats[STATS_VIOL + i] = v
+    return E
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def integrate_fixed(
+    x,
+    t0,
+    dt,
+    t_final,
+    k0,
+    k1,
+    nsteps,
+    every,
+    p,
+    G,
+    G1,
+    G2,
+    TA,
+    TB,
+    TC,
+    rcond_min,
+    proj,
+    out_t,
+    out_x,
+    out_E,
+    out_V,
+    row,
+    stats,
+):
+    """Steps k0 … k1−1 of a fixed-step run of ``nsteps`` steps; ``x`` is advanced in place.
+
+    Row r of the outputs holds the state after step r·every (and the final state).
+    Returns (status, steps done so far, next free row).
+    """
+    S = TC.shape[0]
+    n2 = 2 * N
+    K = np.empty((S, n2))
+    xs = np.empty(n2)
+    xn = np.empty(n2)
+    viol = np.empty(NV)
+    w = make_workspace()
+    ps = make_projection_scratch()
+    perm = PERM.copy()
+    for k in range(k0, k1):
+        t = t0 + k * dt
+        h = dt if k < nsteps - 1 else t_final - t
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
+        if code != STATUS_OK:
+            return code, k, row
+        for j in range(n2):
+            xn[j] = x[j]
+        for i in range(S):
+            hb = h * TB[i]
+            if hb != 0.0:
+                for j in range(n2):
+                    xn[j] += hb * K[i, j]
+        total = 0.0
+        for j in range(n2):
+            total += abs(xn[j])
+        if not math.isfinite(total):
+            return STATUS_DIVERGED, k, row
+        tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
+        if proj is not None:
+            if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
+                return STATUS_PROJECTION_FAILED, k, row
+        E = _record(tn, xn, p, viol, stats, NV)
+        if not math.isfinite(E):
+            return STATUS_DIVERGED, k, row
+        for j in range(n2):
+            x[j] = xn[j]
+        if (k + 1) % every == 0 or k + 1 == nsteps:
+            out_t[row] = tn
+            for j in range(n2):
+                out_x[row, j] = x[j]
+            out_E[row] = E
+            for j in range(NV):
+                out_V[row, j] = viol[j]
+            row += 1
+    return STATUS_OK, k1, row
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def integrate_adaptive(
+    x,
+    t,
+    t_final,
+    h,
+    rtol,
+    atol,
+    hmin,
+    hmax,
+    max_steps,
+    every,
+    accepted,
+    p,
+    G,
+    G1,
+    G2,
+    TA,
+    TB,
+    TE,
+    TC,
+    err_exp,
+    rcond_min,
+    proj,
+    out_t,
+    out_x,
+    out_E,
+    out_V,
+    stats,
+):
+    """Adaptive embedded-RK run from t until t_final, the output buffer is full, or
+    ``max_steps`` attempts; error = h Σ TE_i K_i, step control with exponent ``err_exp``.
+
+    Returns (status, t, h, rows written, accepted steps, attempted steps).
+    """
+    S = TC.shape[0]
+    n2 = 2 * N
+    K = np.empty((S, n2))
+    xs = np.empty(n2)
+    xn = np.empty(n2)
+    viol = np.empty(NV)
+    w = make_workspace()
+    ps = make_projection_scratch()
+    perm = PERM.copy()
+    cap = out_t.shape[0]
+    row = 0
+    attempts = 0
+    while t < t_final and row < cap:
+        if attempts >= max_steps:
+            return STATUS_BUDGET, t, h, row, accepted, attempts
+        attempts += 1
+        last = False
+        if t + h >= t_final or (t_final - t - h) < STEP_LAST_REL * abs(t_final):
+            h = t_final - t
+            last = True
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
+        # a stage that left the finite numbers (a trial step past a point where the model's
+        # expressions are not defined: √ of a negative number, a zero denominator) is rejected
+        # like an infinite error: the step shrinks, and the run fails only below hmin
+        finite = code == STATUS_OK
+        if code != STATUS_OK and code != STATUS_DIVERGED:
+            return code, t, h, row, accepted, attempts
+        errsum = 0.0
+        if finite:
+            for j in range(n2):
+                acc = 0.0
+                accE = 0.0
+                for i in range(S):
+                    acc += TB[i] * K[i, j]
+                    accE += TE[i] * K[i, j]
+                xn[j] = x[j] + h * acc
+                if not math.isfinite(xn[j]):
+                    finite = False
+                sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
+                e = h * accE / sc
+                errsum += e * e
+        err = math.sqrt(errsum / n2) if finite else np.inf
+        nonfinite = not finite
+        if err <= 1.0:
+            tn = t_final if last else t + h
+            if proj is not None:
+                if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
+                    return STATUS_PROJECTION_FAILED, t, h, row, accepted, attempts
+            E = _record(tn, xn, p, viol, stats, NV)
+            if not math.isfinite(E):
+                return STATUS_DIVERGED, t, h, row, accepted, attempts
+            t = tn
+            for j in range(n2):
+                x[j] = xn[j]
+            accepted += 1
+            if accepted % every == 0 or t >= t_final:
+                out_t[row] = t
+                for j in range(n2):
+                    out_x[row, j] = x[j]
+                out_E[row] = E
+                for j in range(NV):
+                    out_V[row, j] = viol[j]
+                row += 1
+            if err == 0.0:
+                fac = STEP_FAC_MAX
+            else:
+                fac = min(STEP_FAC_MAX, max(STEP_FAC_MIN, STEP_SAFETY * err ** (-err_exp)))
+        else:
+            fac = STEP_FAC_MIN if not math.isfinite(err) else max(STEP_FAC_MIN, STEP_SAFETY * err ** (-err_exp))
+        h = min(h * fac, hmax)
+        if h < hmin and t < t_final:  # non-finite trial steps down to hmin: the state cannot go on finite
+            return STATUS_DIVERGED if nonfinite else STATUS_FAILED, t, h, row, accepted, attempts
+    return STATUS_OK, t, h, row, accepted, attempts

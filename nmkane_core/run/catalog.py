@@ -1,0 +1,70 @@
+"""The catalog of what a run can ask for: systems, integrators, projections, limits."""
+
+from __future__ import annotations
+
+from ..integrate.methods import INTEGRATORS
+from ..integrate.projection import PRESETS
+from ..schema import LIMITS
+from .registry import get_system, system_names
+
+__all__ = ["catalog"]
+
+
+def catalog() -> dict:
+    """Systems with parameters, variants, constraint names, integrators, limits (for /api/systems)."""
+    out = []
+    for name in system_names():
+        s = get_system(name)
+        out.append(
+            {
+                "name": s.name,
+                "title": s.title,
+                "description": s.description,
+                "option": s.option,
+                s.option + "s": list(s.variants),
+                "default_" + s.option: s.default_variant,
+                "parameters": [
+                    {
+                        "name": p.name,
+                        "default": p.default,
+                        "min": p.min,
+                        "max": p.max,
+                        "min_inclusive": p.min_inclusive,
+                        "unit": p.unit,
+                        "description": p.description,
+                    }
+                    for p in s.parameters
+                ],
+                "coordinates": list(s.coordinates),
+                "speeds": list(s.speeds),
+                "independent": list(s.independent),
+                "default_initial": dict(s.default_initial),
+                "constraint_names": {v: list(s.constraint_names(v)) for v in s.variants},
+                "what_to_try": s.what_to_try,
+                "stability": None
+                if s.stability is None
+                else {  # what `nmkane stability` sweeps by default
+                    "over": s.stability.over,
+                    "unit": s.stability.unit,
+                    "start": s.stability.start,
+                    "stop": s.stability.stop,
+                    "count": s.stability.count,
+                    "keep": list(s.stability.keep),
+                    "reference": dict(s.stability.reference),
+                },
+                "defaults": {
+                    "dt": s.default_dt,
+                    "t_final": s.default_t_final,
+                    "integrator": s.default_integrator,
+                    "gamma": s.default_gamma,
+                    "gamma1": s.default_gamma1,
+                    "gamma2": s.default_gamma2,
+                },
+            }
+        )
+    return {
+        "systems": out,
+        "integrators": {k: v.description for k, v in INTEGRATORS.items()},
+        "projections": list(PRESETS),
+        "limits": dict(LIMITS),
+    }

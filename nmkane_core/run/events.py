@@ -1,0 +1,177 @@
+"""Events a system declares: named functions of the state and parameters that end a run
+when they reach zero (a bicycle touching the ground, a particle leaving a surface).
+
+A system declares ``System(events=fn)`` where ``fn()`` (sympy inside: called only when the
+compiled form is not cached yet) returns ``{name: expression}``; each expression is of the
+coordinates, speeds and parameters (plain symbols or ``dynamicsymbols`` named like them),
+negative during the normal motion.  The event fires at the first time its expression is
+≥ 0 (at the start, if it already is there).
+
+How a run stops (:func:`apply_events`, called on every finished run): the expressions are
+evaluated on the output rows after the integration, and the run is cut at the first
+crossing, the crossing time found by linear interpolation between the two rows around it,
+where an interpolated last row (state, energy and violations) is put.  The run's status is
+then ``"event"``, with ``summary["event"] = {"name", "t"}``.  A run that failed (singular,
+diverged, ...) before the first crossing keeps its failure; one that failed after it (a
+bicycle lying flat makes its contact geometry singular) ends with the event, which came
+first.  The crossing time is as fine as the output rows (``every``): a crossing and
+recrossing between two rows is not seen.  Maxima in the summary (constraint violations,
+energy drift) are recomputed over the rows kept.
+
+Compiled once into numpy source (no sympy afterwards), cached under
+``<cache root>/events/`` keyed by the system's kernel key and the file declaring the events.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+
+__all__ = ["CompiledEvents", "compile_events", "apply_events"]
+
+GENERATOR_VERSION = "1"
+_MEMO: dict = {}
+_LOCK = threading.Lock()
+
+
+class CompiledEvents:
+    """The events of a system as a numpy function: :meth:`values` (name → array over rows)."""
+
+    def __init__(self, names: list[str], source: str):
+        self.names = list(names)
+        self.source = source
+        self._ns: dict = {}
+        exec(compile(source, "<nmkane events>", "exec"), self._ns)
+
+    def values(self, states: dict, params: dict) -> dict[str, np.ndarray]:
+        """Every event's value over the rows of ``states`` (name → array), for ``params`` (name → value)."""
+        n = len(next(iter(states.values())))
+        with np.errstate(all="ignore"):
+            out = self._ns["events"]({k: np.asarray(v, float) for k, v in states.items()}, params)
+        return {k: np.broadcast_to(np.asarray(v, float), (n,)) for k, v in zip(self.names, out, strict=True)}
+
+
+def _generate(events: dict, state_names, param_names) -> str:
+    import sympy as sp
+    from sympy.printing.numpy import NumPyPrinter
+
+    from ..declare.visuals import _ident, _plain
+    from ..errors import InputError
+
+    names = set(state_names) | set(param_names)
+    exprs = []
+    for k, e in events.items():
+        try:
+            e = _plain(e, names)
+        except (sp.SympifyError, TypeError, AttributeError):
+            raise InputError(
+                f"events.{k}", e, "a sympy expression of the state and parameters", "not an expression"
+            ) from None
+        bad = sorted(s.name for s in e.free_symbols if s.name not in names)
+        if bad:
+            raise InputError(f"events.{k}", bad[0], "names of coordinates, speeds and parameters", "unknown name")
+        exprs.append(e)
+    used = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
+    exprs = [e.subs({s: sp.Symbol(_ident(s.name), real=True) for s in e.free_symbols}) for e in exprs]
+    printer = NumPyPrinter({"fully_qualified_modules": True})
+    lines = ["import functools", "import numpy", "", "", "def events(s, p):"]
+    for sname in sorted(s.name for s in used):
+        lines.append(f"    {_ident(sname)} = {'s' if sname in state_names else 'p'}[{sname!r}]")
+    subs, reduced = sp.cse(exprs, symbols=sp.numbered_symbols("_c"))
+    lines += [f"    {sym} = {printer.doprint(e)}" for sym, e in subs]
+    lines.append("    return [" + ", ".join(printer.doprint(e) for e in reduced) + "]")
+    return "\n".join(lines) + "\n"
+
+
+def compile_events(system) -> CompiledEvents | None:
+    """A system's compiled events (None if it declares none): from memory, the disk cache,
+    or generated (sympy) and cached.  ``system`` is a :class:`~nmkane_core.declare.system.System`."""
+    if getattr(system, "events", None) is None:
+        return None
+    with _LOCK:
+        memo = _MEMO.get(id(system))
+        if memo is not None and memo[0] is system:
+            return memo[1]
+    from ..kernel.cache import declared_data
+
+    def build() -> dict:
+        from ..errors import InputError
+
+        declared = system.events()
+        if not isinstance(declared, dict) or not all(isinstance(k, str) for k in declared):
+            raise InputError(f"{system.name}: events", type(declared).__name__, "a function returning {name: expr}", "")
+        info = system.info(system.default_variant)
+        return {
+            "names": list(declared),
+            "source": _generate(declared, tuple(info.q) + tuple(info.u), system.param_names),
+        }
+
+    data = declared_data(system, system.events, "events", __file__, GENERATOR_VERSION, build)
+    compiled = CompiledEvents(data["names"], data["source"])
+    with _LOCK:
+        _MEMO[id(system)] = (system, compiled)
+    return compiled
+
+
+def first_crossing(t: np.ndarray, values: dict[str, np.ndarray]) -> tuple[str, float, int] | None:
+    """(event name, time, row index k ≥ 0 of the first row at or past it) of the earliest
+    crossing over rows ``t``, or None.  Non-finite values count as not crossed."""
+    best = None
+    for name, g in values.items():
+        hit = np.flatnonzero(np.nan_to_num(g, nan=-np.inf) >= 0.0)
+        if hit.size == 0:
+            continue
+        k = int(hit[0])
+        if k == 0:
+            tc = float(t[0])
+        else:
+            g0, g1 = float(g[k - 1]), float(g[k])
+            frac = g0 / (g0 - g1) if g1 != g0 else 1.0
+            tc = float(t[k - 1] + min(1.0, max(0.0, frac)) * (t[k] - t[k - 1]))
+        if best is None or tc < best[1]:
+            best = (name, tc, k)
+    return best
+
+
+def apply_events(run, system):
+    """Cut a finished :class:`~nmkane_core.run.result.Run` at its system's first event, in place,
+    and return it (unchanged when no event is declared or none fired).  A failed run's rows
+    end at its last good state, so an event found in them came before the failure.
+    ``system``: the run's :class:`~nmkane_core.declare.system.System`."""
+    compiled = compile_events(system)
+    if compiled is None or len(run.t) == 0:
+        return run
+    params = system.resolve_params(run.settings.get("params", {}))
+    found = first_crossing(run.t, compiled.values(run.state, params))
+    if found is None:
+        return run
+    name, tc, k = found
+    if k == 0:
+        keep = {key: v[:1].copy() for key, v in run.state.items()}
+        cut = lambda a: a[:1].copy()  # noqa: E731
+    else:
+        t0, t1 = run.t[k - 1], run.t[k]
+        a = 0.0 if t1 == t0 else (tc - t0) / (t1 - t0)
+
+        def cut(arr):
+            return np.append(arr[:k], (1 - a) * arr[k - 1] + a * arr[k])
+
+        keep = {key: cut(v) for key, v in run.state.items()}
+    run.t = np.append(run.t[: max(k, 1)], tc) if k else run.t[:1].copy()
+    run.state = keep
+    if run.energy is not None:
+        run.energy = cut(run.energy)
+        run.summary["max_abs_energy_drift"] = float(np.max(np.abs(run.energy - run.energy[0])))
+        run.summary["final_energy_drift"] = float(run.energy[-1] - run.energy[0])
+    run.violation = {key: cut(v) for key, v in run.violation.items()}
+    run.summary["max_abs_violation"] = {key: float(np.max(np.abs(v))) for key, v in run.violation.items()}
+    run.summary["status"] = "event"
+    run.summary["event"] = {"name": name, "t": tc}
+    run.summary["t_end"] = tc
+    run.summary["message"] = (
+        f"event {name!r} at t = {tc:.6g} s"
+        + (" (already at the start)" if k == 0 else "")
+        + f": the run stopped there ({name} reached zero; found on the output rows, interpolated)"
+    )
+    return run

@@ -1,0 +1,193 @@
+"""The paper's procedure, steps 1–5, for any :class:`~nmkane_core.symbolic.model.MechanicalModel`.
+
+Read beside Bajodah, Hodges & Chen (2005), Section 2 and 3:
+
+* step 1 — acceleration form of the constraints (13), partition (16), J1, J2 (17)–(18),
+  B1, B2 (14)–(15); holonomic constraints ψ(q,t) are differentiated once to the velocity
+  level ψ̇ and then treated like nonholonomic ones (twice differentiated in all);
+* (20) u̇_D = A u̇_I + B with A = −J2⁻¹J1, B = −J2⁻¹(B1 u + B2);
+* step 2 — A1 = [−A  I] (22), A2 = [I  Aᵀ] (40);
+* steps 3–4 — the holonomic system Q u̇ = P (41)–(43) comes with the model;
+* step 5 — T = [A1; A2 Q], V = [B; A2 P] (44);
+* Section 3 — Baumgarte terms: B̂ = B + J2⁻¹ Γ φ (108) for nonholonomic rows and
+  B̂ = B + J2⁻¹ (Γ1 ψ̇ + Γ2 ψ) (113) for holonomic rows; V̂ = [B̂; A2 P] (110).
+
+Everything here is symbolic and done once per model.  The numeric kernels never use
+the symbolic inverses below (A, B, B̂, T, V): they evaluate J1, J2, B1 u + B2, Q and P and
+solve numerically (see :mod:`nmkane_core.symbolic.reference` and :mod:`nmkane_core.kernel.codegen`).  The
+symbolic A, A1, A2, T, V exist to be inspected, printed in LaTeX and checked against the
+paper's printed matrices.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import sympy as sp
+
+from .model import MechanicalModel
+
+__all__ = ["Derivation", "derive"]
+
+
+def _column(exprs) -> sp.Matrix:
+    exprs = [sp.sympify(e) for e in exprs]
+    return sp.Matrix(len(exprs), 1, exprs)
+
+
+class Derivation:
+    """Symbolic results of the procedure for one model (all ``sympy.Matrix``).
+
+    Speeds are ordered ``u_perm = [u_I, u_D]`` in every matrix below (the paper's
+    ordering (16)); ``perm`` maps that order back to the model's ``u``.
+    """
+
+    def __init__(self, model: MechanicalModel):
+        self.model = model
+        md = model
+        self.t = md.t
+        self.q = sp.Matrix(md.q)
+        self.u = sp.Matrix(md.u)
+        if md.m:
+            self.u_I = sp.Matrix(md.u_independent)
+            self.u_D = sp.Matrix(md.u_dependent)
+        else:  # unconstrained (e.g. a minimal formulation): every speed is independent
+            self.u_I = sp.Matrix(md.u)
+            self.u_D = sp.zeros(0, 1)
+        self.u_perm = sp.Matrix.vstack(self.u_I, self.u_D) if md.m else self.u_I
+        self.perm = [list(md.u).index(s) for s in self.u_perm]
+        self.p = len(self.u_I)
+
+        # (1) kinematical differential equations
+        self.C = md.C
+        self.D = md.D
+        self.qdot = md.C * self.u + md.D
+
+        # constraint functions: φ (nonholonomic), ψ and ψ̇ (holonomic)
+        # column vectors even when empty (0×1): a model may have only one kind of constraint
+        self.phi_nh = _column(md.nonholonomic.values())
+        self.psi = _column(md.holonomic.values())
+        if self.psi.shape[0]:
+            self.psi_dot = self.psi.jacobian(self.q) * self.qdot + self.psi.diff(self.t)
+        else:
+            self.psi_dot = sp.zeros(0, 1)
+        self.m_nh = self.phi_nh.shape[0]
+        self.m_h = self.psi.shape[0]
+        self.m = self.m_nh + self.m_h
+        # velocity-level constraints whose acceleration form (13) is used
+        self.phi = sp.Matrix.vstack(self.phi_nh, self.psi_dot) if self.m else sp.zeros(0, 1)
+
+        # (17)–(18) J1 = ∂φ/∂u_I, J2 = ∂φ/∂u_D
+        if self.m:
+            self.J1 = self.phi.jacobian(self.u_I)
+            self.J2 = self.phi.jacobian(self.u_D)
+            # (14)–(15) B1 = ∂φ/∂q C,  B2 = ∂φ/∂q D + ∂φ/∂t
+            phi_q = self.phi.jacobian(self.q)
+            self.B1 = phi_q * self.C
+            self.B2 = phi_q * self.D + self.phi.diff(self.t)
+            # the velocity-dependent part of (19):  φ̇ = J1 u̇_I + J2 u̇_D + b
+            self.b = self.B1 * self.u + self.B2
+        else:
+            self.J1 = sp.zeros(0, self.p)
+            self.J2 = sp.zeros(0, 0)
+            self.B1 = sp.zeros(0, md.n)
+            self.B2 = sp.zeros(0, 1)
+            self.b = sp.zeros(0, 1)
+
+        # Baumgarte gains as symbols (the numeric kernels take them as runtime matrices)
+        self.Gamma = sp.Matrix(self.m_nh, self.m_nh, lambda i, j: sp.Symbol(f"Gamma_{i + 1}{j + 1}", real=True))
+        self.Gamma1 = sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma1_{i + 1}{j + 1}", real=True))
+        self.Gamma2 = sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma2_{i + 1}{j + 1}", real=True))
+        # stabilization vector s: (104) Γ φ for nonholonomic rows, (112) Γ1 ψ̇ + Γ2 ψ for holonomic
+        self.s = (
+            sp.Matrix.vstack(self.Gamma * self.phi_nh, self.Gamma1 * self.psi_dot + self.Gamma2 * self.psi)
+            if self.m
+            else sp.zeros(0, 1)
+        )
+
+        # the holonomic system (42), speeds in the order [u_I, u_D]
+        self.Q = md.Q.extract(self.perm, self.perm)
+        self.P = md.P.extract(self.perm, [0])
+
+    # ------------------------------------------------------------ (20)–(44)
+    @cached_property
+    def _J2_inv_rhs(self):
+        """J2⁻¹ [J1 | b | s], solved symbolically by LU (small m only; for display)."""
+        rhs = sp.Matrix.hstack(self.J1, self.b, self.s)
+        return self.J2.LUsolve(rhs)
+
+    @cached_property
+    def A(self) -> sp.Matrix:
+        """(20) A = −J2⁻¹ J1."""
+        if not self.m:
+            return sp.zeros(0, self.p)
+        return -self._J2_inv_rhs[:, : self.p]
+
+    @cached_property
+    def B(self) -> sp.Matrix:
+        """(20) B = −J2⁻¹ (B1 u + B2)."""
+        if not self.m:
+            return sp.zeros(0, 1)
+        return -self._J2_inv_rhs[:, self.p]
+
+    @cached_property
+    def B_hat(self) -> sp.Matrix:
+        """(108)/(113) B̂ = B + J2⁻¹ [Γ φ; Γ1 ψ̇ + Γ2 ψ]."""
+        if not self.m:
+            return sp.zeros(0, 1)
+        return self.B + self._J2_inv_rhs[:, self.p + 1]
+
+    @cached_property
+    def A1(self) -> sp.Matrix:
+        """(22) A1 = [−A  I]."""
+        return sp.Matrix.hstack(-self.A, sp.eye(self.m))
+
+    @cached_property
+    def A2(self) -> sp.Matrix:
+        """(40) A2 = [I  Aᵀ]."""
+        return sp.Matrix.hstack(sp.eye(self.p), self.A.T)
+
+    @cached_property
+    def T(self) -> sp.Matrix:
+        """(44) T = [A1; A2 Q], the constrained generalized inertia matrix."""
+        return sp.Matrix.vstack(self.A1, self.A2 * self.Q)
+
+    @cached_property
+    def V(self) -> sp.Matrix:
+        """(44) V = [B; A2 P] (no stabilization)."""
+        return sp.Matrix.vstack(self.B, self.A2 * self.P)
+
+    @cached_property
+    def V_hat(self) -> sp.Matrix:
+        """(110) V̂ = [B̂; A2 P] (with the Baumgarte terms)."""
+        return sp.Matrix.vstack(self.B_hat, self.A2 * self.P)
+
+    # ----------------------------------------------------------- inspection
+    NAMES = ("J1", "J2", "B1", "B2", "A", "B", "B_hat", "A1", "A2", "Q", "P", "T", "V", "V_hat")
+
+    def matrix(self, name: str) -> sp.Matrix:
+        if name not in self.NAMES:
+            raise KeyError(f"unknown matrix {name!r}; known: {', '.join(self.NAMES)}")
+        return getattr(self, name)
+
+    def latex(self, name: str, simplify: bool = True) -> str:
+        """LaTeX of one derived matrix, e.g. ``latex("A1")`` (for teaching panels)."""
+        mat = self.matrix(name)
+        if simplify:
+            mat = mat.applyfunc(lambda e: sp.simplify(e) if sp.count_ops(e) < 400 else e)
+        sym = {
+            "B_hat": r"\hat{B}",
+            "V_hat": r"\hat{V}",
+            "A1": "A_1",
+            "A2": "A_2",
+            "J1": "J_1",
+            "J2": "J_2",
+            "B1": "B_1",
+            "B2": "B_2",
+        }.get(name, name)
+        return f"{sym} = {sp.latex(mat)}"
+
+
+def derive(model: MechanicalModel) -> Derivation:
+    """Run the paper's procedure on ``model`` (symbolic, once)."""
+    return Derivation(model)

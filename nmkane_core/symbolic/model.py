@@ -1,0 +1,277 @@
+"""A mechanical model described with sympy, in the paper's terms.
+
+A :class:`MechanicalModel` is pure description: the generalized coordinates ``q`` and
+speeds ``u``, the kinematical equations (1) ``q̇ = C(q,t) u + D(q,t)``, the equations of
+the *holonomic* (unconstrained) system (41)–(43) ``Q(q,t) u̇ = P(q,u,t)``, the
+nonholonomic constraints φ(q,u,t) = 0 (possibly nonlinear in u), the holonomic
+constraints ψ(q,t) = 0 and the partition u = [u_I, u_D] (16).  Nothing here derives
+anything; :mod:`nmkane_core.symbolic.derivation` does that, once per model.
+
+Two ways to give the holonomic equations:
+
+* explicitly, ``Q`` and ``P`` (the paper's (99)–(100) for example);
+* from sympy.physics.mechanics bodies, particles and loads with
+  :meth:`MechanicalModel.from_mechanics`, which runs ``KanesMethod`` on the
+  *unconstrained* system (no velocity constraints) to obtain Q (``mass_matrix``) and P
+  (``forcing``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+__all__ = ["MechanicalModel", "plain_symbols"]
+
+
+def plain_symbols(names: str | Sequence[str]) -> tuple[sp.Symbol, ...]:
+    """Real sympy symbols, the kind a model is written in."""
+    syms = sp.symbols(names, real=True)
+    return tuple(syms) if isinstance(syms, (tuple, list)) else (syms,)
+
+
+def _as_matrix(value, rows: int | None = None) -> sp.Matrix:
+    m = sp.Matrix(value)
+    if rows is not None and m.shape[0] != rows and m.shape == (1, rows):
+        m = m.T
+    return m
+
+
+@dataclass(frozen=True, kw_only=True)
+class MechanicalModel:
+    """A constrained system: kinematics, holonomic equations, constraints, partition.
+
+    Every argument is keyword-only; all expressions are sympy expressions in ``q``, ``u``,
+    ``params`` and ``t`` (nothing else may appear in them).
+
+    Parameters
+    ----------
+    q, u:
+        Generalized coordinates and speeds, n of each (plain real sympy symbols, see
+        :func:`plain_symbols`; their names are the state names of runs).
+    params:
+        Parameter symbols, in the order numeric parameter vectors use; every symbol of the
+        expressions that is not in ``q``, ``u`` or ``t`` must be one of them.
+    C, D:
+        (1) ``q̇ = C u + D``; ``C`` n×n invertible, ``D`` n×1 (``sp.eye(n)``,
+        ``sp.zeros(n, 1)`` when the speeds are the coordinates' rates).
+    Q, P:
+        (42) the holonomic (unconstrained) system ``Q u̇ = P``: Q n×n symmetric positive
+        definite, P n×1 (applied and inertia forces).
+    nonholonomic:
+        Named constraints φ_i(q, u, t) = 0: any smooth function of the speeds —
+        linear, polynomial, or not polynomial at all (square roots such as the speed
+        along a path √(u1² + u2²) − v, trigonometric, rational, exponential).  Where a
+        constraint's expression is not defined (the argument of a square root below
+        zero, a zero denominator) a run ends with a status.
+    holonomic:
+        Named ψ_i(q, t) = 0.
+    u_independent:
+        u_I of (16); the remaining speeds (in the order of ``u``) are u_D, solved from
+        the constraints: choose them so that J2 = ∂[φ; ψ̇]/∂u_D is invertible along the
+        motion (runs report where it is not, status ``singular``).  Required when there
+        are constraints.
+    energy:
+        Optional total energy E(q, u, t), reported with its drift (diagnostics only).
+    outputs:
+        Optional extra reported quantities, name → expression of q, u, t (e.g. the
+        minimal formulation of the sliding particle reports y and u2 that it does not
+        integrate).
+    monitors:
+        Optional extra named quantities reported beside the constraint values, e.g. the
+        surface equation for a minimal formulation that satisfies it by construction.
+    q_dependent:
+        Coordinates solved from the holonomic constraints when completing an initial
+        state (one per holonomic constraint); chosen by pivoting on ∂ψ/∂q when not given.
+    name:
+        Optional short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``), shown in
+        generated code and messages; a system names its variants itself.
+    t:
+        The time symbol (default ``Symbol("t", real=True)``).
+    description:
+        Optional text about the model.
+
+    Raises :class:`ValueError` naming the field when the shapes or symbols do not fit.
+    """
+
+    name: str = ""
+    q: tuple[sp.Symbol, ...]
+    u: tuple[sp.Symbol, ...]
+    params: tuple[sp.Symbol, ...]
+    C: sp.Matrix
+    D: sp.Matrix
+    Q: sp.Matrix
+    P: sp.Matrix
+    nonholonomic: Mapping[str, sp.Expr] = field(default_factory=dict)
+    holonomic: Mapping[str, sp.Expr] = field(default_factory=dict)
+    u_independent: tuple[sp.Symbol, ...] = ()
+    energy: sp.Expr | None = None
+    outputs: Mapping[str, sp.Expr] = field(default_factory=dict)
+    q_dependent: tuple[sp.Symbol, ...] = ()
+    monitors: Mapping[str, sp.Expr] = field(default_factory=dict)
+    t: sp.Symbol = sp.Symbol("t", real=True)  # noqa: RUF009 (an immutable symbol, shared on purpose)
+    description: str = ""
+
+    def __post_init__(self):
+        n = len(self.q)
+        object.__setattr__(self, "q", tuple(self.q))
+        object.__setattr__(self, "u", tuple(self.u))
+        object.__setattr__(self, "params", tuple(self.params))
+        object.__setattr__(self, "C", _as_matrix(self.C))
+        object.__setattr__(self, "D", _as_matrix(self.D, n))
+        object.__setattr__(self, "Q", _as_matrix(self.Q))
+        object.__setattr__(self, "P", _as_matrix(self.P, n))
+        object.__setattr__(self, "nonholonomic", dict(self.nonholonomic))
+        object.__setattr__(self, "holonomic", dict(self.holonomic))
+        object.__setattr__(self, "outputs", dict(self.outputs))
+        object.__setattr__(self, "monitors", dict(self.monitors))
+        object.__setattr__(self, "u_independent", tuple(self.u_independent))
+        object.__setattr__(self, "q_dependent", tuple(self.q_dependent))
+        self.validate()
+
+    # ------------------------------------------------------------------ checks
+    def validate(self) -> None:
+        n = len(self.q)
+        if len(self.u) != n:
+            raise ValueError(f"model {self.name!r}: {n} coordinates but {len(self.u)} speeds")
+        for label, mat, shape in (
+            ("C", self.C, (n, n)),
+            ("D", self.D, (n, 1)),
+            ("Q", self.Q, (n, n)),
+            ("P", self.P, (n, 1)),
+        ):
+            if mat.shape != shape:
+                raise ValueError(f"model {self.name!r}: {label} has shape {mat.shape}, expected {shape}")
+        m = self.m
+        p = len(self.u_independent)
+        if m and p + m != n:
+            raise ValueError(
+                f"model {self.name!r}: {m} constraints and {p} independent speeds do not add "
+                f"up to {n} speeds (u_I must have n - m entries)"
+            )
+        unknown = [s for s in self.u_independent if s not in self.u]
+        if unknown:
+            raise ValueError(f"model {self.name!r}: u_independent {unknown} are not speeds of the model")
+        allowed = set(self.q) | set(self.params) | {self.t}
+        for name, psi in self.holonomic.items():
+            extra = sp.sympify(psi).free_symbols - allowed
+            if extra:
+                raise ValueError(
+                    f"model {self.name!r}: holonomic constraint {name!r} depends on "
+                    f"{sorted(map(str, extra))}; ψ may depend on q, t and parameters only"
+                )
+        allowed |= set(self.u)
+        for name, phi in self.nonholonomic.items():
+            extra = sp.sympify(phi).free_symbols - allowed
+            if extra:
+                raise ValueError(
+                    f"model {self.name!r}: constraint {name!r} has unknown symbols {sorted(map(str, extra))}"
+                )
+        dup = set(self.nonholonomic) & set(self.holonomic)
+        if dup:
+            raise ValueError(f"model {self.name!r}: constraint names used twice: {sorted(dup)}")
+
+    # ------------------------------------------------------------- properties
+    @property
+    def n(self) -> int:
+        return len(self.q)
+
+    @property
+    def m(self) -> int:
+        """Number of constraints, nonholonomic plus holonomic."""
+        return len(self.nonholonomic) + len(self.holonomic)
+
+    @property
+    def u_dependent(self) -> tuple[sp.Symbol, ...]:
+        """u_D of (16): the speeds not in u_I, in the order of ``u``."""
+        if not self.m:
+            return ()
+        return tuple(s for s in self.u if s not in self.u_independent)
+
+    @property
+    def constraint_names(self) -> tuple[str, ...]:
+        return tuple(self.nonholonomic) + tuple(self.holonomic)
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return tuple(str(s) for s in self.q + self.u)
+
+    # ------------------------------------------------------------ from mechanics
+    @classmethod
+    def from_mechanics(
+        cls,
+        name: str = "",
+        *,
+        q,
+        u,
+        kd_eqs,
+        bodies,
+        loads,
+        frame,
+        params,
+        nonholonomic: Mapping[str, sp.Expr] | None = None,
+        holonomic: Mapping[str, sp.Expr] | None = None,
+        u_independent: Iterable = (),
+        energy=None,
+        outputs: Mapping[str, sp.Expr] | None = None,
+        q_dependent: Iterable = (),
+        monitors: Mapping[str, sp.Expr] | None = None,
+        description: str = "",
+    ) -> MechanicalModel:
+        """Build a model from sympy.physics.mechanics bodies, particles and loads.
+
+        ``q`` and ``u`` are ``dynamicsymbols``; ``kd_eqs`` the kinematical differential
+        equations (``q' - u`` ...).  KanesMethod is run on the *unconstrained* system, so
+        ``mass_matrix`` is the holonomic Q and ``forcing`` the holonomic P of (42); the
+        constraints are then attached exactly as for an explicit model.  Constraint and
+        energy expressions may use the dynamicsymbols; they are converted to plain symbols.
+        """
+        from sympy.physics.mechanics import KanesMethod, dynamicsymbols
+
+        q = list(q)
+        u = list(u)
+        kane = KanesMethod(frame, q_ind=q, u_ind=u, kd_eqs=list(kd_eqs))
+        kane.kanes_equations(list(bodies), list(loads))
+        t = dynamicsymbols._t
+        qd = [qi.diff(t) for qi in q]
+        # (1): solve the kinematical equations for q̇ = C u + D
+        sol = sp.solve(list(kd_eqs), qd, dict=True)[0]
+        qdot = sp.Matrix([sol[v] for v in qd])
+        C = qdot.jacobian(u)
+        D = sp.expand(qdot - C * sp.Matrix(u))
+        qs = plain_symbols([str(s).replace("(t)", "") for s in q])
+        us = plain_symbols([str(s).replace("(t)", "") for s in u])
+        ts = sp.Symbol("t", real=True)
+        # xreplace, not subs: an exact swap of nodes, linear in the size of the expression
+        # (subs took minutes on a bicycle's mass matrix)
+        to_qdot = dict(zip(qd, qdot, strict=True))
+        to_plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), t: ts}
+
+        def plain(e):
+            return sp.sympify(e).xreplace(to_qdot).xreplace(to_plain)
+
+        Q = kane.mass_matrix.applyfunc(plain)
+        P = kane.forcing.applyfunc(plain)
+        uind = [plain(s) for s in u_independent]
+        qdep = [plain(s) for s in q_dependent]
+        return cls(
+            name=name,
+            q=qs,
+            u=us,
+            params=tuple(params),
+            C=C.applyfunc(plain),
+            D=D.applyfunc(plain),
+            Q=Q,
+            P=P,
+            nonholonomic={k: plain(v) for k, v in dict(nonholonomic or {}).items()},
+            holonomic={k: plain(v) for k, v in dict(holonomic or {}).items()},
+            u_independent=tuple(uind),
+            energy=None if energy is None else plain(energy),
+            outputs={k: plain(v) for k, v in dict(outputs or {}).items()},
+            q_dependent=tuple(qdep),
+            monitors={k: plain(v) for k, v in dict(monitors or {}).items()},
+            t=ts,
+            description=description,
+        )

@@ -1,0 +1,186 @@
+"""The nmkane command: summaries, files, one-line errors with exit code 2."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from nmkane_core.cli import main
+
+NMKANE = [sys.executable, "-m", "nmkane_core.cli"]
+
+
+def test_run_prints_readable_summary(capsys):
+    assert main(["run", "appell-hamel", "--dt", "0.05", "--t-final", "2", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "status   ok" in out and "max |ΔE|" in out and "rolling_speed" in out
+
+
+@pytest.mark.parametrize("ext", ["json", "csv", "npz"])
+def test_run_writes_files(tmp_path, ext):
+    path = tmp_path / f"run.{ext}"
+    assert (
+        main(
+            [
+                "run",
+                "sliding-particle",
+                "--gamma1",
+                "-20",
+                "--gamma2",
+                "-100",
+                "--dt",
+                "0.01",
+                "--t-final",
+                "1",
+                "--out",
+                str(path),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
+    if ext == "json":
+        doc = json.loads(path.read_text())
+        assert set(doc) >= {"system", "settings", "t", "state", "energy", "violation", "summary"}
+        assert doc["settings"]["gamma1"] == -20 and len(doc["t"]) == 101
+    elif ext == "csv":
+        lines = path.read_text().splitlines()
+        assert lines[0].split(",")[:5] == ["t", "x", "y", "u1", "u2"] and len(lines) == 102
+    else:
+        data = np.load(path)
+        assert data["t"].shape == (101,) and "violation_surface" in data
+
+
+@pytest.mark.parametrize(
+    "argv,needle",
+    [
+        (["run", "appell-hamel", "--dt", "0"], "--dt"),
+        (["run", "appell-hamel", "--dt", "-1"], "--dt"),
+        (["run", "appell-hamel", "--dt", "nan"], "--dt"),
+        (["run", "appell-hamel", "--t-final", "inf"], "--t-final"),
+        (["run", "appell-hamel", "--t-final", "0"], "--t-final"),
+        (["run", "appell-hamel", "--dt", "1e-5", "--t-final", "1000"], "steps"),
+        (["run", "appell-hamel", "--model", "cubic"], "nonlinear | linear"),
+        (["run", "banana"], "appell-hamel | sliding-particle"),
+        (["run", "appell-hamel", "--integrator", "euler"], "--integrator"),
+        (["run", "appell-hamel", "--set", "rho=-3"], "--set rho"),
+        (["run", "appell-hamel", "--set", "rho"], "NAME=VALUE"),
+        (["run", "appell-hamel", "--init", "zz=1"], "--init zz"),
+        (
+            [
+                "run",
+                "appell-hamel",
+                "--init",
+                "theta=0",
+                "--init",
+                "phi=0",
+                "--init",
+                "x=0",
+                "--init",
+                "y=0",
+                "--init",
+                "z=30",
+                "--init",
+                "u1=1",
+                "--init",
+                "u2=1",
+                "--init",
+                "u3=2",
+                "--init",
+                "u4=5",
+                "--init",
+                "u5=-0.5",
+            ],
+            "residuals",
+        ),
+        (["run", "appell-hamel", "--out", "x.txt"], "--out"),
+        (["run", "appell-hamel", "--projection", "magic"], "--projection"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line_naming_the_option(argv, needle):
+    proc = subprocess.run(
+        NMKANE + argv, capture_output=True, text=True, timeout=120, env={**os.environ, "PYTHONWARNINGS": "ignore"}
+    )
+    assert proc.returncode == 2, proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1, proc.stderr
+    assert needle in err[0] and "Traceback" not in proc.stderr
+
+
+def test_singular_run_exits_1_with_message(capsys):
+    assert main(["run", "appell-hamel", "--init", "u2=0", "--no-switching", "--no-progress"]) == 1
+    assert "singular" in capsys.readouterr().out
+
+
+def test_wheel_not_rolling_start_switches_models_and_lists_the_switches(capsys):
+    assert main(["run", "appell-hamel", "--init", "u2=0", "--t-final", "3", "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "switch   t = 0 s: nonlinear → linear" in out
+
+
+def test_matrices_command_prints_A1(capsys):
+    assert main(["matrices", "sliding-particle", "--matrix", "A1", "--latex"]) == 0
+    assert "A_1" in capsys.readouterr().out
+
+
+def test_bench_quick_measures_every_workload():
+    """`nmkane bench --quick --json`: every workload of the compiled-kernels issue measured
+    in this run (no timing asserted here: speed lives in the benchmark's own table)."""
+    from nmkane_core.bench.rows import format_table
+
+    out = subprocess.run(
+        [sys.executable, "-m", "nmkane_core.cli", "bench", "--quick", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert out.returncode in (0, 1), out.stderr[-2000:]  # 1 = a target missed, still a table
+    doc = json.loads(out.stdout)
+    rows = doc["rows"]
+    names = " | ".join(r["workload"] for r in rows)
+    for part in (
+        "Kutta–Merson, dt=0.001",
+        "sympy KanesMethod",
+        "numpy reference",
+        "called from Python",
+        "fresh process",
+        "first run after install",
+        "interactive re-run",
+        "adaptive Kutta–Merson",
+        "Γ sweep",
+        "runs, local executor",
+    ):
+        assert part in names, part
+    for r in rows:
+        assert np.isfinite(r["wall_s"]) and r["wall_s"] > 0, r
+        assert r["evals_per_s"] is None or r["evals_per_s"] > 0, r
+    ratio = next(r for r in rows if "inside the compiled loop" in r["workload"])
+    assert ratio["x_sympy"] > 1 and ratio["x_reference"] > 1  # the compiled path is the fast one
+    table = format_table(rows)
+    assert table.splitlines()[0].startswith("workload") and "evals/s" in table
+
+
+def test_slow_preparation_is_announced_and_quick_one_is_silent():
+    import io
+    import time as _time
+
+    from nmkane_core.cli import notice_if_slow
+
+    out = io.StringIO()
+    with notice_if_slow("preparing x", after=0.05, stream=out):
+        _time.sleep(0.3)
+    lines = out.getvalue().splitlines()
+    assert lines[0] == "nmkane: preparing x …" and lines[1].startswith("nmkane: ready in 0.")
+    out = io.StringIO()
+    with notice_if_slow("preparing y", after=0.5, stream=out):
+        pass
+    _time.sleep(0.6)  # the cancelled timer never fires
+    assert out.getvalue() == ""
+    out = io.StringIO()
+    with pytest.raises(ValueError), notice_if_slow("preparing z", after=0.05, stream=out):
+        raise ValueError("bad input")
+    _time.sleep(0.1)
+    assert out.getvalue() == ""

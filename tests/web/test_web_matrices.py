@@ -1,0 +1,67 @@
+"""The matrices panel's child process: long entries are elided, and the child dies with its parent."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from tests._helpers import require
+
+require("matplotlib")
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def test_entries_too_long_to_typeset_are_elided_and_said(monkeypatch):
+    from web import matrices as mx
+
+    monkeypatch.setattr(mx, "TYPESET_OPS", 2)
+    p = mx._build("sliding-particle", "nonminimal")
+    assert "too long to typeset" in p.intro and "nmkane matrices sliding-particle" in p.intro
+    assert any("too long to show" in v for v in p.latex.values())
+    assert p.images  # still drawn: the short entries and ⋯ for the others
+
+
+def test_the_short_matrices_are_typeset_in_full():
+    from web import matrices as mx
+
+    p = mx._build("sliding-particle", "nonminimal")
+    assert "too long" not in p.intro
+    assert all(v.startswith(mx.TITLES[k]) for k, v in p.latex.items())
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    with open(f"/proc/{pid}/stat") as f:  # a zombie has finished
+        return f.read().split(")")[-1].split()[0] != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc").exists(), reason="needs /proc")
+def test_the_child_stops_when_its_parent_dies(tmp_path):
+    """A server killed while the panel derives must not leave the derivation running."""
+    out = tmp_path / "child.pid"
+    parent = (
+        "import os, threading, time\n"
+        "from web import matrices as mx\n"
+        "threading.Thread(target=mx._compute, args=('whipple-bicycle', 'default', None), daemon=True).start()\n"
+        "while not mx._children: time.sleep(0.05)\n"
+        f"open({str(out)!r}, 'w').write(str(next(iter(mx._children)).pid))\n"
+        "os._exit(0)  # as SIGKILL would: no cleanup\n"
+    )
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    subprocess.run([sys.executable, "-c", parent], env=env, check=True, timeout=60)
+    pid = int(out.read_text())
+    deadline = time.monotonic() + 30
+    while _alive(pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    alive = _alive(pid)
+    if alive:
+        os.kill(pid, 9)
+    assert not alive, "the matrices child outlived its parent"
