@@ -17,7 +17,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from nmkane_core.declare.visuals import AXES, axis_wxyz, compile_visuals, rotation_to_wxyz
+from nmkane_core.kernel.built import built
+from nmkane_core.kernel.visuals import AXES, axis_wxyz, compile_visuals, rotation_to_wxyz
 
 from . import geometry as geo
 
@@ -212,7 +213,7 @@ class DeclaredScene:
         states = dict(run.state)
         cv = self.compiled
         if cv is None:
-            names = list(self.system.coordinates)[:3]
+            names = list(built(self.system).coordinates)[:3]
             cols = [states[n] for n in names] + [np.zeros(len(run.t))] * (3 - len(names))
             pts = _clip(np.column_stack(cols))
             self.points = [pts]

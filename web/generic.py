@@ -2,7 +2,7 @@
 
 :class:`GenericView` is the only system view: everything it shows comes from data —
 sliders for every parameter (over its declared range; on a log scale when it spans
-decades), for the independent initial values (:attr:`System.independent`), for Γ only
+decades), for the independent initial values (:attr:`nmkane_core.kernel.built.Built.independent`), for Γ only
 when the system has nonholonomic constraints and Γ1, Γ2 only when it has holonomic ones,
 Δt and the final time; choosers for the variant, integrator, projection, the compare runs
 and the plotted coordinate; the energy drift, log10|violation| per constraint and the
@@ -24,6 +24,8 @@ from typing import ClassVar
 import numpy as np
 
 from nmkane_core.integrate.projection import PRESETS
+from nmkane_core.kernel.built import built
+from nmkane_core.run.initial import default_state
 from nmkane_core.run.registry import get_system
 
 from . import geometry as geo
@@ -89,7 +91,7 @@ def initial_control(name: str, default: float, prefix: str, declared=None) -> Co
 def compare_choices(core) -> tuple[str, ...]:
     """The compare dropdown of a system: off, each variant, Γ = 0 (when it has constraints
     to stabilize), and all of them (when that is more than one run)."""
-    info = core.info(core.default_variant)
+    info = built(core).info(core.default_variant)
     runs = [*core.variants] if len(core.variants) > 1 else []
     if info.nonholonomic or info.holonomic:
         runs.append(UNSTABILIZED)
@@ -98,7 +100,7 @@ def compare_choices(core) -> tuple[str, ...]:
 
 def generic_controls(core, prefix: str) -> tuple[Control, ...]:
     """The simulation controls of any system, from its declaration and its model's info."""
-    info = core.info(core.default_variant)
+    info = built(core).info(core.default_variant)
     show = dict(getattr(core, "showcase", {}))
     out = []
     if len(core.variants) > 1:
@@ -172,10 +174,10 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
             step=_step(0, max(5 * tf, 10.0)),
         )
     )
-    shown = getattr(core, "initial_controls", None) or dict.fromkeys(core.independent)
+    shown = getattr(core, "initial_controls", None) or dict.fromkeys(built(core).independent)
     for name, declared in shown.items():
-        out.append(initial_control(name, float(core.default_initial.get(name, 0.0)), prefix, declared))
-    names = core.state_names
+        out.append(initial_control(name, float(default_state(core).get(name, 0.0)), prefix, declared))
+    names = built(core).state_names
     out.append(Control(f"{prefix}plot", "Plotted coordinate", "option.plot", names[0], kind="dropdown", options=names))
     return tuple(out)
 
@@ -214,7 +216,7 @@ class GenericView:
         self.declared = DeclaredScene(scene, core)
         self.ghosts: list[DeclaredScene] = []  # one per compare run, made on first use
         self.root = self.declared.root
-        self.plot_name = core.state_names[0]
+        self.plot_name = built(core).state_names[0]
         self.k = 0
         self.fit_pending = True
         self.fixed_target = None  # the whole motion fits in view: the camera stays put
@@ -252,7 +254,7 @@ class GenericView:
                 if s != settings:
                     out[f"{main}, Γ = 0"] = s
             elif pick in core.variants and pick != main:
-                info = core.info(pick)
+                info = built(core).info(pick)
                 drop = {"gamma"} if not info.nonholonomic else set()
                 drop |= {"gamma1", "gamma2"} if not info.holonomic else set()
                 out[pick] = {k: v for k, v in {**settings, core.option: pick}.items() if k not in drop}
@@ -394,7 +396,7 @@ def warm_systems(skip=()) -> list[tuple[str, str]]:
     (system, default variant) of each, for the matrices."""
     import contextlib
 
-    from nmkane_core.declare.visuals import compile_visuals
+    from nmkane_core.kernel.visuals import compile_visuals
     from nmkane_core.run.registry import system_names
     from nmkane_core.run.simulate import simulate
 

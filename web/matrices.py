@@ -10,7 +10,7 @@ Symbolic work is slow (about 8 s for the nonlinear model) and holds the GIL, whi
 would stall the web server's threads, so :func:`panel` runs it in a child process
 (``python -m web.matrices SYSTEM VARIANT OUT``, once per model) and caches the result in
 memory and on disk under nmkane's cache root (:func:`nmkane_core.kernel.cache.cache_root`), keyed
-by the model's :meth:`~nmkane_core.System.kernel_key` and this file: a restart shows the
+by the model's kernel key (:meth:`nmkane_core.kernel.built.Built.key`) and this file: a restart shows the
 panels at once.  The web app warms the cache in a background thread at startup.
 """
 
@@ -98,7 +98,7 @@ def _compute(system: str, variant: str, path: Path | None) -> Panel:
         env = dict(os.environ)
         root = str(Path(__file__).resolve().parents[1])
         env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-        from nmkane_core.run.result import plugins  # the child knows the systems plugged in here (--systems)
+        from nmkane_core.run import plugins  # the child knows the systems plugged in here (--systems)
 
         specs = [s for s in env.get(plugins.ENV_VAR, "").split(os.pathsep) if s.strip()]
         specs += [k for k in plugins.loaded_specs() if k not in specs]
@@ -136,9 +136,10 @@ def _disk_path(system: str, variant: str) -> Path | None:
     whenever the model does), matplotlib's version and this file; None: not cached."""
     try:
         from nmkane_core import get_system
+        from nmkane_core.kernel.built import built
         from nmkane_core.kernel.cache import cache_root
 
-        key = get_system(system).kernel_key(variant)
+        key = built(get_system(system)).key(variant)
         if key is None:
             return None
         import matplotlib
@@ -214,9 +215,10 @@ def _build(system: str, variant: str) -> Panel:
     import sympy as sp
 
     from nmkane_core import get_system
+    from nmkane_core.kernel.built import built
 
     core = get_system(system)
-    d = core.derivation(variant)
+    d = built(core).derivation(variant)
     raw = {name: d.matrix(name) for name in MATRICES}
     elided = sp.Dummy("elided")  # stands for an entry too long to typeset
     longest = max((sp.count_ops(e) for M in raw.values() for e in M), default=0)
@@ -246,7 +248,7 @@ def _build(system: str, variant: str) -> Panel:
     intro = (
         f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
         f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
-        f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}){speed_names(get_system(system).model(variant))}."
+        f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}){speed_names(built(get_system(system)).model(variant))}."
     )
     if longest > TYPESET_OPS:
         intro += (

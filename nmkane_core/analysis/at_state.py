@@ -19,6 +19,7 @@ import numpy as np
 
 from ..declare.system import System
 from ..errors import InconsistentStateError, InputError
+from ..kernel.built import built
 from ..run.initial import CHECK_TOL, complete_state
 from ..run.registry import get_system
 
@@ -29,8 +30,8 @@ def _setup(system: System | str, state: Mapping[str, float], params, variant):
     system = get_system(system) if isinstance(system, str) else system
     variant = system.check_variant(variant)
     values = system.resolve_params(params or {})
-    module, info = system.kernel(variant)
-    p = system.param_vector(variant, values)
+    module, info = built(system).kernel(variant)
+    p = built(system).param_vector(variant, values)
     names = info.state_names
     unknown = sorted(set(state) - set(names))
     if unknown:

@@ -15,6 +15,7 @@ import numpy as np
 from ..declare.stability import Stability
 from ..declare.system import System
 from ..errors import InputError
+from ..kernel.built import built
 from ..run.initial import initial_state
 from ..run.registry import get_system
 from .at_state import linearize
@@ -33,11 +34,17 @@ def _declared(system: System | str) -> tuple[System, Stability]:
 def state_at(system: System | str, value: float, params: Mapping[str, float] | None = None) -> dict[str, float]:
     """The full consistent state of ``system`` at swept value ``value``."""
     system, st = _declared(system)
+    _check_value(st, value)
     values = system.resolve_params(params or {})
-    given = dict.fromkeys(system.independent, 0.0)
+    given = dict.fromkeys(built(system).independent, 0.0)
     given.update({k: float(v) for k, v in st.state(float(value), values).items()})
     _, full = initial_state(system, system.default_variant, values, given)
     return full
+
+
+def _check_value(st: Stability, value) -> None:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating)) or not np.isfinite(float(value)):
+        raise InputError(st.over, value, f"a finite {st.over} in {st.unit}", "not a finite number")
 
 
 def eigenvalues_at(system: System | str, value: float, params: Mapping[str, float] | None = None) -> np.ndarray:
@@ -58,8 +65,7 @@ def sweep(
         values = np.linspace(st.start, st.stop, st.count)
     rows = []
     for v in values:
-        if isinstance(v, bool) or not np.isfinite(float(v)):
-            raise InputError("values", v, "finite numbers", "not finite")
+        _check_value(st, v)
         ev = eigenvalues_at(system, float(v), params)
         rows.append({"value": float(v), "eigenvalues": [[float(z.real), float(z.imag)] for z in ev]})
     return rows

@@ -29,6 +29,7 @@ import time
 import numpy as np
 
 from ..integrate.drivers import kernel_for
+from ..kernel.built import built
 from ..run.plan import resolve
 from ..run.registry import get_system
 from ..run.simulate import simulate, simulate_many
@@ -112,7 +113,7 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
     x0 = plan.x0
     sym_rhs = appell_hamel_minimal_rhs()
     sym_eps = _evals_per_s(sym_rhs, x0)
-    ref = ReferenceKernel(system.derivation("nonlinear"))
+    ref = ReferenceKernel(built(system).derivation("nonlinear"))
     ref_eps = _evals_per_s(lambda t, x: ref.rhs(t, x, plan.p, plan.G, plan.G1, plan.G2), x0)
     mod = kernel_for(system, "nonlinear")
     single_eps = _evals_per_s(lambda t, x: mod.rhs(t, x, plan.p, plan.G, plan.G1, plan.G2), x0)
@@ -290,11 +291,11 @@ def _user_system_rows(add) -> None:
 def _bicycle_rows(add, quick: bool) -> None:
     """The Whipple bicycle (8 coordinates, 4 nonholonomic + 1 holonomic constraints): first use
     in an empty cache, a fresh cached process, 10 s of motion warm, eigenvalues at 100 speeds."""
-    from ..systems.whipple_bicycle_analysis import bicycle_eigenvalues
+    from ..analysis.eigensweep import sweep
 
     probe = (
-        "from nmkane_core import accelerations\nfrom nmkane_core.systems.whipple_bicycle_analysis import upright_state\n"
-        "accelerations('whipple-bicycle', upright_state(5.0))"
+        "from nmkane_core import accelerations\nfrom nmkane_core.analysis.eigensweep import state_at\n"
+        "accelerations('whipple-bicycle', state_at('whipple-bicycle', 5.0))"
     )
 
     def child(env):
@@ -356,8 +357,8 @@ def _bicycle_rows(add, quick: bool) -> None:
         f"({evals / wall / sym_eps:,.0f}×); 10 s at dt=0.001 Kutta–Merson through it ≈ {evals / sym_eps:.1f} s",
     )
     speeds = np.linspace(0.0, 10.0, 20 if quick else 100)
-    bicycle_eigenvalues(speeds[:2])  # warm
-    wall, _ = _best(lambda: bicycle_eigenvalues(speeds), repeat=2)
+    sweep("whipple-bicycle", speeds[:2])  # warm
+    wall, _ = _best(lambda: sweep("whipple-bicycle", speeds), repeat=2)
     add(
         f"Whipple bicycle: eigenvalues at {len(speeds)} speeds (linearize)",
         wall,

@@ -31,6 +31,7 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 
 def _state(args):
+    from ..kernel.built import built
     from ..run.registry import get_system
 
     load_plugged_systems(args)
@@ -40,7 +41,7 @@ def _state(args):
     # independent values only: the rest from the defaults, dependent ones completed; a full
     # state as it is (checked against the constraints by the analysis)
     given = dict(args.at)
-    if len(given) < len(system.state_names):
+    if len(given) < len(built(system).state_names):
         from ..errors import InputError
         from ..run.initial import initial_state
 

@@ -30,13 +30,14 @@ def _mb(n: int) -> str:
 
 
 def _current_fingerprints() -> dict:
+    from ..kernel.built import built
     from ..run.registry import get_system, system_names
 
     out = {}
     for name in system_names():
         s = get_system(name)
         for v in s.variants:
-            out[(s.name, v)] = s.kernel_key(v)
+            out[(s.name, v)] = built(s).key(v)
     return out
 
 

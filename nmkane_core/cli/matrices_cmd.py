@@ -21,6 +21,7 @@ def _add_arguments(mats: argparse.ArgumentParser) -> None:
 def _run(args: argparse.Namespace) -> int:
     import sympy as sp
 
+    from ..kernel.built import built
     from ..run.registry import get_system
 
     load_plugged_systems(args)
@@ -34,7 +35,7 @@ def _run(args: argparse.Namespace) -> int:
             f"{system.name} has no {other}",
         )
     variant = system.check_variant(getattr(args, system.option), system.option)
-    d = system.derivation(variant)
+    d = built(system).derivation(variant)
     names = args.matrix or ["J1", "J2", "A1", "A2", "T"]
     for name in names:
         if name not in d.NAMES:

@@ -7,20 +7,20 @@ constraint models ``nonlinear``/``linear``, the sliding particle's ``nonminimal`
 ``minimal`` formulations).  A system with one variant gives just its model (or a function
 that builds it).  Everything else is taken from the model: coordinates and speeds from
 ``q`` and ``u``, the independent values a user sets from ``u_independent`` and the
-coordinates not solved from holonomic constraints.  Each variant is a
-:class:`~nmkane_core.symbolic.model.MechanicalModel` built lazily (sympy work), derived once and
-compiled once (cached on disk, so a later process needs no sympy at all).
+coordinates not solved from holonomic constraints.
 
-:meth:`System.check` verifies the declaration against the models (parameter names, the
-default initial state) and :func:`nmkane_core.run.registry.register` runs it, so a mistake is
-reported when a system is registered, not at its first run.
+A ``System`` is the declaration and nothing else: constructing one checks what can be checked
+without the models (names, numbers, the variants named in options).  What is built from it —
+each variant's :class:`~nmkane_core.symbolic.model.MechanicalModel`, derivation and compiled
+kernel — lives in the kernel layer (:func:`nmkane_core.kernel.built.built`), and
+:func:`nmkane_core.run.registry.register` checks the declaration against the models (parameter
+names, the default initial state) without changing it, so a mistake is reported when a system
+is registered, not at its first run.
 """
 
 from __future__ import annotations
 
-import inspect
 import math
-import threading
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
@@ -28,11 +28,7 @@ from typing import TYPE_CHECKING, Any
 from ..errors import InputError
 from .parameter import Parameter
 
-if TYPE_CHECKING:  # sympy is imported only when a model is actually built
-    import numpy as np
-
-    from ..kernel.info import ModelInfo
-    from ..symbolic.derivation import Derivation
+if TYPE_CHECKING:
     from ..symbolic.model import MechanicalModel
 
 __all__ = ["Parameter", "System"]
@@ -144,11 +140,7 @@ class System:
     events: Callable[[], Any] | None = None
     stability: Any = None
     initial_controls: Mapping[str, tuple[float, float, str]] = field(default_factory=dict)
-    _models: dict = field(default_factory=dict, repr=False)
-    _derivations: dict = field(default_factory=dict, repr=False)
-    _kernels: dict = field(default_factory=dict, repr=False)
-    _checked: bool = field(default=False, repr=False)
-    _lock: threading.RLock = field(default_factory=threading.RLock, repr=False)
+    given_models: dict = field(default_factory=dict, init=False, repr=False)  # variants given as objects
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.strip():
@@ -160,7 +152,7 @@ class System:
             self.variants = {str(k): _as_factory(v) for k, v in raw.items()}
         else:
             self.variants = {SINGLE_VARIANT: _as_factory(raw)}
-        self._model_objects = {
+        self.given_models = {
             k: v for k, v in (raw.items() if isinstance(raw, Mapping) else [(SINGLE_VARIANT, raw)]) if hasattr(v, "q")
         }
         if self.option not in ("model", "formulation"):
@@ -243,24 +235,6 @@ class System:
         return tuple(self.variants)
 
     @property
-    def coordinates(self) -> tuple[str, ...]:
-        return self.info(self.completion_variant).q
-
-    @property
-    def speeds(self) -> tuple[str, ...]:
-        return self.info(self.completion_variant).u
-
-    @property
-    def independent(self) -> tuple[str, ...]:
-        """The values a user sets: coordinates not solved from holonomic constraints and u_I."""
-        info = self.info(self.completion_variant)
-        return tuple(q for q in info.q if q not in info.q_dependent) + (info.u_independent if info.m else info.u)
-
-    @property
-    def state_names(self) -> tuple[str, ...]:
-        return self.coordinates + self.speeds
-
-    @property
     def param_names(self) -> tuple[str, ...]:
         return tuple(p.name for p in self.parameters)
 
@@ -279,105 +253,6 @@ class System:
             )
         return variant
 
-    # ------------------------------------------------------------------ models, derivations, kernels
-    def model(self, variant: str | None = None) -> MechanicalModel:
-        """The symbolic description of a variant (built once; needs sympy)."""
-        variant = self.check_variant(variant)
-        with self._lock:
-            if variant not in self._models:
-                try:
-                    model = self.variants[variant]()
-                except InputError:
-                    raise
-                except Exception as e:
-                    raise InputError(
-                        f"{self.name}: variant {variant}",
-                        type(e).__name__,
-                        "a function that builds a MechanicalModel",
-                        f"building it failed: {e}",
-                    ) from e
-                if not hasattr(model, "q") or not hasattr(model, "Q"):
-                    raise InputError(
-                        f"{self.name}: variant {variant}", type(model).__name__, "a MechanicalModel", "not a model"
-                    )
-                self._models[variant] = model
-            return self._models[variant]
-
-    def derivation(self, variant: str | None = None) -> Derivation:
-        """The paper's procedure applied to a variant (symbolic, once)."""
-        from ..symbolic.derivation import derive
-
-        variant = self.check_variant(variant)
-        with self._lock:
-            if variant not in self._derivations:
-                self._derivations[variant] = derive(self.model(variant))
-            return self._derivations[variant]
-
-    def _files(self, variant: str) -> tuple[str, ...] | None:
-        """The files a variant is built from (None: not known, e.g. typed interactively)."""
-        if variant in self._model_objects:
-            return None
-        try:
-            f = inspect.getsourcefile(self.variants[variant])
-        except TypeError:
-            f = None
-        if f is None or f.startswith("<"):
-            return None
-        return (f, *self.source_files)
-
-    def _factory_identity(self, variant: str) -> str:
-        """Which function of those files builds the variant: its name, code and simple closure
-        values (two models defined in one file, or one function called with other arguments
-        in a lambda, must not share a cached kernel)."""
-        import marshal
-
-        fn = self.variants[variant]
-        code = getattr(fn, "__code__", None)
-        parts = [getattr(fn, "__qualname__", repr(type(fn)))]
-        if code is not None:
-            parts.append(marshal.dumps(code).hex())
-        for cell in getattr(fn, "__closure__", None) or ():
-            try:
-                value = cell.cell_contents
-            except ValueError:
-                continue
-            if isinstance(value, (str, int, float, bool, tuple)):
-                parts.append(repr(value))
-        return "\0".join(parts)
-
-    def kernel_key(self, variant: str | None = None) -> str | None:
-        """A key that changes whenever the variant's compiled kernel would.
-
-        It hashes the files that define the variant (no sympy needed); for a model typed
-        interactively or given as an object it hashes the model's expressions instead.
-        Other caches derived from a model (the web app's rendered matrices) key on it."""
-        from ..kernel.codegen import fingerprint, model_fingerprint
-
-        variant = self.check_variant(variant)
-        files = self._files(variant)
-        if files is not None:
-            return fingerprint(self.name, variant, files, extra=self._factory_identity(variant))
-        return model_fingerprint(self.name, variant, self.model(variant))
-
-    def kernel(self, variant: str | None = None):
-        """(compiled kernel module, :class:`ModelInfo`) of a variant.
-
-        Loaded from the on-disk cache when the model is unchanged (no sympy work at all),
-        otherwise derived, generated, compiled and cached.
-        """
-        from ..kernel.codegen import kernel
-
-        variant = self.check_variant(variant)
-        with self._lock:
-            if variant not in self._kernels:
-                self._kernels[variant] = kernel(
-                    self.kernel_key(variant), lambda: self.derivation(variant), (self.name, variant)
-                )
-            return self._kernels[variant]
-
-    def info(self, variant: str | None = None) -> ModelInfo:
-        return self.kernel(variant)[1]
-
     # ------------------------------------------------------------------ values
     def resolve_params(self, given: Mapping[str, object] | None, field_path: str = "params") -> dict[str, float]:
         """Defaults filled in, every value checked against its range."""
@@ -391,71 +266,3 @@ class System:
                 "unknown parameter",
             )
         return {p.name: p.check(given.get(p.name, p.default), f"{field_path}.{p.name}") for p in self.parameters}
-
-    def param_vector(self, variant: str | None, params: Mapping[str, float]) -> np.ndarray:
-        """The numeric parameter vector of a variant's kernel, bound by name (the model's order)."""
-        import numpy as np
-
-        return np.array([float(params[name]) for name in self.info(variant).params], dtype=float)
-
-    def constraint_names(self, variant: str | None = None) -> tuple[str, ...]:
-        """Names of the reported violations: the constraints, then any monitors."""
-        return self.info(variant).viol_names
-
-    # ------------------------------------------------------------------ the declaration, checked
-    def check(self, variants: tuple[str, ...] | None = None) -> None:
-        """Check the declaration against the models; raise :class:`InputError` saying what to change.
-
-        Each checked variant builds and derives (or loads from the cache); its parameter
-        symbols must be exactly the declared parameters; the default initial state must
-        name only state values and be consistent with the constraints (independent values
-        are completed).  ``variants``: which to check (default: the default and the
-        completion variant; the others are checked at their first use)."""
-        variants = variants or tuple(dict.fromkeys((self.default_variant, self.completion_variant)))
-        for v in variants:
-            self._check_params(v)
-        names = self.state_names
-        for k, val in self.default_initial.items():
-            if k not in names:
-                raise InputError(
-                    f"{self.name}: default_initial.{k}",
-                    val,
-                    f"state names of {self.name}: {', '.join(names)}",
-                    "not a coordinate or speed",
-                )
-        from ..run.initial import initial_state
-
-        params = self.resolve_params({})
-        independent = set(self.independent)
-        given = {k: v for k, v in self.default_initial.items() if k in independent}
-        if len(self.default_initial) == len(names):
-            given = dict(self.default_initial)  # a full state: checked as it is
-        try:
-            _, full = initial_state(self, self.default_variant, params, given, complete_always=True)
-        except InputError as e:
-            raise InputError(
-                f"{self.name}: default_initial",
-                dict(self.default_initial),
-                "independent values (the rest is completed) or a full consistent state",
-                f"{e.field}: {e.reason or e.allowed}",
-            ) from None
-        self.default_initial = full
-        self._checked = True
-
-    def _check_params(self, variant: str) -> None:
-        model_params = self.info(variant).params
-        declared = self.param_names
-        missing = [p for p in model_params if p not in declared]
-        extra = [p for p in declared if p not in model_params]
-        if missing or extra:
-            what = []
-            if missing:
-                what.append(f"declare {', '.join(missing)}")
-            if extra:
-                what.append(f"remove {', '.join(extra)} (no symbol of the model)")
-            raise InputError(
-                f"{self.name}: parameters",
-                list(declared),
-                f"the parameter symbols of the {variant} {self.option}: {', '.join(model_params)}",
-                "; ".join(what),
-            )

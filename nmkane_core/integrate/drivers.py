@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from ..declare.system import System
+from ..kernel.built import built
 from ..kernel.interface import (
     STATS_E0,
     STATS_FINAL_DRIFT,
@@ -62,7 +63,7 @@ HMIN_REL = 1e-13  # adaptive runs fail below a step of HMIN_REL · max(1, t_fina
 
 def kernel_for(system: System, variant: str):
     """The compiled kernel module of a system's variant (loaded from cache or built once)."""
-    return system.kernel(variant)[0]
+    return built(system).module(variant)
 
 
 def prepare(plan: Plan):
@@ -74,7 +75,7 @@ def prepare(plan: Plan):
     _prime(plan, mod, plan.p)
     if plan.switching:
         for variant in plan.system.equivalents.get(plan.variant, ()):
-            _prime(plan, kernel_for(plan.system, variant), plan.system.param_vector(variant, plan.params))
+            _prime(plan, kernel_for(plan.system, variant), built(plan.system).param_vector(variant, plan.params))
     return mod
 
 

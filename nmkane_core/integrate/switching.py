@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..kernel.built import built
 from ..kernel.interface import STATS_VIOL
 from ..run.plan import Plan
 
@@ -44,7 +45,7 @@ class Switcher:
 
     def _p_of(self, mod, variant: str):
         if id(mod) not in self._p:
-            self._p[id(mod)] = self.plan.system.param_vector(variant, self.plan.params)
+            self._p[id(mod)] = built(self.plan.system).param_vector(variant, self.plan.params)
         return self._p[id(mod)]
 
     @property
@@ -73,7 +74,7 @@ class Switcher:
             return False
         rc_home = self._rcond(self.home, t, x)
         for v in self.alts:
-            mod = self.plan.system.kernel(v)[0]
+            mod = built(self.plan.system).module(v)
             if self._rcond(mod, t, x, v) > self.plan.rcond_switch:
                 self.switches.append({"t": float(t), "from": self.plan.variant, "to": v, "rcond": float(rc_home)})
                 self.cur, self.cur_name, self.seg_start = mod, v, row

@@ -26,13 +26,15 @@ def cache_root() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "nmkane"
 
 
-def declared_data(system, declaration, kind: str, generator: str, version: str, build: Callable[[], dict]) -> dict:
+def declared_data(
+    key: str | None, declaration, kind: str, generator: str, version: str, build: Callable[[], dict]
+) -> dict:
     """JSON data generated from a system's declaration (its visuals, its events): read from
     ``<cache root>/KIND/``, or ``build()`` (sympy work) and stored there.  The file is keyed by
-    the system's kernel key, the file defining ``declaration``, the ``generator`` module's file
-    and its ``version``; a declaration with no file (defined interactively) is never cached."""
+    ``key`` (the system's kernel key, :meth:`nmkane_core.kernel.built.Built.key`), the file
+    defining ``declaration``, the ``generator`` module's file and its ``version``; a declaration
+    with no file (defined interactively) is never cached."""
     path = None
-    key = system.kernel_key(system.default_variant)
     try:
         src = inspect.getsourcefile(declaration)
     except TypeError:

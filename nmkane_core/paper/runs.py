@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import NmkaneError
+from ..kernel.built import built
 from ..run.registry import get_system
 
 __all__ = ["Runs", "collect_runs", "run_plan", "RUN_LABELS"]
@@ -220,4 +221,4 @@ def _precorrection(run, settings: dict) -> dict:
 def _state_names(system: str) -> tuple[str, ...]:
     """The full state of ``system``: its coordinates q, then its speeds u."""
     sys_ = get_system(system)
-    return tuple(sys_.coordinates) + tuple(sys_.speeds)
+    return built(sys_).state_names

@@ -4,7 +4,9 @@ from __future__ import annotations
 
 from ..integrate.methods import INTEGRATORS
 from ..integrate.projection import PRESETS
+from ..kernel.built import built
 from ..schema import LIMITS
+from .initial import default_state
 from .registry import get_system, system_names
 
 __all__ = ["catalog"]
@@ -15,6 +17,7 @@ def catalog() -> dict:
     out = []
     for name in system_names():
         s = get_system(name)
+        b = built(s)
         out.append(
             {
                 "name": s.name,
@@ -35,11 +38,11 @@ def catalog() -> dict:
                     }
                     for p in s.parameters
                 ],
-                "coordinates": list(s.coordinates),
-                "speeds": list(s.speeds),
-                "independent": list(s.independent),
-                "default_initial": dict(s.default_initial),
-                "constraint_names": {v: list(s.constraint_names(v)) for v in s.variants},
+                "coordinates": list(b.coordinates),
+                "speeds": list(b.speeds),
+                "independent": list(b.independent),
+                "default_initial": default_state(s),
+                "constraint_names": {v: list(b.constraint_names(v)) for v in s.variants},
                 "what_to_try": s.what_to_try,
                 "stability": None
                 if s.stability is None

@@ -11,16 +11,16 @@ variant's own constraints.  A full state (every name given) is not changed, only
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+import threading
+import weakref
 
 import numpy as np
 
+from ..declare.system import System
 from ..errors import ConvergenceError, InconsistentStateError, InputError
+from ..kernel.built import built
 
-if TYPE_CHECKING:
-    from ..declare.system import System
-
-__all__ = ["initial_state", "CHECK_TOL"]
+__all__ = ["initial_state", "default_state", "complete_state", "CHECK_TOL"]
 
 #: absolute tolerance on each constraint residual of a given full state
 CHECK_TOL = 1e-8
@@ -160,18 +160,95 @@ def initial_state(
     given: dict[str, float],
     project: bool = False,
     correction: dict | None = None,
-    complete_always: bool = False,
 ) -> tuple[np.ndarray, dict[str, float]]:
     """The variant model's initial state vector and the full state (by name).
 
-    Raises :class:`InputError` for unknown names, :class:`InconsistentStateError` when a
-    full state violates the constraints by more than :data:`CHECK_TOL` — unless
-    ``project`` is set: then the state is projected onto the constraint manifold of the
-    completion variant and the change is written into ``correction``.  The system's
-    default state is taken as consistent (it was checked when the system was registered)
-    unless ``complete_always``: then dependent values missing from it are completed too.
+    ``given`` values replace the system's default state (:func:`default_state`); independent
+    values alone are completed (the dependent ones solved from the constraints), a full state
+    is only checked.  Raises :class:`InputError` for unknown names,
+    :class:`InconsistentStateError` when a full state violates the constraints by more than
+    :data:`CHECK_TOL` — unless ``project`` is set: then the state is projected onto the
+    constraint manifold of the completion variant and the change is written into
+    ``correction``.
     """
-    names = system.state_names
+    return _state(system, variant, params, given, default_state(system), project, correction)
+
+
+_DEFAULTS: dict[int, tuple[weakref.ref, dict[str, float]]] = {}
+_DEFAULTS_LOCK = threading.Lock()
+
+
+def default_state(system: System) -> dict[str, float]:
+    """The system's default initial state as a full consistent state (by name): the declared
+    ``default_initial`` — independent values, completed from the constraints (values given for
+    dependent ones are the starting guesses that pick the branch), or a full state, checked —
+    for the default parameters.  Computed once per system; the declaration is not changed.
+    Raises :class:`InputError` naming ``default_initial`` when it cannot be completed."""
+    with _DEFAULTS_LOCK:
+        entry = _DEFAULTS.get(id(system))
+        if entry is not None and entry[0]() is system:
+            return dict(entry[1])
+    b = built(system)
+    names = b.state_names
+    declared = dict(system.default_initial)
+    for k, val in declared.items():
+        if k not in names:
+            raise InputError(
+                f"{system.name}: default_initial.{k}",
+                val,
+                f"state names of {system.name}: {', '.join(names)}",
+                "not a coordinate or speed",
+            )
+    independent = set(b.independent)
+    given = declared if len(declared) == len(names) else {k: v for k, v in declared.items() if k in independent}
+    try:
+        _, full = _state(
+            system, system.default_variant, system.resolve_params({}), given, declared, complete_always=True
+        )
+    except InputError as e:
+        raise InputError(
+            f"{system.name}: default_initial",
+            declared,
+            "independent values (the rest is completed) or a full consistent state",
+            f"{e.field}: {e.reason or e.allowed}",
+        ) from None
+    with _DEFAULTS_LOCK:
+        _DEFAULTS[id(system)] = (weakref.ref(system), dict(full))
+    return full
+
+
+def _state(
+    system: System,
+    variant: str,
+    params: dict[str, float],
+    given: dict[str, float],
+    base: dict[str, float],
+    project: bool = False,
+    correction: dict | None = None,
+    complete_always: bool = False,
+) -> tuple[np.ndarray, dict[str, float]]:
+    """:func:`initial_state` over the state ``base`` (the default state, or while that is
+    made, the declared values; ``complete_always``: complete even at the default parameters)."""
+    b = built(system)
+    names = b.state_names
+    _check_names(system, names, given)
+    full = {**base, **given}
+    given_dep = _given_dependent(b, names, given)
+    # the default state is consistent for the default parameters; anything else given
+    # without dependent values is completed
+    defaults = all(params[q.name] == q.default for q in system.parameters)
+    complete = not given_dep and (bool(given) or not defaults or complete_always or any(k not in full for k in names))
+    comp_variant = system.completion_variant or variant
+    if complete:
+        _complete(system, comp_variant, params, given, full)
+    if project and given_dep:
+        _project(system, comp_variant, params, given, full, correction)
+    _check_consistent(system, variant, params, full, [variant] + ([comp_variant] if (complete or given_dep) else []))
+    x0 = np.array([full[s] for s in b.info(variant).state_names], float)
+    return x0, {k: float(full[k]) for k in names}
+
+
+def _check_names(system: System, names: tuple[str, ...], given: dict[str, float]) -> None:
     for k, v in given.items():
         if k not in names:
             raise InputError(
@@ -179,85 +256,91 @@ def initial_state(
             )
         if not np.isfinite(v):
             raise InputError(f"initial.{k}", v, "a finite number", "not finite")
-    full = dict(system.default_initial)
-    full.update(given)
-    dependent = [k for k in names if k not in system.independent]
+
+
+def _given_dependent(b, names, given) -> list[str]:
+    """The dependent values among ``given``: allowed only as part of a full state."""
+    dependent = [k for k in names if k not in b.independent]
     given_dep = [k for k in dependent if k in given]
     if given_dep and len(given) < len(names):
         missing = [k for k in names if k not in given]
         raise InputError(
             f"initial.{given_dep[0]}",
             given[given_dep[0]],
-            f"either independent values only ({', '.join(system.independent)}), "
+            f"either independent values only ({', '.join(b.independent)}), "
             f"the rest being completed, or a full state (missing: {', '.join(missing)})",
             "dependent value given without a full state",
         )
-    # the default state is consistent for the default parameters; anything else given
-    # without dependent values is completed
-    defaults = all(params[q.name] == q.default for q in system.parameters)
-    complete = not given_dep and (bool(given) or not defaults or complete_always or any(k not in full for k in names))
-    comp_variant = system.completion_variant or variant
-    p = system.param_vector(comp_variant, params)
-    if complete:
-        module, info = system.kernel(comp_variant)
-        xc = np.array([full.get(s, 0.0) for s in info.state_names], float)
-        try:
-            xc = complete_state(module, info, xc, p)
-        except ConvergenceError as e:
-            dep = [k for k in names if k not in system.independent]
-            raise InputError(
-                "initial",
-                given,
-                f"independent values ({', '.join(system.independent)}) for which the constraints can be "
-                f"solved for the dependent ones ({', '.join(dep)}) with the parameters given — change them, "
-                f"or give a full consistent state; the system's default_initial holds the starting "
-                f"guesses of the dependent values (they pick the branch)",
-                str(e),
-            ) from None
-        for s, v in zip(info.state_names, xc, strict=True):
-            full[s] = float(v)
-    # check against the chosen variant, and against the completion variant for states
-    # that were completed or given in full (it may exclude branches the variant admits)
-    if project and given_dep:
-        module, info = system.kernel(comp_variant)
-        xc = np.array([full[s] for s in info.state_names], float)
-        try:
-            y = project_onto_manifold(module, info, xc, p)
-        except ConvergenceError as e:
-            raise InputError("initial", given, "a state that can be projected onto the constraints", str(e)) from None
-        for s, a, b in zip(info.state_names, xc, y, strict=True):
-            full[s] = float(b)
-            if correction is not None and a != b:
-                correction[s] = float(b - a)
-    checks = [variant] + ([comp_variant] if (complete or given_dep) else [])
+    return given_dep
+
+
+def _complete(system: System, variant: str, params, given, full: dict) -> None:
+    """Solve the dependent values of ``full`` (in place) from the constraints of ``variant``."""
+    b = built(system)
+    module, info = b.kernel(variant)
+    xc = np.array([full.get(s, 0.0) for s in info.state_names], float)
+    try:
+        xc = complete_state(module, info, xc, b.param_vector(variant, params))
+    except ConvergenceError as e:
+        dep = [k for k in b.state_names if k not in b.independent]
+        raise InputError(
+            "initial",
+            given,
+            f"independent values ({', '.join(b.independent)}) for which the constraints can be "
+            f"solved for the dependent ones ({', '.join(dep)}) with the parameters given — change them, "
+            f"or give a full consistent state; the system's default_initial holds the starting "
+            f"guesses of the dependent values (they pick the branch)",
+            str(e),
+        ) from None
+    for s, v in zip(info.state_names, xc, strict=True):
+        full[s] = float(v)
+
+
+def _project(system: System, variant: str, params, given, full: dict, correction: dict | None) -> None:
+    """Move the full state ``full`` (in place) onto the constraint manifold of ``variant``."""
+    b = built(system)
+    module, info = b.kernel(variant)
+    xc = np.array([full[s] for s in info.state_names], float)
+    try:
+        y = project_onto_manifold(module, info, xc, b.param_vector(variant, params))
+    except ConvergenceError as e:
+        raise InputError("initial", given, "a state that can be projected onto the constraints", str(e)) from None
+    for s, a, c in zip(info.state_names, xc, y, strict=True):
+        full[s] = float(c)
+        if correction is not None and a != c:
+            correction[s] = float(c - a)
+
+
+def _check_consistent(system: System, variant: str, params, full: dict, checks: list[str]) -> None:
+    """The state must satisfy the constraints of every variant in ``checks`` (the chosen one,
+    and the completion variant for completed or full states: it may exclude branches the
+    chosen variant admits)."""
+    b = built(system)
     failed = {}
     for var in dict.fromkeys(checks):
-        module, info = system.kernel(var)
-        p = system.param_vector(var, params)
+        module, info = b.kernel(var)
         if any(s not in full for s in info.state_names):
             continue
         xv = np.array([full[s] for s in info.state_names], float)
-        viol = module.state_terms(0.0, xv, p)[4][: info.m]
+        viol = module.state_terms(0.0, xv, b.param_vector(var, params))[4][: info.m]
         bad = {name: float(val) for name, val in zip(info.constraint_names, viol, strict=True) if abs(val) > CHECK_TOL}
         if bad:
             failed[var] = ", ".join(f"{k} = {v:.3g}" for k, v in bad.items())
-    if failed:
-        if variant not in failed:
-            other = next(iter(failed))
-            reason = (
-                f"the state satisfies the constraints of the {variant} {system.option} but not those "
-                f"of the {other} {system.option} ({failed[other]}): it lies on a spurious branch of "
-                f"the {variant} constraints that the mechanism excludes"
-            )
-        else:
-            reason = "constraint residuals " + "; ".join(f"{v} {system.option}: {d}" for v, d in failed.items())
-        raise InconsistentStateError(
-            "initial",
-            {k: full[k] for k in names},
-            f"a state satisfying the constraints of the {' and '.join(dict.fromkeys(checks))} "
-            f"{system.option} within {CHECK_TOL:g}",
-            reason,
+    if not failed:
+        return
+    if variant not in failed:
+        other = next(iter(failed))
+        reason = (
+            f"the state satisfies the constraints of the {variant} {system.option} but not those "
+            f"of the {other} {system.option} ({failed[other]}): it lies on a spurious branch of "
+            f"the {variant} constraints that the mechanism excludes"
         )
-    info = system.info(variant)
-    x0 = np.array([full[s] for s in info.state_names], float)
-    return x0, {k: float(full[k]) for k in names}
+    else:
+        reason = "constraint residuals " + "; ".join(f"{v} {system.option}: {d}" for v, d in failed.items())
+    raise InconsistentStateError(
+        "initial",
+        {k: full[k] for k in b.state_names},
+        f"a state satisfying the constraints of the {' and '.join(dict.fromkeys(checks))} "
+        f"{system.option} within {CHECK_TOL:g}",
+        reason,
+    )

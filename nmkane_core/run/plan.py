@@ -17,6 +17,7 @@ from ..declare.system import System
 from ..errors import InputError
 from ..integrate.methods import ScipyMethod, Tableau, get_integrator
 from ..integrate.projection import ProjectionOptions, projection_options
+from ..kernel.built import built
 from ..schema import LIMITS, RunSettings
 from .initial import initial_state
 from .registry import get_system
@@ -53,7 +54,7 @@ class Plan:
 
     @property
     def info(self):
-        return self.system.info(self.variant)
+        return built(self.system).info(self.variant)
 
 
 def validate_settings(settings: Mapping) -> RunSettings:
@@ -269,8 +270,8 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     assert dt is not None and t_final is not None and rtol is not None and atol is not None
     assert rcond_min is not None and rcond_switch is not None
     params = system.resolve_params(s.params)
-    p = system.param_vector(variant, params)
-    md = system.info(variant)
+    p = built(system).param_vector(variant, params)
+    md = built(system).info(variant)
     warnings: list[str] = []
     where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
     G = _gain(
@@ -370,7 +371,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
 def _check_finite_start(system: System, variant: str, p: np.ndarray, x0: np.ndarray, full: dict) -> None:
     """The energy, constraint violations and outputs at the initial state must be finite (a
     finite but huge state can overflow them: a run would have nothing finite to show)."""
-    mod = system.kernel(variant)[0]
+    mod = built(system).module(variant)
     E, V, O = np.empty(1), np.empty((1, mod.NV)), np.empty((1, mod.NO))
     mod.diagnostics_rows(np.zeros(1), x0[None, :], p, E, V)
     if mod.NO:
@@ -378,7 +379,7 @@ def _check_finite_start(system: System, variant: str, p: np.ndarray, x0: np.ndar
     bad = [
         what
         for what, ok in (
-            ("the energy", not system.info(variant).has_energy or np.isfinite(E).all()),
+            ("the energy", not built(system).info(variant).has_energy or np.isfinite(E).all()),
             ("a constraint violation", np.isfinite(V).all()),
             ("an output", np.isfinite(O).all()),
         )

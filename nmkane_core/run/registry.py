@@ -2,7 +2,7 @@
 this process.
 
 ``register(system)`` checks a :class:`~nmkane_core.declare.system.System` against its models
-(:meth:`System.check`: parameter names, the default initial state) and makes it available
+(:func:`check_system`: parameter names, the default initial state) and makes it available
 by its name to :func:`get_system`, the CLI, the REST service and the web app.  Registering
 a name again replaces the earlier system (with a warning if that one was already used).
 The built-in systems (:data:`nmkane_core.systems.BUILTIN`) are registered on first use,
@@ -18,8 +18,10 @@ from typing import overload
 
 from ..declare.system import System
 from ..errors import InputError
+from ..kernel.built import built
+from .initial import default_state
 
-__all__ = ["register", "unregister", "get_system", "system_names", "generation"]
+__all__ = ["register", "unregister", "get_system", "system_names", "generation", "check_system"]
 
 _FACTORIES: dict[str, Callable[[], System]] = {}
 _BUILT: dict[str, System] = {}
@@ -30,12 +32,27 @@ _builtin_ready = False  # the load has finished
 _generation = 0  # counts changes, so that caches of the catalogue know when to refresh
 
 
+def check_system(system: System, variants: tuple[str, ...] | None = None) -> None:
+    """Check a declaration against its models; raise :class:`InputError` saying what to change.
+
+    Each checked variant builds and derives (or loads from the cache); its parameter symbols
+    must be exactly the declared parameters; the default initial state must name only state
+    values and be consistent with the constraints (independent values are completed:
+    :func:`~nmkane_core.run.initial.default_state`).  ``variants``: which to check (default:
+    the default and the completion variant; the others are checked at their first use).
+    The declaration itself is not changed."""
+    variants = variants or tuple(dict.fromkeys((system.default_variant, system.completion_variant)))
+    for v in variants:
+        built(system).check_params(v)
+    default_state(system)
+
+
 def _add(system: System, check: bool) -> System:
     if not isinstance(system, System):
         raise InputError("register", type(system).__name__, "a System (or a function returning one)", "not a System")
     _load_builtin()  # built-in systems first (listing order; a user's may replace one)
     if check:
-        system.check()
+        check_system(system)
     with _LOCK:
         name = system.name
         if name in _USED:
@@ -60,7 +77,7 @@ def register(system: Callable[[], System], *, check: bool = True) -> Callable[[]
 
 
 def register(system, *, check: bool = True):
-    """Make a system available by its name, after checking it (:meth:`System.check`).
+    """Make a system available by its name, after checking it (:func:`check_system`).
 
     ``register(System(...))``; or as a decorator on a function returning the system
     (``@register``); ``@register("name")`` also checks that the system has that name.

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..kernel.built import built
 from ..kernel.interface import (
     STATS_MAX_DRIFT,
     STATS_RCOND_J2,
@@ -220,7 +221,7 @@ def finish(plan: Plan, mod, out: LoopOutput, wall: float) -> Run:
     if mod.NO:
         for i, name in enumerate(md.outputs):
             state[name] = O[:, i].copy()  # contiguous, like every other array
-    state = {k: state[k] for k in system.state_names if k in state}
+    state = {k: state[k] for k in built(system).state_names if k in state}
     viol_names = md.viol_names
     violation = {k: out.V[:, i].copy() for i, k in enumerate(viol_names)}
     has_energy = md.has_energy

@@ -12,6 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from ..errors import InputError
+from ..kernel.built import built
 from .executors import batch_size, make_executor
 from .output import SweepWriter
 from .spec import SweepSpec, apply_point, point_key
@@ -79,7 +80,7 @@ def constraint_columns(base: dict, spec: SweepSpec) -> list[str]:
     out: list[str] = []
     for s in _variants(base, spec):
         plan = resolve(s)
-        for c in plan.system.constraint_names(plan.variant):
+        for c in built(plan.system).constraint_names(plan.variant):
             if c not in out:
                 out.append(c)
     return out

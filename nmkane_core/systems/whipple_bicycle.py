@@ -22,8 +22,11 @@ written directly in the benchmark parameters (Meijaard Table 1): the rear frame 
 benchmark frame turned by λ about y, so that C.z is the steer axis; d1, d2, d3 (Moore's
 offsets) and the mass centres l1..l4 follow from w, c, λ, rR, rF, xB, zB, xH, zH.
 
-:mod:`nmkane_core.systems.whipple_bicycle_analysis` has the state of upright straight running at a speed and the
-eigenvalues of the linearized roll/steer motion at speeds.
+The system declares its stability sweep (``stability=``): upright straight running at a
+forward speed, linearized in roll, steer and their rates —
+:func:`nmkane_core.analysis.eigensweep.state_at` gives that state and
+:func:`~nmkane_core.analysis.eigensweep.sweep` the eigenvalues against speed (Meijaard et al.
+(2007) Fig. 3).
 """
 
 from __future__ import annotations

@@ -9,10 +9,10 @@ import threading
 import time
 
 import httpx
-from tests._helpers import free_port
 
 from backend.store import RunStore
 from nmkane_core.schema import RunResult
+from tests._helpers import free_port
 
 RUN = {"system": "appell-hamel", "dt": 0.005, "t_final": 20}  # 4001 rows
 

@@ -9,6 +9,7 @@ and checked too.
 """
 
 import pytest
+
 from tests._helpers import require
 
 schemathesis = require("schemathesis")

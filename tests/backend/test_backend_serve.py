@@ -10,6 +10,7 @@ import time
 
 import httpx
 import pytest
+
 from tests._helpers import free_port
 
 

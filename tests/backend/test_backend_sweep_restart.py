@@ -6,10 +6,10 @@ import sqlite3
 import time
 
 import httpx
-from tests._helpers import free_port
 from test_backend_kill import _start
 
 from backend.sweeps import SweepStore, owner_alive, process_owner
+from tests._helpers import free_port
 
 LONG = {  # 500 runs of 5000 steps: still running when the server is killed
     "settings": {"system": "appell-hamel", "dt": 0.001, "t_final": 5},

@@ -8,6 +8,7 @@ import sys
 import time
 
 import pytest
+
 from tests._helpers import free_port
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 
 from nmkane_core import InputError, Parameter, System, get_system, register, simulate
+from nmkane_core.kernel.built import built
+from nmkane_core.run.initial import default_state
 from nmkane_core.run.registry import unregister
 
 NAME = "test-declared-knife-edge"
@@ -62,9 +64,9 @@ def _forget():
 
 def test_names_come_from_the_model_said_once():
     s = register(declare())
-    assert s.coordinates == ("x", "y", "theta") and s.speeds == ("u1", "u2", "u3")
-    assert s.independent == ("x", "y", "theta", "u1", "u3")  # q (no holonomic) and u_I
-    assert s.variant_names == ("default",) and s.default_initial["u2"] == 0.0  # completed
+    assert built(s).coordinates == ("x", "y", "theta") and built(s).speeds == ("u1", "u2", "u3")
+    assert built(s).independent == ("x", "y", "theta", "u1", "u3")  # q (no holonomic) and u_I
+    assert s.variant_names == ("default",) and default_state(s)["u2"] == 0.0  # completed
 
 
 def test_parameters_are_bound_by_name_not_by_declaration_order():

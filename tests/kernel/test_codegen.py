@@ -7,6 +7,7 @@ import sympy as sp
 
 from nmkane_core import get_system
 from nmkane_core.integrate.drivers import kernel_for
+from nmkane_core.kernel.built import built
 from nmkane_core.kernel.codegen import generate_source, inline_marked
 from nmkane_core.kernel.interface import AdaptiveArgs, FixedArgs, loop_signature
 from nmkane_core.run.simulate import simulate
@@ -50,7 +51,7 @@ def test_pythagorean_rewrite_does_not_expand_large_powers():
     "name,variant", [("appell-hamel", "nonlinear"), ("appell-hamel", "linear"), ("sliding-particle", "nonminimal")]
 )
 def test_kernel_terms_are_the_derivations_matrices(name, variant):
-    d = get_system(name).derivation(variant)
+    d = built(get_system(name)).derivation(variant)
     kt = kernel_terms(d)
     rng = np.random.default_rng(3)
     syms = list(d.model.q) + list(d.model.u) + list(d.model.params)
@@ -62,14 +63,14 @@ def test_kernel_terms_are_the_derivations_matrices(name, variant):
 
 
 def test_appell_hamel_mass_matrix_has_no_needless_trigonometry():
-    kt = kernel_terms(get_system("appell-hamel").derivation("nonlinear"))
+    kt = kernel_terms(built(get_system("appell-hamel")).derivation("nonlinear"))
     md = kt.derivation.model
     params = {str(s): s for s in md.params}
     assert sp.expand(kt.Q[0, 0] - (params["I"] + params["M"] * params["rho"] ** 2)) == 0
 
 
 def test_hot_path_is_one_function_after_source_inlining():
-    src = generate_source(get_system("appell-hamel").derivation("nonlinear"))
+    src = generate_source(built(get_system("appell-hamel")).derivation("nonlinear"))
     stages = src[src.index("def _stages(") : src.index("def _record(")]
     for call in ("rhs_ws(", "terms(", "lu_solve_flat(", "_reduced_solve("):
         assert call not in stages, call

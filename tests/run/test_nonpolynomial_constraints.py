@@ -37,6 +37,7 @@ from scipy.integrate import solve_ivp
 
 from nmkane_core import Parameter, System, register, simulate
 from nmkane_core.integrate.drivers import kernel_for
+from nmkane_core.kernel.built import built
 
 RTOL_REF = 1e-11
 
@@ -357,7 +358,7 @@ def test_compiled_rhs_of_nonpolynomial_constraints_agrees_with_reference_kernel(
     for form in FORMS:
         system = get_system(f"np-{form}")
         mod = kernel_for(system, None)
-        ref = ReferenceKernel(system.derivation())
+        ref = ReferenceKernel(built(system).derivation())
         for _ in range(10):
             x = rng.uniform(-1.0, 1.0, 6)
             p = rng.uniform(0.5, 2.0, 4)
@@ -439,8 +440,8 @@ def test_completion_from_a_guess_on_the_singular_point_of_a_square_root():
     from nmkane_core.run.initial import complete_state
 
     system = get_system("np-speed")
-    mod, info = system.kernel(None)
-    p = system.param_vector("default", {"m": 1.0, "g": 0.5, "v": 1.0})
+    mod, info = built(system).kernel(None)
+    p = built(system).param_vector("default", {"m": 1.0, "g": 0.5, "v": 1.0})
     x = np.array([0.0, 0.0, 0.0, 0.6])
     xc = complete_state(mod, info, x, p)
     assert xc[2] == pytest.approx(0.8, abs=1e-12)

@@ -82,7 +82,7 @@ def test_a_broken_systems_option_is_the_commands_error_exit_2(tmp_path):
 def test_entry_point_group_adds_systems(monkeypatch):
     from importlib.metadata import EntryPoint
 
-    from nmkane_core.run.result import plugins, registry
+    from nmkane_core.run import plugins, registry
 
     ep = EntryPoint(name="pkg", value="tests._plugin_pkg:register_all", group=plugins.ENTRY_POINT_GROUP)
     monkeypatch.setattr(plugins, "entry_points", lambda group: [ep] if group == plugins.ENTRY_POINT_GROUP else [])

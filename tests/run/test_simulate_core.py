@@ -9,6 +9,7 @@ from nmkane_core import InputError, get_system
 from nmkane_core.errors import InconsistentStateError
 from nmkane_core.integrate.drivers import kernel_for
 from nmkane_core.integrate.methods import INTEGRATORS, KUTTA_MERSON, RK4
+from nmkane_core.kernel.built import built
 from nmkane_core.run.plan import resolve
 from nmkane_core.run.simulate import simulate
 from nmkane_core.schema import RunResult
@@ -23,7 +24,7 @@ CASES = [
 
 
 def _random_state(system, variant, rng):
-    md = system.model(variant)
+    md = built(system).model(variant)
     return rng.uniform(-2, 2, 2 * md.n) + np.r_[np.zeros(md.n), np.full(md.n, 0.5)]
 
 
@@ -31,9 +32,9 @@ def _random_state(system, variant, rng):
 def test_compiled_rhs_agrees_with_numpy_reference_to_1e12(name, variant):
     system = get_system(name)
     mod = kernel_for(system, variant)
-    ref = ReferenceKernel(system.derivation(variant))
+    ref = ReferenceKernel(built(system).derivation(variant))
     rng = np.random.default_rng(7)
-    md = system.model(variant)
+    md = built(system).model(variant)
     for _ in range(50):
         x = _random_state(system, variant, rng)
         p = np.array(
@@ -64,9 +65,9 @@ def test_compiled_trajectory_agrees_with_reference_loop(name, variant, tableau):
         }
     )
     plan = resolve(run.settings)
-    ref = ReferenceKernel(system.derivation(variant))
+    ref = ReferenceKernel(built(system).derivation(variant))
     t, xs = integrate_reference(ref, plan.x0, plan.p, 0.01, 100, tableau, plan.G, plan.G1, plan.G2)
-    md = system.model(variant)
+    md = built(system).model(variant)
     ours = np.column_stack([run.state[str(s)] for s in md.q + md.u])
     np.testing.assert_allclose(run.t, t, rtol=0, atol=1e-12)
     np.testing.assert_allclose(ours, xs, rtol=1e-11, atol=1e-11)

@@ -14,6 +14,7 @@ import pytest
 
 from nmkane_core import Parameter, System, register, simulate
 from nmkane_core.integrate.drivers import kernel_for
+from nmkane_core.kernel.built import built
 from nmkane_core.symbolic.reference import ReferenceKernel
 
 NAME = "test-knife-edge"
@@ -69,7 +70,7 @@ def test_user_system_compiled_rhs_agrees_with_reference():
 
     system = get_system(NAME)
     mod = kernel_for(system, None)
-    ref = ReferenceKernel(system.derivation())
+    ref = ReferenceKernel(built(system).derivation())
     rng = np.random.default_rng(11)
     G = np.array([[-3.0]])
     empty = np.zeros((0, 0))
@@ -130,7 +131,7 @@ def test_public_simulate_is_the_function_whatever_was_imported_first():
         "from nmkane_core import simulate, simulate_many, resolve\n"
         "import nmkane_core, sys\n"
         "assert callable(simulate) and simulate.__name__ == 'simulate', simulate\n"
-        "assert nmkane_core.run.simulate is simulate\n"
+        "assert nmkane_core.simulate is simulate and callable(nmkane_core.simulate)\n"
         "assert 'sympy' not in sys.modules\n"
         "print(simulate({'system': 'sliding-particle', 't_final': 0.1}).status)\n"
     )

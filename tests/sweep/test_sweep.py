@@ -5,13 +5,13 @@ import math
 
 import numpy as np
 import pytest
-from tests._helpers import require
 
 from nmkane_core.cli import main
 from nmkane_core.errors import InputError
 from nmkane_core.run.simulate import simulate
 from nmkane_core.sweep import apply_point, parse_axis, read_rows, run_sweep, sweep_spec
 from nmkane_core.sweep.executors import run_point
+from tests._helpers import require
 
 BASE = {"system": "sliding-particle", "t_final": 0.5, "dt": 0.01}
 COMPARED = ("status", "max_abs_violation.surface", "max_abs_energy_drift", "final_energy_drift", "steps")

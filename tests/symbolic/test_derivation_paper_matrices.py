@@ -11,6 +11,7 @@ import sympy as sp
 
 from nmkane_core import get_system
 from nmkane_core.integrate.drivers import kernel_for
+from nmkane_core.kernel.built import built
 from nmkane_core.symbolic.reference import ReferenceKernel
 
 RNG = np.random.default_rng(2005)
@@ -18,7 +19,7 @@ AH_PARAMS = dict(a=1.0, b=0.5, rho=5.0, m=1.0, M=5.0, I=2.5, g=9.81, z0=30.0)
 
 
 def _ah_subs(th, ph, x, y, z, u, prm):
-    d = get_system("appell-hamel").derivation("nonlinear")
+    d = built(get_system("appell-hamel")).derivation("nonlinear")
     md = d.model
     sub = dict(zip(md.q, (th, ph, x, y, z), strict=True))
     sub.update(zip(md.u, u, strict=True))
@@ -84,7 +85,7 @@ def _random_ah_state():
 
 @pytest.mark.parametrize("trial", range(8))
 def test_appell_hamel_symbolic_matrices_match_paper_65_to_76_and_99_100(trial):
-    d = get_system("appell-hamel").derivation("nonlinear")
+    d = built(get_system("appell-hamel")).derivation("nonlinear")
     th, ph, x, y, z, u, prm = _random_ah_state()
     sub = _ah_subs(th, ph, x, y, z, u, prm)
     ev = lambda M: np.array(M.subs(sub).evalf(), dtype=float)  # noqa: E731
@@ -102,7 +103,7 @@ def test_appell_hamel_symbolic_matrices_match_paper_65_to_76_and_99_100(trial):
 def test_appell_hamel_numeric_kernels_match_paper_matrices(trial):
     system = get_system("appell-hamel")
     th, ph, x, y, z, u, prm = _random_ah_state()
-    ref = ReferenceKernel(system.derivation("nonlinear"))
+    ref = ReferenceKernel(built(system).derivation("nonlinear"))
     xs = np.array([th, ph, x, y, z, *u])
     p = np.array([prm[k] for k in system.param_names])
     mats = ref.matrices(0.0, xs, p)
@@ -121,7 +122,7 @@ def test_appell_hamel_numeric_kernels_match_paper_matrices(trial):
 
 def test_appell_hamel_linear_model_has_printed_structure():
     """(101)–(102): J1, J2 of the linear model and A = −J2⁻¹J1 with J2 = −I on (u3, u4)."""
-    d = get_system("appell-hamel").derivation("linear")
+    d = built(get_system("appell-hamel")).derivation("linear")
     th = sp.Symbol("theta", real=True)
     a, b, rho = sp.symbols("a b rho", real=True)
     J1 = sp.Matrix([[-rho * sp.sin(th), a * sp.cos(th)], [rho * sp.cos(th), a * sp.sin(th)], [0, b]])
@@ -134,7 +135,7 @@ def test_appell_hamel_linear_model_has_printed_structure():
 
 
 def test_sliding_particle_matrices_match_paper_116_117():
-    d = get_system("sliding-particle").derivation("nonminimal")
+    d = built(get_system("sliding-particle")).derivation("nonminimal")
     x, l0, u1 = sp.symbols("x l0 u1", real=True)
     assert sp.simplify(d.A1 - sp.Matrix([[2 * x / l0, 1]])) == sp.zeros(1, 2)
     assert sp.simplify(d.A2 - sp.Matrix([[1, -2 * x / l0]])) == sp.zeros(1, 2)
@@ -153,7 +154,7 @@ def _particle_paper_udot(x, y, u1, u2, g, G1, G2):
 def test_sliding_particle_rhs_matches_paper_121_122_125_126(gains):
     system = get_system("sliding-particle")
     mod = kernel_for(system, "nonminimal")
-    ref = ReferenceKernel(system.derivation("nonminimal"))
+    ref = ReferenceKernel(built(system).derivation("nonminimal"))
     g = 9.81
     p = np.array([1.0, 1.0, g])
     G1, G2 = np.array([[gains[0]]]), np.array([[gains[1]]])
@@ -180,6 +181,6 @@ def test_sliding_particle_minimal_equation_matches_paper_137():
 
 
 def test_latex_of_derived_matrices_is_printable():
-    d = get_system("sliding-particle").derivation("nonminimal")
+    d = built(get_system("sliding-particle")).derivation("nonminimal")
     tex = d.latex("A1")
     assert tex.startswith("A_1 = ") and "\\frac{2 x}{l_{0}}" in tex

@@ -5,6 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from nmkane_core import get_system
+from nmkane_core.kernel.built import built
 from nmkane_core.run.initial import initial_state
 from nmkane_core.symbolic.reference import ReferenceKernel
 
@@ -13,7 +14,7 @@ _REF = {}
 
 def _ref(variant):
     if variant not in _REF:
-        _REF[variant] = ReferenceKernel(get_system("appell-hamel").derivation(variant))
+        _REF[variant] = ReferenceKernel(built(get_system("appell-hamel")).derivation(variant))
     return _REF[variant]
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from nmkane_core import get_system, simulate
-from nmkane_core.declare.visuals import compile_visuals, rotation_to_wxyz
+from nmkane_core.kernel.visuals import compile_visuals, rotation_to_wxyz
 
 CATALOGUE = ("knife-edge", "chaplygin-sleigh", "rolling-disk", "odometer-puck")
 

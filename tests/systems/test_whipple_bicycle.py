@@ -20,7 +20,8 @@ import numpy as np
 import pytest
 
 from nmkane_core import accelerations, get_system, linearize, simulate
-from nmkane_core.run.initial import initial_state
+from nmkane_core.kernel.built import built
+from nmkane_core.run.initial import default_state, initial_state
 
 NAME = "whipple-bicycle"
 KEEP = ("q4", "q7", "u4", "u7")  # roll, steer and their rates
@@ -184,14 +185,14 @@ def _basu_mandal_in_moore():
 @pytest.fixture(scope="module")
 def bicycle():
     s = get_system(NAME)
-    s.kernel()  # derive and compile once (cached on disk)
+    built(s).kernel()  # derive and compile once (cached on disk)
     return s
 
 
 def _upright(v):
-    from nmkane_core.systems.whipple_bicycle_analysis import upright_state
+    from nmkane_core.analysis.eigensweep import state_at
 
-    return upright_state(v)
+    return state_at(NAME, v)
 
 
 def _eigenvalues(v):
@@ -203,10 +204,10 @@ def _sorted(ev):
 
 
 def test_declaration(bicycle):
-    assert bicycle.coordinates == tuple(f"q{i}" for i in range(1, 9))
-    assert bicycle.speeds == tuple(f"u{i}" for i in range(1, 9))
-    assert set(bicycle.independent) == {"q1", "q2", "q3", "q4", "q6", "q7", "q8", "u4", "u6", "u7"}
-    assert bicycle.constraint_names() == (
+    assert built(bicycle).coordinates == tuple(f"q{i}" for i in range(1, 9))
+    assert built(bicycle).speeds == tuple(f"u{i}" for i in range(1, 9))
+    assert set(built(bicycle).independent) == {"q1", "q2", "q3", "q4", "q6", "q7", "q8", "u4", "u6", "u7"}
+    assert built(bicycle).constraint_names() == (
         "rear_longitudinal",
         "rear_lateral",
         "front_longitudinal",
@@ -218,7 +219,7 @@ def test_declaration(bicycle):
 
 def test_default_state_is_upright_straight_running_at_5_m_per_s(bicycle):
     st = _upright(5.0)
-    assert st == pytest.approx(bicycle.default_initial, abs=1e-12)
+    assert st == pytest.approx(default_state(bicycle), abs=1e-12)
     assert st["q5"] == pytest.approx(LAM, abs=1e-13) and st["u1"] == pytest.approx(5.0, rel=1e-13)
     assert st["u8"] == pytest.approx(-5.0 / 0.35, rel=1e-13)
     assert all(abs(a) < 1e-12 for a in accelerations(NAME, st).values())  # a steady motion
@@ -260,7 +261,7 @@ def test_weave_and_capsize_speeds_by_root_finding(bicycle):
 def test_basu_mandal_accelerations(bicycle):
     """Complete the state from q4, q7, u4, u6, u7 (q1, q2, q3, q6, q8 as given), then compare."""
     q, u, ud = _basu_mandal_in_moore()
-    given = {k: v for k, v in {**q, **u}.items() if k in bicycle.independent}
+    given = {k: v for k, v in {**q, **u}.items() if k in built(bicycle).independent}
     _, full = initial_state(bicycle, bicycle.default_variant, bicycle.resolve_params({}), given)
     for k in ("q5", "u1", "u2", "u3", "u5", "u8"):  # the completion finds their dependent values
         assert full[k] == pytest.approx({**q, **u}[k], abs=1e-12), k
@@ -271,7 +272,7 @@ def test_basu_mandal_accelerations(bicycle):
 
 def test_energy_is_conserved_in_a_nonlinear_run(bicycle):
     q, u, _ = _basu_mandal_in_moore()
-    ini = {k: v for k, v in {**q, **u}.items() if k in bicycle.independent}
+    ini = {k: v for k, v in {**q, **u}.items() if k in built(bicycle).independent}
     run = simulate({"system": NAME, "initial": ini, "dt": 1e-3, "t_final": 0.25}, progress=False)
     assert run.summary["status"] == "ok"
     assert np.ptp(run.state["q4"]) > 0.05  # it moves (leans further)
@@ -312,19 +313,19 @@ def test_self_stable_speed_range_in_the_nonlinear_model(bicycle):
 
 
 def test_bicycle_eigenvalues_table(bicycle):
-    from nmkane_core.systems.whipple_bicycle_analysis import bicycle_eigenvalues
+    from nmkane_core.analysis.eigensweep import sweep
 
-    rows = bicycle_eigenvalues([2.0, 6.0])
-    assert [r["speed"] for r in rows] == [2.0, 6.0]
+    rows = sweep(NAME, [2.0, 6.0])
+    assert [r["value"] for r in rows] == [2.0, 6.0]
     got = [complex(*z) for z in rows[1]["eigenvalues"]]
     assert np.allclose(_sorted(got), _sorted(EIGENVALUES[6]), atol=1e-9)
 
 
 def test_bad_speed_is_refused_with_the_field_named(bicycle):
     from nmkane_core import InputError
-    from nmkane_core.systems.whipple_bicycle_analysis import upright_state
+    from nmkane_core.analysis.eigensweep import state_at
 
     with pytest.raises(InputError, match="speed"):
-        upright_state(float("nan"))
+        state_at(NAME, float("nan"))
     with pytest.raises(InputError, match="rR"):
-        upright_state(5.0, {"rR": -1.0})
+        state_at(NAME, 5.0, {"rR": -1.0})

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import viser
 
-from nmkane_core.declare.visuals import compile_visuals
 from nmkane_core.errors import InputError
+from nmkane_core.kernel.visuals import compile_visuals
 from nmkane_core.run.plugins import load_systems
 from nmkane_core.run.registry import get_system, system_names
 from web.app import MechanismApp
