@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import argparse
 
+from nmkane_core.cli.argtypes import add_systems_option
 from nmkane_core.cli.command import Command
-from nmkane_core.cli.common import add_systems_option, load_plugged_systems
+from nmkane_core.cli.common import load_plugged_systems
 from nmkane_core.errors import InputError, NmkaneError
 
 

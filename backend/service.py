@@ -11,27 +11,24 @@ from __future__ import annotations
 import asyncio
 import math
 import secrets
-import sys
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 
-import numpy as np
 import orjson
 
-from nmkane_core.errors import InputError
-from nmkane_core.integrate.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK, kernel_for
+from nmkane_core.integrate.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK
 from nmkane_core.integrate.methods import ScipyMethod
-from nmkane_core.run.plan import Plan, min_every, output_rows, raise_all, resolve, round_up
+from nmkane_core.run.plan import Plan, check_budget, resolve
 from nmkane_core.run.registry import get_system, system_names
 from nmkane_core.run.result import Run
-from nmkane_core.run.simulate import simulate
-from nmkane_core.schema import RunSettings, RunSummary
+from nmkane_core.run.simulate import kernel_for, simulate
+from nmkane_core.schema import RunSettings
 
 from .config import Settings
 from .store import RunStore
 
-__all__ = ["RunService", "OutputGuard", "checked_summary", "encode_document", "make_finite", "new_run_id", "thin"]
+__all__ = ["RunService", "OutputGuard", "checked_summary", "encode_document", "new_run_id"]
 
 
 def new_run_id() -> str:
@@ -39,54 +36,10 @@ def new_run_id() -> str:
     return secrets.token_urlsafe(16)
 
 
-FLOAT_MAX = sys.float_info.max
-
-
-def _finite_copy(value, path: str, fixed: list[str]):
-    if isinstance(value, float) and not math.isfinite(value):
-        fixed.append(path)
-        return -FLOAT_MAX if value < 0 else FLOAT_MAX
-    if isinstance(value, dict):
-        return {k: _finite_copy(v, f"{path}.{k}" if path else str(k), fixed) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_finite_copy(v, f"{path}[{i}]", fixed) for i, v in enumerate(value)]
-    return value
-
-
-def make_finite(run: Run) -> None:
-    """Keep the document valid JSON that conforms to ``RunResult``: JSON has no NaN/Infinity.
-
-    A summary number that overflowed (a diverged run's maximum violation or energy drift
-    can be ``inf``) is reported as ±1.7976931348623157e308, named in a warning.  Output rows
-    from the first non-finite one on are dropped, like the library does for the state.
-    """
-    fixed: list[str] = []
-    run.summary = _finite_copy(run.summary, "", fixed)
-    if fixed:
-        run.summary["warnings"] = [
-            *run.summary.get("warnings", []),
-            "overflowed to infinity, reported as ±1.8e308: " + ", ".join(fixed),
-        ]
-    cols = [run.t, *run.state.values(), *run.violation.values()] + ([run.energy] if run.energy is not None else [])
-    good = np.logical_and.reduce([np.isfinite(c) for c in cols])
-    if not good.all():
-        keep = max(1, int(np.argmin(good)))
-        run.t = run.t[:keep]
-        run.state = {k: np.nan_to_num(v[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX) for k, v in run.state.items()}
-        run.violation = {
-            k: np.nan_to_num(v[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX) for k, v in run.violation.items()
-        }
-        if run.energy is not None:
-            run.energy = np.nan_to_num(run.energy[:keep], posinf=FLOAT_MAX, neginf=-FLOAT_MAX)
-        run.summary["warnings"] = [
-            *run.summary.get("warnings", []),
-            f"output rows from t = {run.t[-1]:.6g} s on were not finite and are left out",
-        ]
-
-
 def checked_summary(run: Run) -> dict:
-    """The run summary as JSON-ready data, checked against ``RunSummary`` (the schema)."""
-    return RunSummary.model_validate(run.summary).model_dump(mode="json", by_alias=True)
+    """The run summary as JSON-ready data: the core made it through ``RunSummary`` already
+    (every number finite, :mod:`nmkane_core.run.finish`), so this is a plain copy."""
+    return dict(run.summary)
 
 
 def encode_document(run: Run, run_id: str, summary: dict | None = None) -> bytes:
@@ -109,24 +62,6 @@ def encode_document(run: Run, run_id: str, summary: dict | None = None) -> bytes
         "summary": summary,
     }
     return orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)
-
-
-def thin(run: Run, max_rows: int) -> None:
-    """Keep at most ``max_rows`` output rows (evenly spaced, the last one kept)."""
-    n = run.t.size
-    if n <= max_rows:
-        return
-    k = math.ceil((n - 1) / (max_rows - 1))
-    idx = np.unique(np.r_[np.arange(0, n, k), n - 1])
-    run.t = run.t[idx]
-    run.state = {name: v[idx] for name, v in run.state.items()}
-    run.energy = None if run.energy is None else run.energy[idx]
-    run.violation = {name: v[idx] for name, v in run.violation.items()}
-    run.summary["warnings"] = [
-        *run.summary.get("warnings", []),
-        f"output thinned from {n:,} to {idx.size:,} rows (service limit max_rows = "
-        f"{max_rows:,}); the summary covers every step",
-    ]
 
 
 class OutputGuard:
@@ -327,34 +262,10 @@ class RunService:
 
     # -- a run --------------------------------------------------------------------------
     def check_limits(self, plan: Plan) -> None:
-        """The service's own limits (the library's are checked by ``resolve``)."""
+        """The service's own limits (the library's are checked by ``resolve``, the same way);
+        adaptive runs are bounded while running: OutputGuard and max_wall_time_s."""
         s = self.settings
-        if plan.integrator.adaptive:
-            return  # bounded while running: OutputGuard and max_wall_time_s
-        steps = math.ceil(plan.t_final / plan.dt - 1e-9)
-        errors = []
-        if steps > s.max_steps:
-            errors.append(
-                InputError(
-                    "dt",
-                    plan.dt,
-                    f"t_final/dt ≤ {s.max_steps:,} steps on this service "
-                    f"(dt ≥ {round_up(plan.t_final / s.max_steps):.3g} s for t_final = "
-                    f"{plan.t_final:g} s)",
-                    f"{steps:,} steps",
-                )
-            )
-        rows = output_rows(steps, plan.every)
-        if rows > s.max_rows:
-            errors.append(
-                InputError(
-                    "every",
-                    plan.every,
-                    f"an integer ≥ {min_every(steps, s.max_rows)} (at most {s.max_rows:,} output rows on this service)",
-                    f"{rows:,} rows",
-                )
-            )
-        raise_all(errors)
+        check_budget(plan.integrator, plan.dt, plan.t_final, plan.every, s.max_steps, s.max_rows, " on this service")
 
     def execute(self, settings: RunSettings) -> tuple[str, bytes, tuple]:
         """Resolve, check, simulate, encode (in a run worker); returns the id, the document
@@ -368,8 +279,7 @@ class RunService:
             guard = OutputGuard(plan, self.settings.max_rows, self._stopping)
             run = simulate(plan, progress=False, time_limit=self.settings.max_wall_time_s, cancel=guard)
             guard.explain(run)
-            make_finite(run)
-            thin(run, self.settings.max_rows)
+            run.thin(self.settings.max_rows, f"service limit max_rows = {self.settings.max_rows:,}")
             run_id = new_run_id()
             summary = checked_summary(run)
             body = encode_document(run, run_id, summary)

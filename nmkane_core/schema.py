@@ -8,11 +8,23 @@ request and response models and the CLI writes ``RunResult`` as its JSON.
 
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-__all__ = ["RunSettings", "RunSummary", "RunResult", "Switch", "Event", "LIMITS", "REST_DEFAULT_LIMITS", "Gain"]
+__all__ = [
+    "RunSettings",
+    "RunSummary",
+    "RunResult",
+    "Switch",
+    "Event",
+    "LIMITS",
+    "REST_DEFAULT_LIMITS",
+    "Gain",
+    "allowed",
+    "field_range",
+]
 
 #: Library-wide limits (the REST service may impose lower ones; see /api/systems).
 LIMITS: dict[str, Any] = {
@@ -43,31 +55,34 @@ class RunSettings(BaseModel):
         json_schema_extra={"examples": [{"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}]},
     )
 
-    system: str = Field(
-        "appell-hamel",
-        description="the name of a registered system: the built-in appell-hamel and "
-        "sliding-particle, or one loaded from a systems file (GET /api/systems lists them)",
+    system: str | None = Field(
+        None,
+        description="the name of a registered system: a built-in one or one loaded from a systems "
+        "file (GET /api/systems lists them); default: the catalogue's first",
         max_length=64,
     )
     model: str | None = Field(
         None,
         description="the variant to run, for a system whose variants are models "
-        "(appell-hamel: nonlinear | linear); default: the system's first",
+        "(GET /api/systems lists each system's); default: the system's first",
         max_length=64,
     )
     formulation: str | None = Field(
         None,
         description="the variant to run, for a system whose variants are "
-        "formulations (sliding-particle: nonminimal | minimal); default: the "
-        "system's first",
+        "formulations (GET /api/systems lists each system's); default: the system's first",
         max_length=64,
     )
     gamma: Gain | None = Field(
         None,
         description="Γ for nonholonomic constraints (104): a scalar (Γ·I) or a matrix; stabilizing gains are negative",
     )
-    gamma1: Gain | None = Field(None, description="Γ1 for holonomic constraints (112), s⁻¹")
-    gamma2: Gain | None = Field(None, description="Γ2 for holonomic constraints (112), s⁻²")
+    gamma1: Gain | None = Field(
+        None, description="Γ1 for holonomic constraints (112), s⁻¹: a scalar (Γ1·I) or a matrix; e.g. -20"
+    )
+    gamma2: Gain | None = Field(
+        None, description="Γ2 for holonomic constraints (112), s⁻²: a scalar (Γ2·I) or a matrix; e.g. -100"
+    )
     projection: Literal["none", "blajer", "yoon"] = Field(
         "none",
         description="post-step constraint correction (geometric elimination): none | blajer "
@@ -87,19 +102,25 @@ class RunSettings(BaseModel):
     )
     integrator: str | None = Field(
         None,
-        description="rk4 | kutta-merson | kutta-merson-adaptive | rk45 | dop853 | radau; default: the system's",
+        description="the integrator, by name (GET /api/systems lists them: fixed-step and adaptive "
+        "Runge–Kutta tableaux, scipy's solvers); default: the system's",
         max_length=64,
     )
     dt: float | None = Field(
         None,
-        gt=0,
+        ge=LIMITS["min_dt"],
         le=LIMITS["max_dt"],
+        json_schema_extra={"unit": "s"},
         description="the step, s, of a fixed-step method (rk4, kutta-merson); the first step "
         "tried by an adaptive one (kutta-merson-adaptive, rk45, dop853, radau), whose steps "
         "then follow rtol and atol; default: the system's",
     )
     t_final: float | None = Field(
-        None, gt=0, le=LIMITS["max_t_final"], description="final time, s; default: the system's"
+        None,
+        gt=0,
+        le=LIMITS["max_t_final"],
+        json_schema_extra={"unit": "s"},
+        description="final time, s; default: the system's",
     )
     every: int = Field(
         1, ge=1, le=LIMITS["max_steps"], description="keep every k-th step in the output (maxima use every step)"
@@ -139,6 +160,43 @@ class RunSettings(BaseModel):
         default_factory=dict,
         description="initial values: independent ones (the rest is completed) or a full consistent state",
     )
+
+
+#: annotated-types bounds: (attribute, a lower bound?, included?)
+_BOUNDS = (("ge", True, True), ("gt", True, False), ("le", False, True), ("lt", False, False))
+
+
+def field_range(name: str) -> tuple[float, bool, float, bool, str] | None:
+    """(low, low included, high, high included, unit) of a numeric :class:`RunSettings` field
+    (from its declaration: ``ge``/``gt``/``le``/``lt``), or None when it declares no range."""
+    info = RunSettings.model_fields[name]
+    lo, lo_in, hi, hi_in, found = -math.inf, False, math.inf, False, False
+    for m in info.metadata:
+        for attr, is_low, included in _BOUNDS:
+            v = getattr(m, attr, None)
+            if v is not None:
+                found = True
+                if is_low:
+                    lo, lo_in = float(v), included
+                else:
+                    hi, hi_in = float(v), included
+    if not found:
+        return None
+    extra = info.json_schema_extra if isinstance(info.json_schema_extra, dict) else {}
+    return lo, lo_in, hi, hi_in, str(extra.get("unit", ""))
+
+
+def allowed(name: str) -> str:
+    """What a numeric :class:`RunSettings` field allows, as every face says it:
+    ``a finite number in [1e-07, 10] s``, ``an integer in [1, 50000000]``."""
+    rng = field_range(name)
+    integer = RunSettings.model_fields[name].annotation in (int, int | None)
+    what = "an integer" if integer else "a finite number"
+    if rng is None:
+        return what
+    lo, lo_in, hi, hi_in, unit = rng
+    text = f"{what} in {'[' if lo_in else '('}{lo:g}, {hi:g}{']' if hi_in else ')'}"
+    return text + (f" {unit}" if unit else "")
 
 
 class Switch(BaseModel):

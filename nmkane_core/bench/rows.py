@@ -28,11 +28,10 @@ import time
 
 import numpy as np
 
-from ..integrate.drivers import kernel_for
 from ..kernel.built import built
 from ..run.plan import resolve
 from ..run.registry import get_system
-from ..run.simulate import simulate, simulate_many
+from ..run.simulate import kernel_for, simulate, simulate_many
 
 
 def _best(fn, repeat=3):
@@ -68,24 +67,43 @@ def _cli_seconds(args, env=None):
     return wall
 
 
-def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
-    """Measure every row; ``quick``: shorter workloads; ``long``: the slow rows too (10,000-run sweep)."""
-    rows: list[dict] = []
-    system = get_system("appell-hamel")
-    long_t = 50.0 if quick else 500.0
+class _Table:
+    """The measured rows, each logged as it is measured."""
 
-    def add(workload, wall, evals=None, target=None, ok=None, note=""):
+    def __init__(self, log):
+        self.rows: list[dict] = []
+        self.log = log
+
+    def add(self, workload, wall, evals=None, target=None, ok=None, note=""):
         row = {"workload": workload, "wall_s": wall, "evals_per_s": evals, "target": target, "pass": ok, "note": note}
-        rows.append(row)
-        log(f"  measured: {workload}: {wall:.4g} s {note}")
+        self.rows.append(row)
+        self.log(f"  measured: {workload}: {wall:.4g} s {note}")
         return row
 
-    # warm every kernel used below (compiles on a first run)
-    for v in ("nonlinear", "linear"):
+
+def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
+    """Measure every row; ``quick``: shorter workloads; ``long``: the slow rows too (10,000-run sweep)."""
+    table = _Table(log)
+    add = table.add
+    long_t = 50.0 if quick else 500.0
+    system = get_system("appell-hamel")
+    for v in ("nonlinear", "linear"):  # warm every kernel used below (compiles on a first run)
         kernel_for(system, v)
     kernel_for(get_system("sliding-particle"), "nonminimal")
+    plan, long_run = _paper_long_run(add, quick, long_t)
+    _per_evaluation_rows(table, plan, long_run)
+    _cold_start_rows(add, quick, long_t)
+    _user_system_rows(add)
+    _bicycle_rows(add, quick)
+    _interactive_rows(add)
+    _adaptive_rows(add, quick, long_t)
+    _gamma_sweep_rows(add, quick)
+    _sweep_rows(add, quick, long)
+    return table.rows
 
-    # 1. the paper's long run
+
+def _paper_long_run(add, quick: bool, long_t: float):
+    """The paper's long run: Appell–Hamel NC, fixed-step Kutta–Merson, Δt = 0.001, warm."""
     settings = {
         "system": "appell-hamel",
         "model": "nonlinear",
@@ -97,7 +115,7 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
     plan = resolve(settings)
     wall, run = _best(lambda: simulate(plan, progress=False))
     evals = run.summary["rhs_evals"]
-    r1 = add(
+    row = add(
         f"Appell–Hamel NC, Kutta–Merson, dt=0.001, {long_t:g} s, warm",
         wall,
         evals / wall,
@@ -105,19 +123,22 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
         wall <= 0.5 if not quick else None,
         f"({evals:,} rhs evaluations)",
     )
+    return plan, row
 
-    # 2. per-evaluation: sympy route and numpy reference vs compiled (in its loop)
+
+def _per_evaluation_rows(table: _Table, plan, long_run: dict) -> None:
+    """Per evaluation: the sympy route and the numpy reference against the compiled kernel."""
     from ..symbolic.reference import ReferenceKernel
     from ..systems.appell_hamel_oracle import appell_hamel_minimal_rhs
 
+    add = table.add
     x0 = plan.x0
-    sym_rhs = appell_hamel_minimal_rhs()
-    sym_eps = _evals_per_s(sym_rhs, x0)
-    ref = ReferenceKernel(built(system).derivation("nonlinear"))
+    sym_eps = _evals_per_s(appell_hamel_minimal_rhs(), x0)
+    ref = ReferenceKernel(built(plan.system).derivation("nonlinear"))
     ref_eps = _evals_per_s(lambda t, x: ref.rhs(t, x, plan.p, plan.G, plan.G1, plan.G2), x0)
-    mod = kernel_for(system, "nonlinear")
+    mod = kernel_for(plan.system, "nonlinear")
     single_eps = _evals_per_s(lambda t, x: mod.rhs(t, x, plan.p, plan.G, plan.G1, plan.G2), x0)
-    comp_eps = r1["evals_per_s"]
+    comp_eps = long_run["evals_per_s"]
     add(
         "sympy KanesMethod + lambdify + numpy solve (minimal eqs, per call)",
         1 / sym_eps,
@@ -134,12 +155,14 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
         comp_eps / sym_eps >= 150,
         f"{comp_eps / sym_eps:,.0f}× the sympy route, {comp_eps / ref_eps:,.0f}× the numpy reference",
     )
-    for row in rows:
+    for row in table.rows:
         if row["evals_per_s"]:
             row["x_sympy"] = row["evals_per_s"] / sym_eps
             row["x_reference"] = row["evals_per_s"] / ref_eps
 
-    # 3–4. cold starts in child processes
+
+def _cold_start_rows(add, quick: bool, long_t: float) -> None:
+    """The long run in child processes: kernel cached, and with an empty cache (a first run)."""
     args = ["run", "appell-hamel", "--dt", "0.001", "--t-final", f"{long_t:g}", "--every", "1000", "--no-progress"]
     wall = min(_cli_seconds(args) for _ in range(2))
     add(
@@ -153,12 +176,10 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
         wall = _cli_seconds(args, env={"NMKANE_CACHE_DIR": tmp, "NUMBA_CACHE_DIR": tmp})
     add("first run after install (empty cache: derivation + compilation)", wall, None, "≤ 15 s", wall <= 15.0)
 
-    # 4b. a user's own system from a systems file (examples/isokinetic_bowl.py: 3 coordinates,
-    # a holonomic surface and a square-root speed constraint), whole `nmkane run` processes
-    _user_system_rows(add)
-    _bicycle_rows(add, quick)
 
-    # 5. interactive re-runs (settings in → arrays out)
+def _interactive_rows(add) -> None:
+    """Interactive re-runs (settings in → arrays out), warm: 20 s at Δt = 0.01 with a new Γ,
+    step, model, initial value or parameter, as a slider change asks for."""
     variants: list[dict] = [
         {"gamma": -1.0},
         {"gamma": -5.0},
@@ -169,14 +190,13 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
         {"initial": {"u1": 0.5}},
         {"params": {"rho": 4.0}},
     ]
+    base = {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}
     for extra in variants:  # warm: every path once (kernels loaded, completion compiled)
-        simulate({"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20, **extra}, progress=False)
+        simulate({**base, **extra}, progress=False)
     times = []
     for extra in variants * 3:
-        s = {"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}
-        s.update(extra)
         t0 = time.perf_counter()
-        simulate(s, progress=False)
+        simulate({**base, **extra}, progress=False)
         times.append(time.perf_counter() - t0)
     worst = max(times)
     add(
@@ -188,7 +208,9 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
         f"(median {statistics.median(times) * 1e3:.1f} ms, worst {worst * 1e3:.1f} ms)",
     )
 
-    # 6. adaptive, to 1e-10
+
+def _adaptive_rows(add, quick: bool, long_t: float) -> None:
+    """Time to an accurate answer: adaptive Kutta–Merson to 1e-10, against a fine fixed-step run."""
     fine = simulate(
         {"system": "appell-hamel", "dt": 0.0002 if not quick else 0.0005, "t_final": long_t, "every": 10**6},
         progress=False,
@@ -217,9 +239,10 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
         f"({ad.summary['steps']:,} steps; final-state difference to a dt=2e-4 run {err:.1e})",
     )
 
-    # 7. Γ sweep over cores
+
+def _gamma_sweep_rows(add, quick: bool) -> None:
+    """A Γ sweep over the machine's cores: one core against all (simulate_many's thread pool)."""
     nruns, horizon = (16, 100.0) if quick else (64, 500.0)
-    gains = np.linspace(-40, -5, nruns)
     sweep = [
         {
             "system": "sliding-particle",
@@ -229,7 +252,7 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
             "t_final": horizon,
             "every": 10**6,
         }
-        for g in gains
+        for g in np.linspace(-40, -5, nruns)
     ]
     sweep_plans = [resolve(s) for s in sweep]
     one = min(_best(lambda: simulate_many(sweep_plans[:8], workers=1, progress=False), 2)[0], 1e9) / 8
@@ -246,8 +269,6 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
         speedup >= 1.7 if cores >= 2 else None,
         f"({1 / one:.2f} runs/s on one core, {1 / allc:.2f} runs/s on {cores}: {speedup:.2f}×)",
     )
-    _sweep_rows(add, quick, long)
-    return rows
 
 
 def _sweep_rows(add, quick: bool, long: bool) -> None:

@@ -6,8 +6,9 @@ from __future__ import annotations
 import argparse
 import json
 
+from .argtypes import add_systems_option, assignment, finite
 from .command import Command
-from .common import add_systems_option, assignment, finite, load_plugged_systems
+from .common import load_plugged_systems
 
 
 def _common(p: argparse.ArgumentParser) -> None:

@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 import json
 
+from .argtypes import finite
 from .command import Command
-from .common import finite
 
 
 def _add_arguments(p: argparse.ArgumentParser) -> None:

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 
 from ..errors import InputError
+from .argtypes import add_systems_option
 from .command import Command
-from .common import add_systems_option, load_plugged_systems
+from .common import load_plugged_systems
 
 
 def _add_arguments(mats: argparse.ArgumentParser) -> None:

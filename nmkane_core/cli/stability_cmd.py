@@ -7,8 +7,9 @@ from __future__ import annotations
 import argparse
 import json
 
+from .argtypes import add_systems_option, assignment
 from .command import Command
-from .common import add_systems_option, assignment, load_plugged_systems
+from .common import load_plugged_systems
 
 
 def _range(text: str) -> tuple[float, float, int]:

@@ -11,9 +11,10 @@ import argparse
 import sys
 
 from ..errors import InputError
+from .argtypes import finite, positive_int
 from .command import Command
-from .common import finite, load_plugged_systems, positive_int
-from .run_cmd import add_run_options, settings_from_args
+from .common import load_plugged_systems
+from .run_options import add_run_options, settings_from_args
 
 
 def add_sweep_options(p: argparse.ArgumentParser) -> None:

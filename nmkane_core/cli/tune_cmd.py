@@ -13,9 +13,10 @@ from __future__ import annotations
 import argparse
 
 from ..errors import InputError
+from .argtypes import finite, positive_int
 from .command import Command
-from .common import finite, load_plugged_systems, positive_int
-from .run_cmd import add_run_options, settings_from_args
+from .common import load_plugged_systems
+from .run_options import add_run_options, settings_from_args
 from .sweep_cmd import add_sweep_options
 
 

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
+from ..schema import LIMITS, allowed, field_range
 from .parameter import Parameter
 
 if TYPE_CHECKING:
@@ -171,10 +172,12 @@ class System:
         self.default_initial = {
             _name(k): self._finite(f"default_initial.{_name(k)}", v) for k, v in dict(self.default_initial).items()
         }
-        for label in ("default_dt", "default_t_final"):
-            v = getattr(self, label)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise InputError(f"{self.name}: {label}", v, "a positive finite number of seconds", "out of range")
+        for label, setting in (("default_dt", "dt"), ("default_t_final", "t_final")):
+            self._in_range(label, setting)
+        for gain in ("default_gamma", "default_gamma1", "default_gamma2"):
+            g = self._finite(gain, getattr(self, gain))
+            if abs(g) > LIMITS["max_gain"]:
+                raise InputError(f"{self.name}: {gain}", g, f"|Γ| ≤ {LIMITS['max_gain']:g}", "out of range")
         self.showcase = dict(self.showcase)
         for k, v in self.showcase.items():
             if k in SHOWCASE_NUMBERS:
@@ -184,6 +187,22 @@ class System:
                 raise InputError(f"{self.name}: showcase", k, allowed, "unknown setting")
         if self.showcase.get("variant", self.default_variant) not in self.variants:
             raise InputError(f"{self.name}: showcase.variant", self.showcase["variant"], names, "not a variant")
+
+    def _in_range(self, label: str, setting: str) -> None:
+        """A default run setting within the range the run settings declare for it."""
+        v = getattr(self, label)
+        rng = field_range(setting)
+        assert rng is not None
+        lo, lo_in, hi, hi_in, _ = rng
+        ok = (
+            isinstance(v, (int, float))
+            and not isinstance(v, bool)
+            and math.isfinite(v)
+            and (v >= lo if lo_in else v > lo)
+            and (v <= hi if hi_in else v < hi)
+        )
+        if not ok:
+            raise InputError(f"{self.name}: {label}", v, allowed(setting), "out of range")
 
     def _finite(self, field_path: str, v) -> float:
         try:

@@ -85,7 +85,7 @@ class Built:
         """(compiled kernel module, :class:`ModelInfo`) of a variant: loaded from the on-disk
         cache when the model is unchanged (no sympy work at all), otherwise derived,
         generated, compiled and cached."""
-        from .codegen import kernel
+        from .loader import kernel
 
         variant = self.system.check_variant(variant)
         with self._lock:
@@ -111,7 +111,7 @@ class Built:
         interactively or given as an object it hashes the model's expressions instead.
         Other caches derived from a model (the web app's rendered matrices, the compiled
         visuals and events) key on it."""
-        from .codegen import fingerprint, model_fingerprint
+        from .loader import fingerprint, model_fingerprint
 
         variant = self.system.check_variant(variant)
         files = self._files(variant)

@@ -1,24 +1,27 @@
-"""The Python side of the compiled loops' interface: their arguments, status codes and stats.
+"""The compiled loops' interface, defined once: their arguments and their work arrays.
 
 The loops (``integrate_fixed``, ``integrate_adaptive`` in :mod:`nmkane_core.kernel.source.loops`,
-pasted into every generated kernel by :mod:`nmkane_core.kernel.codegen`) take positional arguments
-— the fastest call into numba.  Their argument lists are defined here once, as
-:class:`FixedArgs` and :class:`AdaptiveArgs`, each field with the numba type of an
-ordinary run next to it: the drivers call ``mod.integrate_fixed(*FixedArgs(...))`` and the
-background precompile compiles :func:`fixed_loop_signature`.  The fields must be the
-loops' parameters in order; this module checks that against the loops' source on import.
+pasted into every generated kernel by :mod:`nmkane_core.kernel.codegen`) take positional
+arguments — the fastest call into numba.  Each loop's argument list is one record here,
+:class:`FixedArgs` and :class:`AdaptiveArgs`, every field with the numba type of an ordinary
+run beside it; from that one definition come
 
-The status codes (``STATUS_*``), the layout of the ``stats`` array (``STATS_*``) and the
-adaptive step-control constants (``STEP_*``) are plain literals at the top of
-``_kernel_loops.py`` (the compiled code needs them as globals); they are read from that
-source here, so that both sides share one definition.
+* the loops' parameter lists: the loop source is written ``def integrate_fixed(*FixedArgs):``
+  and the generator puts the record's fields there (:func:`parameter_list`);
+* the calls: the drivers build the record by name and call ``mod.integrate_fixed(*args)``;
+* the signatures compiled ahead of a first run (:func:`loop_signature`).
+
+The flat work arrays of the right-hand side (:data:`WORKSPACE`) and of the projections
+(:data:`PROJECTION_SCRATCH`) are laid out here too, as tables of named blocks with sizes
+written in the model's dimensions; the generator turns them into the offsets the kernels
+use.  Status codes and the ``stats`` layout are plain constants in
+:mod:`nmkane_core.kernel.constants`.
 """
 
 from __future__ import annotations
 
 import ast
 import typing
-from pathlib import Path
 from typing import Annotated, Any, NamedTuple
 
 import numpy as np
@@ -26,55 +29,14 @@ import numpy as np
 __all__ = [
     "FixedArgs",
     "AdaptiveArgs",
+    "LOOPS",
+    "WORKSPACE",
+    "PROJECTION_SCRATCH",
     "fixed_loop_signature",
+    "layout",
     "loop_signature",
-    "STATUS_OK",
-    "STATUS_J2_SINGULAR",
-    "STATUS_T_SINGULAR",
-    "STATUS_DIVERGED",
-    "STATUS_FAILED",
-    "STATUS_BUDGET",
-    "STATUS_PROJECTION_FAILED",
-    "STATS_E0",
-    "STATS_MAX_DRIFT",
-    "STATS_FINAL_DRIFT",
-    "STATS_RCOND_J2",
-    "STATS_RCOND_T",
-    "STATS_VIOL",
+    "parameter_list",
 ]
-
-_SOURCE = Path(__file__).parent / "source" / "loops.py"
-_TREE = ast.parse(_SOURCE.read_text())
-
-
-def _literals(tree: ast.Module) -> dict[str, int | float]:
-    out = {}
-    for node in tree.body:
-        if (
-            isinstance(node, ast.Assign)
-            and len(node.targets) == 1
-            and isinstance(node.targets[0], ast.Name)
-            and node.targets[0].id.startswith(("STATUS_", "STATS_", "STEP_"))
-        ):
-            out[node.targets[0].id] = ast.literal_eval(node.value)
-    return out
-
-
-_C = _literals(_TREE)
-
-STATUS_OK: int = int(_C["STATUS_OK"])
-STATUS_J2_SINGULAR: int = int(_C["STATUS_J2_SINGULAR"])
-STATUS_T_SINGULAR: int = int(_C["STATUS_T_SINGULAR"])
-STATUS_DIVERGED: int = int(_C["STATUS_DIVERGED"])
-STATUS_FAILED: int = int(_C["STATUS_FAILED"])
-STATUS_BUDGET: int = int(_C["STATUS_BUDGET"])
-STATUS_PROJECTION_FAILED: int = int(_C["STATUS_PROJECTION_FAILED"])
-STATS_E0: int = int(_C["STATS_E0"])
-STATS_MAX_DRIFT: int = int(_C["STATS_MAX_DRIFT"])
-STATS_FINAL_DRIFT: int = int(_C["STATS_FINAL_DRIFT"])
-STATS_RCOND_J2: int = int(_C["STATS_RCOND_J2"])
-STATS_RCOND_T: int = int(_C["STATS_RCOND_T"])
-STATS_VIOL: int = int(_C["STATS_VIOL"])
 
 # numba types of the fields, by name (numba is imported only when a signature is asked for)
 VEC = "float64[::1]"
@@ -145,7 +107,13 @@ class AdaptiveArgs(NamedTuple):
     stats: Annotated[np.ndarray, VEC]
 
 
+#: the compiled loops by name, and the record of each one's arguments
 LOOPS: dict[str, Any] = {"integrate_fixed": FixedArgs, "integrate_adaptive": AdaptiveArgs}
+
+
+def parameter_list(args: type[NamedTuple]) -> str:
+    """The loop's parameters as the generator writes them into ``def loop(...)``."""
+    return ", ".join(args._fields)
 
 
 def loop_signature(args: type[NamedTuple], projected: bool = False) -> tuple:
@@ -168,15 +136,66 @@ def fixed_loop_signature() -> tuple:
     return loop_signature(FixedArgs)
 
 
-def _check(tree: ast.Module) -> None:
-    defs = {n.name: [a.arg for a in n.args.args] for n in tree.body if isinstance(n, ast.FunctionDef)}
-    for name, args in LOOPS.items():
-        if defs.get(name) != list(args._fields):
-            raise RuntimeError(
-                f"nmkane_core.kernel.interface.{args.__name__} lists {args._fields}, but "
-                f"_kernel_loops.{name} takes {defs.get(name)}"
-            )
+# ---------------------------------------------------------------------------- work arrays
+# Each table lists named blocks in order with their sizes as expressions in the model's
+# dimensions: N speeds, M constraints (MNH nonholonomic, MH holonomic), PI independent speeds.
+# A block's name is the offset of its first entry; the generator writes every offset (and the
+# total, WSIZE / PS_SIZE) into the kernel as a constant.
+
+#: the right-hand side's flat work array (``make_workspace`` in the loop source)
+WORKSPACE: tuple[tuple[str, str, str], ...] = (
+    ("OJ", "M * N", "J = [J1 J2] (17)–(18), rows of [φ; ψ̇], speeds in the order [u_I, u_D]"),
+    ("OB", "M", "b = B1 u + B2 (14)–(15)"),
+    ("OPHIN", "MNH", "φ, the nonholonomic constraint values"),
+    ("OPSID", "MH", "ψ̇"),
+    ("OPSI", "MH", "ψ"),
+    ("OQ", "N * N", "Q (42), [u_I, u_D] order"),
+    ("OP", "N", "P (42)"),
+    ("OQD", "N", "q̇ = C u + D (1)"),
+    ("OR", "M * (PI + 1)", "R = [−J1 | −b + s] → [A | B̂] (20), (108), (113)"),
+    ("OW", "N * PI", "W = Q A2ᵀ"),
+    ("OMR", "PI * PI", "A2 Q A2ᵀ"),
+    ("OY", "N", "P − Q_{·D} B̂"),
+    ("OUI", "PI", "A2 (P − Q_{·D} B̂) → u̇_I"),
+    ("ORC", "2", "(rcond J2, rcond T)"),
+    ("OPSQ", "MH * N", "∂ψ/∂q (positions)"),
+    ("OC", "N * N", "C (positions)"),
+)
+
+#: the post-step projections' scratch array (``make_projection_scratch``); the projections take
+#: the dimensions as runtime values (compact compiled loops), so the offsets are also made
+#: by a compiled function of N and M (``projection_layout``)
+PROJECTION_SCRATCH: tuple[tuple[str, str, str], ...] = (
+    ("PS_OQ", "N * N", "Q in the model's order, and its LU"),
+    ("PS_OY", "N * M", "Y = W⁻¹Gᵀ"),
+    ("PS_OZ", "N * M", "a second n×m block"),
+    ("PS_OS", "M * M", "S = G W⁻¹ Gᵀ"),
+    ("PS_OZR", "M", "z = S⁻¹ r"),
+    ("PS_OD", "N", "δ = Y z"),
+    ("PS_OG", "M * N + M + N", "G (m×n, model column order) and r (m) of the correction"),
+)
 
 
-_check(_TREE)
-del _TREE
+def layout(table, dims: dict[str, int]) -> tuple[dict[str, int], int]:
+    """(offset of each block, total size) of a work-array table for these dimensions."""
+    offsets, pos = {}, 0
+    for name, size, _ in table:
+        offsets[name] = pos
+        pos += block_size(size, dims)
+    return offsets, pos
+
+
+def block_size(expr: str, dims: dict[str, int]) -> int:
+    """A size expression of the tables above (names of ``dims``, integers, + and *) evaluated."""
+
+    def value(node: ast.AST) -> int:
+        if isinstance(node, ast.Constant) and isinstance(node.value, int):
+            return node.value
+        if isinstance(node, ast.Name):
+            return int(dims[node.id])
+        if isinstance(node, ast.BinOp) and isinstance(node.op, (ast.Add, ast.Mult)):
+            a, b = value(node.left), value(node.right)
+            return a + b if isinstance(node.op, ast.Add) else a * b
+        raise ValueError(f"not a size expression: {expr!r}")
+
+    return value(ast.parse(expr, mode="eval").body)

@@ -7,11 +7,11 @@ cancellation between chunks) and never returns non-finite numbers: a run that hi
 singular J2 or T, or whose state stops being finite, ends with status ``singular`` or
 ``diverged`` and keeps everything computed up to the last good step.
 
-The parts live in their own modules: settings in :mod:`nmkane_core.run.plan`, the loop drivers
-in :mod:`nmkane_core.integrate.drivers` (model switching in :mod:`nmkane_core.integrate.switching`, the
-compiled loops' interface in :mod:`nmkane_core.kernel.interface`), the result in
-:mod:`nmkane_core.run.result`, the catalog in :mod:`nmkane_core.run.catalog`; this module runs them
-and re-exports their public names.
+The parts live in their own modules: settings checked in :mod:`nmkane_core.run.settings` and
+resolved into a plan in :mod:`nmkane_core.run.plan`, the loop drivers in
+:mod:`nmkane_core.integrate.drivers` (model switching in :mod:`nmkane_core.integrate.switching`,
+the compiled loops' interface in :mod:`nmkane_core.kernel.interface`), the result made in
+:mod:`nmkane_core.run.finish` (how runs end: :mod:`nmkane_core.run.endings`); this module runs them.
 """
 
 from __future__ import annotations
@@ -22,12 +22,15 @@ import time
 from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 
-from ..integrate.drivers import kernel_for, prepare, run_adaptive, run_fixed, run_scipy
-from ..integrate.methods import ScipyMethod
+from ..declare.system import System
+from ..integrate import calls
+from ..integrate.drivers import integrate
+from ..kernel.built import built
 from ..schema import RunSettings
 from .catalog import catalog
+from .finish import finish
 from .plan import Plan, resolve, validate_settings
-from .result import Run, finish
+from .result import Run
 
 __all__ = [
     "Plan",
@@ -94,28 +97,31 @@ def simulate(
     """
     plan = settings if isinstance(settings, Plan) else resolve(settings)
     t_setup = time.perf_counter()
-    mod = prepare(plan)
-    start = time.perf_counter()
-    setup = start - t_setup
+    job = plan.job()
+    calls.prepare(job)
+    setup = time.perf_counter() - t_setup
     if progress is None:
         progress = sys.stderr.isatty()
     bar = _Progress(plan.t_final, progress)
+    start = time.perf_counter()
     try:
-        if isinstance(plan.integrator, ScipyMethod):
-            out = run_scipy(plan, mod, bar, start, time_limit, cancel)
-        elif plan.integrator.adaptive:
-            out = run_adaptive(plan, mod, bar, start, time_limit, cancel)
-        else:
-            out = run_fixed(plan, mod, bar, start, time_limit, cancel)
+        out = integrate(job, bar, time_limit, cancel)
     finally:
         bar.close()
-    run = finish(plan, mod, out, time.perf_counter() - start)
-    if plan.system.events is not None:
-        from .events import apply_events
+    return finish(plan, out, time.perf_counter() - start, setup)
 
-        apply_events(run, plan.system)  # cut at the first declared event (nmkane_core.run.events)
-    run.summary["kernel_load_s"] = setup
-    return run
+
+def prepare(plan: Plan):
+    """Load — or, on a model's first use, compile — everything ``simulate(plan)`` runs (the CLI
+    does this under a "first use" notice); returns the chosen variant's kernel module."""
+    job = plan.job()
+    calls.prepare(job)
+    return job.module
+
+
+def kernel_for(system: System, variant: str | None):
+    """The compiled kernel module of a system's variant (loaded from cache or built once)."""
+    return built(system).module(variant)
 
 
 def simulate_many(

@@ -49,9 +49,9 @@ def init_worker(systems: tuple[str, ...] = (), warm: tuple[dict, ...] = ()) -> N
     key = (tuple(systems), repr(warm))
     if key in _READY:
         return
-    from ..integrate.drivers import prepare
     from ..run.plan import resolve
     from ..run.plugins import load_systems
+    from ..run.simulate import prepare
 
     load_systems(list(systems), strict=True)
     for settings in warm:

@@ -109,8 +109,8 @@ def run_sweep(
     scheduler address; ``resume``: skip points already in ``out`` (False: start the file
     anew); ``on_rows``: called with each batch of rows as it is written; ``executor``: an
     executor to use instead of making one (left open)."""
-    from ..integrate.drivers import prepare
     from ..run.plan import resolve
+    from ..run.simulate import prepare
 
     check_spec(base, spec)
     warm = _variants(base, spec)

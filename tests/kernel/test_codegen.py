@@ -6,11 +6,11 @@ import pytest
 import sympy as sp
 
 from nmkane_core import get_system
-from nmkane_core.integrate.drivers import kernel_for
 from nmkane_core.kernel.built import built
-from nmkane_core.kernel.codegen import generate_source, inline_marked
+from nmkane_core.kernel.codegen import generate_source
+from nmkane_core.kernel.inline import inline_marked
 from nmkane_core.kernel.interface import AdaptiveArgs, FixedArgs, loop_signature
-from nmkane_core.run.simulate import simulate
+from nmkane_core.run.simulate import kernel_for, simulate
 from nmkane_core.symbolic.terms import kernel_terms, pythagorean
 
 a, b, c, x, y = sp.symbols("a b c x y", real=True)
@@ -159,19 +159,18 @@ def test_background_precompile_signature_is_the_one_runs_use():
         assert fixed_loop_signature() in mod.integrate_fixed.signatures
 
 
-def test_loop_argument_structures_are_the_loops_parameters_and_the_signatures_runs_use():
-    """FixedArgs/AdaptiveArgs list the compiled loops' parameters in order (the drivers and
-    the precompile signature come from them), and their numba types are those of real runs."""
+def test_loop_argument_records_are_the_loops_parameters_and_the_signatures_runs_use():
+    """FixedArgs/AdaptiveArgs are the compiled loops' parameters in order (the generator writes
+    them into the loops' ``def``; the drivers and the precompile signature come from them), and
+    their numba types are those of real runs."""
     import ast
-    from pathlib import Path
+    import inspect
 
-    import nmkane_core
-
-    tree = ast.parse((Path(nmkane_core.__file__).parent / "kernel" / "source" / "loops.py").read_text())
+    mod = kernel_for(get_system("sliding-particle"), "nonminimal")
+    tree = ast.parse(inspect.getsource(mod))
     params = {n.name: [a.arg for a in n.args.args] for n in tree.body if isinstance(n, ast.FunctionDef)}
     assert params["integrate_fixed"] == list(FixedArgs._fields)
     assert params["integrate_adaptive"] == list(AdaptiveArgs._fields)
-    mod = kernel_for(get_system("sliding-particle"), "nonminimal")
     for settings, loop, args in [
         ({}, mod.integrate_fixed, FixedArgs),
         ({"integrator": "kutta-merson-adaptive"}, mod.integrate_adaptive, AdaptiveArgs),

@@ -15,6 +15,7 @@ import pytest
 
 from nmkane_core.errors import InputError
 from nmkane_core.run.plan import min_every, output_rows, resolve, validate_settings
+from nmkane_core.run.registry import get_system
 from nmkane_core.run.simulate import simulate
 from nmkane_core.schema import LIMITS
 
@@ -110,36 +111,43 @@ def test_an_overflowing_initial_state_is_refused_and_a_later_overflow_ends_diver
 
 def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
     """On a first start a switch target's kernel and loop were compiled inside the timed loop
-    (16–31 s against a 10 s limit): every kernel a run uses must be requested by ``prepare``."""
-    from nmkane_core.declare.system import System
+    (16–31 s against a 10 s limit): every kernel a run uses must be loaded and its loop primed
+    before the clock starts, and nothing may be requested while it runs."""
+    from nmkane_core.integrate import calls
+    from nmkane_core.kernel.built import Built, built
 
     sim = sys.modules["nmkane_core.run.simulate"]
-
-    phase = {"now": "resolve"}
-    requested: dict[str, set] = {"resolve": set(), "prepare": set(), "timed": set()}
-    kernel = System.kernel
+    phase = {"now": "setup"}
+    requested: dict[str, set] = {"setup": set(), "timed": set()}
+    primed: list = []
+    kernel, prime = Built.kernel, calls._prime
 
     def spy(self, variant=None):
         requested[phase["now"]].add(variant)
         return kernel(self, variant)
 
-    def in_phase(name, fn):
+    def spy_prime(job, module, p):
+        primed.append(module)
+        return prime(job, module, p)
+
+    def timed(fn):
         def run(*a, **k):
-            phase["now"] = name
+            phase["now"] = "timed"
             try:
                 return fn(*a, **k)
             finally:
-                phase["now"] = "resolve"
+                phase["now"] = "setup"
 
         return run
 
-    monkeypatch.setattr(System, "kernel", spy)
-    monkeypatch.setattr(sim, "prepare", in_phase("prepare", sim.prepare))
-    monkeypatch.setattr(sim, "run_fixed", in_phase("timed", sim.run_fixed))
-    monkeypatch.setattr(sim, "run_adaptive", in_phase("timed", sim.run_adaptive))
+    monkeypatch.setattr(Built, "kernel", spy)
+    monkeypatch.setattr(calls, "_prime", spy_prime)
+    monkeypatch.setattr(sim, "integrate", timed(sim.integrate))
+    linear = built(get_system("appell-hamel")).module("linear")
     for integrator in ("kutta-merson", "kutta-merson-adaptive"):
         for v in requested.values():
             v.clear()
+        primed.clear()
         run = simulate(
             {
                 "system": "appell-hamel",
@@ -151,9 +159,8 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
             progress=False,
         )
         assert run.summary["switches"], "the run should switch models"
-        # the switch target is loaded and its loop primed by prepare (not only by resolve's initial-state
-        # completion, which does not compile the loops), and nothing new is requested on the clock
-        assert "linear" in requested["timed"] and requested["timed"] <= requested["prepare"], requested
+        assert not requested["timed"], requested  # every kernel was loaded before the clock started
+        assert any(m is linear for m in primed), "the switch target's loop is primed before the clock"
 
 
 def test_a_progress_bar_is_drawn_on_a_terminal_that_reports_no_size():

@@ -36,8 +36,8 @@ import pytest
 from scipy.integrate import solve_ivp
 
 from nmkane_core import Parameter, System, register, simulate
-from nmkane_core.integrate.drivers import kernel_for
 from nmkane_core.kernel.built import built
+from nmkane_core.run.simulate import kernel_for
 
 RTOL_REF = 1e-11
 

@@ -7,11 +7,10 @@ import pytest
 
 from nmkane_core import InputError, get_system
 from nmkane_core.errors import InconsistentStateError
-from nmkane_core.integrate.drivers import kernel_for
 from nmkane_core.integrate.methods import INTEGRATORS, KUTTA_MERSON, RK4
 from nmkane_core.kernel.built import built
 from nmkane_core.run.plan import resolve
-from nmkane_core.run.simulate import simulate
+from nmkane_core.run.simulate import kernel_for, simulate
 from nmkane_core.schema import RunResult
 from nmkane_core.symbolic.reference import ReferenceKernel, integrate_reference
 
@@ -258,8 +257,51 @@ def test_simulate_module_still_exports_its_public_names():
         assert name in sim.__all__ and callable(getattr(sim, name)), name
 
 
-def test_loop_constants_come_from_the_compiled_loops_source():
-    from nmkane_core.kernel import interface as loops
+def test_the_generated_kernels_use_the_one_definition_of_the_loop_constants():
+    from nmkane_core.kernel import constants
 
-    assert (loops.STATUS_OK, loops.STATUS_J2_SINGULAR, loops.STATUS_T_SINGULAR) == (0, 1, 2)
-    assert loops.STATS_VIOL == 5 and kernel_for(get_system("sliding-particle"), "nonminimal").STATS_VIOL == 5
+    mod = kernel_for(get_system("sliding-particle"), "nonminimal")
+    for name in constants.NAMES:
+        assert getattr(mod, name) == getattr(constants, name), name
+    assert "STATUS_OK = 0" not in mod.__loader__.get_source(mod.__name__)  # imported, not copied
+
+
+def test_a_finished_run_cuts_non_finite_rows_and_reports_overflowed_maxima_as_finite():
+    """The core's guarantee (nmkane_core.run.finish): rows from the first non-finite one on are
+    cut and the run ends diverged; a summary number that overflowed is reported as the largest
+    finite one and named in a warning — the document is always valid JSON of the schema."""
+    import sys
+
+    from nmkane_core.integrate.drivers import integrate
+    from nmkane_core.run.finish import _finite_rows, _validated
+    from nmkane_core.run.plan import resolve
+    from nmkane_core.run.simulate import prepare
+
+    plan = resolve({"system": "appell-hamel", "dt": 0.01, "t_final": 0.1})
+    prepare(plan)
+
+    class Bar:
+        def update(self, t):
+            pass
+
+    out = integrate(plan.job(), Bar())
+    out.x[5, 6] = float("nan")
+    outputs = np.empty((out.x.shape[0], 0))
+    cut, _, overflow = _finite_rows(plan, out, outputs)
+    assert overflow and cut.t.size == 5 and cut.x.shape[0] == 5 and cut.t_end == out.t[4]
+    summary = _validated(
+        {
+            "status": "diverged",
+            "message": "",
+            "steps": 1,
+            "rhs_evals": 1,
+            "wall_time_s": 0.0,
+            "t_end": 0.1,
+            "max_abs_violation": {"thread": float("-inf")},
+            "max_abs_energy_drift": float("inf"),
+            "final_energy_drift": 0.0,
+        }
+    )
+    assert summary["max_abs_energy_drift"] == sys.float_info.max
+    assert summary["max_abs_violation"]["thread"] == -sys.float_info.max
+    assert "max_abs_violation.thread" in summary["warnings"][0]

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from nmkane_core import Parameter, System, register, simulate
-from nmkane_core.integrate.drivers import kernel_for
 from nmkane_core.kernel.built import built
+from nmkane_core.run.simulate import kernel_for
 from nmkane_core.symbolic.reference import ReferenceKernel
 
 NAME = "test-knife-edge"

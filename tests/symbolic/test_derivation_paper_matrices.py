@@ -10,8 +10,8 @@ import pytest
 import sympy as sp
 
 from nmkane_core import get_system
-from nmkane_core.integrate.drivers import kernel_for
 from nmkane_core.kernel.built import built
+from nmkane_core.run.simulate import kernel_for
 from nmkane_core.symbolic.reference import ReferenceKernel
 
 RNG = np.random.default_rng(2005)

@@ -10,8 +10,11 @@ from [u_I, u_D] back to the model's speeds, and the straight-line functions ``te
 loop and one adaptive loop serve every explicit Runge–Kutta tableau.
 
 The loops' status codes (``STATUS_*``), the layout of their ``stats`` array (``STATS_*``)
-and the adaptive step control (``STEP_*``) are the plain literals just below, defined once:
-:mod:`nmkane_core.kernel.interface` reads them from this file for the Python side.
+and the adaptive step control (``STEP_*``) come from :mod:`nmkane_core.kernel.constants`,
+which the generated module imports.  The loops' parameter lists are the fields of their
+argument records (:class:`~nmkane_core.kernel.interface.FixedArgs`,
+:class:`~nmkane_core.kernel.interface.AdaptiveArgs`): each loop is written
+``def integrate_fixed(*FixedArgs):`` here and the generator writes the fields in.
 
 Every function is compiled with ``error_model="numpy"`` (as are the generated ones): a
 division by zero gives ±inf or NaN, as the square root of a negative number does, instead
@@ -29,28 +32,6 @@ import math
 import numpy as np
 from numba import njit
 
-# ---- loop constants: plain literals only (nmkane_core.kernel.interface reads them from this source) ----
-# status codes returned by the loops
-STATUS_OK = 0
-STATUS_J2_SINGULAR = 1  # J2 ill-conditioned: rcond ≤ rcond_min
-STATUS_T_SINGULAR = 2  # T ill-conditioned: rcond ≤ rcond_min
-STATUS_DIVERGED = 3  # the state (or a diagnostic) stopped being finite
-STATUS_FAILED = 4  # step size underflow (adaptive); Python drivers: any other failure
-STATUS_BUDGET = 5  # the step budget of this call is used up (adaptive): call again
-STATUS_PROJECTION_FAILED = 6  # a projection's correction matrix was singular
-# stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, max|viol_i| for each violation]
-STATS_E0 = 0
-STATS_MAX_DRIFT = 1
-STATS_FINAL_DRIFT = 2
-STATS_RCOND_J2 = 3
-STATS_RCOND_T = 4
-STATS_VIOL = 5  # first of the NV running maxima of |violation|
-# adaptive step control: h ← h · clamp(STEP_SAFETY · err^(−1/(q+1)), STEP_FAC_MIN, STEP_FAC_MAX)
-STEP_SAFETY = 0.9
-STEP_FAC_MIN = 0.2  # the most a step shrinks at once (also after a non-finite error)
-STEP_FAC_MAX = 5.0  # the most a step grows at once (also after a zero error)
-STEP_LAST_REL = 1e-12  # a remainder below this fraction of t_final joins the current step
-
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
@@ -59,7 +40,7 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
     A is n×n at offset ``oa`` with row stride ``lda``; B is n×k at ``ob`` with row
     stride ``ldb`` and receives X.  Returns min|pivot|/max|pivot| (0 when singular): the
     reciprocal-condition estimate the kernels compare with ``rcond_min``.  One return, at
-    the end, so that the right-hand side can inline it (``# INLINE``, codegen.inline_marked);
+    the end, so that the right-hand side can inline it (``# INLINE``, kernel.inline.inline_marked);
     cold paths call it.
     """
     pmax = 0.0
@@ -137,7 +118,7 @@ def make_workspace():
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
-    terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (codegen.inline_marked)
+    terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (kernel.inline.inline_marked)
     for i in range(N):
         K[row, i] = w[OQD + i]
     w[ORC] = 1.0
@@ -307,31 +288,7 @@ def _record(t, x, p, viol, stats, nv):
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
-def integrate_fixed(
-    x,
-    t0,
-    dt,
-    t_final,
-    k0,
-    k1,
-    nsteps,
-    every,
-    p,
-    G,
-    G1,
-    G2,
-    TA,
-    TB,
-    TC,
-    rcond_min,
-    proj,
-    out_t,
-    out_x,
-    out_E,
-    out_V,
-    row,
-    stats,
-):
+def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
     """Steps k0 … k1−1 of a fixed-step run of ``nsteps`` steps; ``x`` is advanced in place.
 
     Row r of the outputs holds the state after step r·every (and the final state).
@@ -385,35 +342,7 @@ def integrate_fixed(
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
-def integrate_adaptive(
-    x,
-    t,
-    t_final,
-    h,
-    rtol,
-    atol,
-    hmin,
-    hmax,
-    max_steps,
-    every,
-    accepted,
-    p,
-    G,
-    G1,
-    G2,
-    TA,
-    TB,
-    TE,
-    TC,
-    err_exp,
-    rcond_min,
-    proj,
-    out_t,
-    out_x,
-    out_E,
-    out_V,
-    stats,
-):
+def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.AdaptiveArgs
     """Adaptive embedded-RK run from t until t_final, the output buffer is full, or
     ``max_steps`` attempts; error = h Σ TE_i K_i, step control with exponent ``err_exp``.
 

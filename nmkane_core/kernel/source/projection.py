@@ -4,20 +4,13 @@ Greenwood 1994) onto the constraint manifold.
 
 Not imported: :mod:`nmkane_core.kernel.codegen` appends this source after
 :mod:`nmkane_core.kernel.source.loops` in every generated kernel module (see that file for the
-names the model-specific part defines: ``N, M, MNH, MH, PERM``, ``terms`` ...).
+names the model-specific part defines: ``N, M, MNH, MH, PERM``, ``terms`` ..., and the scratch
+layout ``PS_*`` / ``projection_layout`` made from :data:`nmkane_core.kernel.interface.PROJECTION_SCRATCH`).
 :mod:`nmkane_core.integrate.projection` describes the options (``proj`` array layout).
 """
 
 import numpy as np
 from numba import njit
-
-PS_OY = N * N  # projection scratch layout: Q (model order) and its LU,
-PS_OZ = PS_OY + N * M  # Y = W⁻¹Gᵀ (n×m), a second n×m block,
-PS_OS = PS_OZ + N * M  # S = G W⁻¹ Gᵀ (m×m),
-PS_OZR = PS_OS + M * M  # z = S⁻¹ r (m),
-PS_OD = PS_OZR + M  # δ = Y z (n),
-PS_OG = PS_OD + N  # G (m×n, model column order) and r (m) of the correction
-PS_SIZE = PS_OG + M * N + M + N
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -40,12 +33,7 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
     # one copy of the callee per literal value.
     zero = N - N
     one = zero + 1
-    PS_OY = N * N
-    PS_OZ = PS_OY + N * M
-    PS_OS = PS_OZ + N * M
-    PS_OZR = PS_OS + M * M
-    PS_OD = PS_OZR + M
-    PS_OG = PS_OD + N
+    _, PS_OY, PS_OZ, PS_OS, PS_OZR, PS_OD, PS_OG, _ = projection_layout(N, M)
     OR_ = PS_OG + mrows * N
     for i in range(N):
         for r in range(mrows):
@@ -100,8 +88,7 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
     """
     weight, pos_iters, newton, energy_fix = proj[0], proj[1], proj[2], proj[3]
     N, M, MNH, MH = proj[4], proj[5], proj[6], proj[7]  # runtime values (see above)
-    PS_OD = N * N + 2 * N * M + M * M + M
-    PS_OG = PS_OD + N
+    _, _, _, _, _, PS_OD, PS_OG, _ = projection_layout(N, M)
     tol = 1e-15
     if MH > 0:
         for it in range(pos_iters):

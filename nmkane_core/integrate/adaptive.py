@@ -1,0 +1,106 @@
+"""The adaptive driver: ``integrate_adaptive`` called until t_final, a row or step budget, or a stop.
+
+Each call writes at most :data:`ROWS_PER_CALL` rows and makes at most
+:data:`ATTEMPTS_PER_CALL` attempts; between calls the driver updates the progress bar,
+checks the time limit and cancellation, bounds the output (a step size collapsing toward a
+singularity cannot fill memory) and lets the switcher change the model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..kernel.constants import STATUS_BUDGET, STATUS_FAILED, STATUS_J2_SINGULAR, STATUS_OK, STATUS_T_SINGULAR
+from ..schema import LIMITS
+from .calls import Rows, Stopper, adaptive_args, initial_stats
+from .job import Job, LoopOutput
+from .switching import Switcher
+
+__all__ = ["ATTEMPTS_PER_CALL", "ROWS_PER_CALL", "run_adaptive"]
+
+ROWS_PER_CALL = 4096  # output buffer of one adaptive call: the most rows a call adds
+ATTEMPTS_PER_CALL = 200_000
+
+
+class _Chunks:
+    """The rows of a run, chunk by chunk (the first row: the initial state)."""
+
+    def __init__(self, job: Job, E0: float, V0: np.ndarray):
+        self.t, self.x = [np.zeros(1)], [job.x0[None, :].copy()]
+        self.E, self.V = [np.array([E0])], [V0[None, :].copy()]
+        self.count = 1
+
+    def add(self, rows: Rows, n: int) -> None:
+        self.t.append(rows.t[:n])
+        self.x.append(rows.x[:n])
+        self.E.append(rows.E[:n])
+        self.V.append(rows.V[:n])
+        self.count += n
+
+    def arrays(self):
+        return tuple(np.concatenate(a) for a in (self.t, self.x, self.E, self.V))
+
+
+def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
+    """Integrate ``job`` with its embedded tableau, the step following rtol and atol."""
+    stats, E0, V0 = initial_stats(job, job.module, job.p)
+    chunks = _Chunks(job, E0, V0)
+    x = job.x0.copy()
+    t, h = 0.0, min(job.dt, job.t_final)
+    accepted = attempts = 0
+    status, stop = STATUS_OK, None
+    sw = Switcher(job)
+    while t < job.t_final:
+        size = sw.SWITCHED_CHUNK if sw.switched else ROWS_PER_CALL
+        budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ATTEMPTS_PER_CALL, LIMITS["max_steps"] - attempts))
+        rows = Rows(size, x.size, job.module.NV)
+        args = adaptive_args(
+            job, sw.p, x, rows, stats, t=t, h=h, max_steps=budget, accepted=accepted, rcond_min=sw.threshold
+        )
+        status, t, h, nrow, accepted, att = sw.module.integrate_adaptive(*args)
+        attempts += att
+        chunks.add(rows, nrow)
+        bar.update(t)
+        if chunks.count >= LIMITS["max_rows"] and t < job.t_final:
+            status, stop = STATUS_FAILED, "max_rows"
+            break
+        if status in (STATUS_J2_SINGULAR, STATUS_T_SINGULAR) and sw.leave(t, x, chunks.count):
+            status = STATUS_OK
+            continue
+        if status == STATUS_BUDGET:
+            status = STATUS_OK
+            if attempts >= LIMITS["max_steps"]:
+                status, stop = STATUS_FAILED, "max_steps"
+                break
+        if status != STATUS_OK:
+            break
+        sw.maybe_return(t, x, chunks.count)
+        stop = stopper.reason()
+        if stop and t < job.t_final:
+            break
+        stop = None
+    _keep_last(job, chunks, t, x)
+    t_arr, x_arr, E_arr, V_arr = chunks.arrays()
+    sw.finish(chunks.count, t_arr, x_arr, E_arr, V_arr, stats)
+    return LoopOutput(
+        status=status,
+        stop=stop,
+        t=t_arr,
+        x=x_arr,
+        E=E_arr,
+        V=V_arr,
+        stats=stats,
+        steps=accepted,
+        evals=attempts * job.method.stages,  # type: ignore[union-attr]
+        t_end=t,
+        switches=sw.switches,
+    )
+
+
+def _keep_last(job: Job, chunks: _Chunks, t: float, x: np.ndarray) -> None:
+    """Keep the last good state as a row even when thinning (``every``) skipped it."""
+    if np.concatenate(chunks.t)[-1] < t - 1e-12 * max(1.0, t):
+        rows = Rows(1, x.size, job.module.NV)
+        rows.t[0], rows.x[0] = t, x
+        job.module.diagnostics_rows(rows.t, rows.x, job.p, rows.E, rows.V)
+        chunks.add(rows, 1)

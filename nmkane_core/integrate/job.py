@@ -1,0 +1,68 @@
+"""What the loop drivers integrate (:class:`Job`) and what they give back (:class:`LoopOutput`).
+
+A :class:`Job` holds numbers and compiled kernels only — the run layer's
+:class:`~nmkane_core.run.plan.Plan` makes it from checked settings — so the drivers know
+nothing of systems, registries or settings.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .methods import ScipyMethod, Tableau
+
+__all__ = ["Alternative", "Job", "LoopOutput"]
+
+
+@dataclass(frozen=True)
+class Alternative:
+    """An equivalent variant a run may switch to near a singular configuration: its name,
+    compiled kernel module and parameter vector (variants may order parameters differently)."""
+
+    name: str
+    module: Any
+    p: np.ndarray
+
+
+@dataclass(frozen=True)
+class Job:
+    """One integration: the method, the kernel, the initial state and every numeric setting."""
+
+    method: Tableau | ScipyMethod
+    module: Any  # the compiled kernel module of the chosen variant
+    variant: str
+    x0: np.ndarray
+    p: np.ndarray  # parameter vector, in the kernel's order
+    G: np.ndarray  # Γ (nonholonomic), Γ1, Γ2 (holonomic)
+    G1: np.ndarray
+    G2: np.ndarray
+    dt: float  # the step (fixed-step methods) or the first step tried (adaptive ones)
+    t_final: float
+    every: int
+    rtol: float
+    atol: float
+    rcond_min: float  # J2 or T below this condition estimate: the run ends singular
+    rcond_switch: float  # ... below this: switch to an alternative, when there is one
+    proj: np.ndarray | None  # the loops' projection options (ProjectionOptions.as_array), None: none
+    alternatives: tuple[Alternative, ...] = ()
+
+
+@dataclass
+class LoopOutput:
+    """What a loop driver returns: the rows it computed and how the integration ended."""
+
+    status: int  # a STATUS_* code (nmkane_core.kernel.constants)
+    stop: str | None  # "timeout" | "cancelled" | "max_steps" | "max_rows" | None
+    t: np.ndarray
+    x: np.ndarray
+    E: np.ndarray
+    V: np.ndarray
+    stats: np.ndarray  # STATS_* layout (nmkane_core.kernel.constants)
+    steps: int
+    evals: int  # right-hand-side evaluations
+    t_end: float
+    switches: list[dict] = field(default_factory=list)
+    fail_msg: str | None = None

@@ -1,0 +1,169 @@
+"""A model's kernel, loaded or built: the keys that name it and the on-disk cache lookup.
+
+:func:`kernel` returns the compiled module and :class:`~nmkane_core.kernel.info.ModelInfo` for a
+fingerprint (:func:`fingerprint` of the files defining a model, or :func:`model_fingerprint` of
+a model object): from the cache index when it is there — no sympy needed — otherwise derived,
+generated (:mod:`nmkane_core.kernel.codegen`), written and imported.  The generated module's
+own folder is keyed by a hash of its text (:func:`source_key`), so numba's cache beside it can
+never hold code of another text.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import sys
+import threading
+from collections.abc import Callable
+from pathlib import Path
+
+from . import precompile
+from .cache import import_kernel, kernel_dir, write_kernel
+from .codegen import GENERIC_FILES, generate_source
+from .info import ModelInfo
+
+__all__ = ["compiled_kernel", "fingerprint", "kernel", "model_fingerprint", "source_key"]
+
+_LOCK = threading.Lock()
+_LOADED: dict[str, object] = {}
+
+
+def source_key(source: str) -> str:
+    """The cache folder of a generated module: a hash of its text, of the loop constants it
+    imports (:mod:`nmkane_core.kernel.constants`) and of the tools that compile it."""
+    import numba
+
+    h = hashlib.sha256(source.encode())
+    h.update((Path(__file__).parent / "constants.py").read_bytes())
+    h.update(numba.__version__.encode())
+    h.update(sys.version.encode())
+    return h.hexdigest()[:20]
+
+
+def _import(folder: Path, key: str, source: str | None):
+    """Import kernel ``key`` from ``folder``, writing ``source`` there first when given; a
+    newly written kernel starts compiling its loop in a second process at once."""
+    if source is not None and write_kernel(folder, key, source):
+        precompile.start(folder, key)
+    return import_kernel(folder, key)
+
+
+def compiled_kernel(derivation, source: str | None = None):
+    """Import (generating if needed) the compiled kernel module of a derivation."""
+    if source is None:
+        source = generate_source(derivation)
+    key = source_key(source)
+    with _LOCK:
+        if key not in _LOADED:
+            _LOADED[key] = _import(kernel_dir() / key, key, source)
+        return _LOADED[key]
+
+
+#: the files that shape a generated kernel: a change in any of them gives every model a new key
+_CORE_FILES = (
+    "../symbolic/model.py",
+    "../symbolic/derivation.py",
+    "../symbolic/terms.py",
+    "codegen.py",
+    "inline.py",
+    "interface.py",
+    "constants.py",
+    *GENERIC_FILES,
+    "info.py",
+)
+
+
+def fingerprint(system_name: str, variant: str, source_files, extra: str = "") -> str | None:
+    """A key for a model's kernel that needs no sympy: the text of every file that defines
+    the model, of the generator's files, the versions of the tools that generate it, and
+    ``extra`` (which function of those files builds the model)."""
+    if not source_files:
+        return None
+    h = hashlib.sha256(_tools_key(system_name, variant).encode())
+    h.update(extra.encode())
+    for f in sorted(set(map(str, source_files))):
+        h.update(Path(f).read_bytes())
+    return h.hexdigest()[:24]
+
+
+def model_fingerprint(system_name: str, variant: str, model) -> str:
+    """A key for a model known only as an object (typed interactively): its expressions,
+    printed canonically (``srepr``), and the generator's files and tool versions."""
+    import sympy as sp
+
+    fields = (
+        "q",
+        "u",
+        "params",
+        "C",
+        "D",
+        "Q",
+        "P",
+        "nonholonomic",
+        "holonomic",
+        "u_independent",
+        "energy",
+        "outputs",
+        "q_dependent",
+        "monitors",
+        "t",
+    )
+    text = "\0".join(sp.srepr(getattr(model, f)) for f in fields)
+    h = hashlib.sha256(_tools_key(system_name, variant).encode())
+    h.update(text.encode())
+    return h.hexdigest()[:24]
+
+
+def _tools_key(system_name: str, variant: str) -> str:
+    from importlib.metadata import version
+
+    h = hashlib.sha256(f"{system_name}\0{variant}\0{sys.version}".encode())
+    for dist in ("sympy", "numba", "numpy"):
+        h.update(version(dist).encode())
+    here = Path(__file__).parent
+    for f in _CORE_FILES:
+        h.update((here / f).read_bytes())
+    return h.hexdigest()
+
+
+def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] = ("", "")) -> tuple[object, ModelInfo]:
+    """The kernel module and model info for fingerprint ``fp``, from the disk cache when it
+    is there (no sympy needed), otherwise derived, generated and cached.  ``label`` (system,
+    variant) is recorded in the index for ``nmkane cache``."""
+    index = kernel_dir() / "index" / f"{fp}.json" if fp else None
+    if index is not None and index.exists():
+        try:
+            entry = json.loads(index.read_text())
+            key = entry["key"]
+            with _LOCK:
+                if key not in _LOADED:
+                    folder = kernel_dir() / key
+                    if not (folder / f"nmkane_kernel_{key}.py").exists():
+                        raise FileNotFoundError(key)
+                    _LOADED[key] = _import(folder, key, None)
+                    with contextlib.suppress(OSError):
+                        os.utime(index)  # last use, for `nmkane cache prune --unused-days`
+                return _LOADED[key], ModelInfo.from_json(json.dumps(entry["info"]))
+        except (OSError, KeyError, ValueError, TypeError):
+            pass  # a damaged entry: regenerate below
+    d = derive()
+    source = generate_source(d)
+    module = compiled_kernel(d, source)
+    info = ModelInfo.from_derivation(d)
+    if index is not None:
+        index.parent.mkdir(parents=True, exist_ok=True)
+        tmp = index.with_suffix(f".tmp{os.getpid()}")
+        tmp.write_text(
+            json.dumps(
+                {
+                    "key": source_key(source),
+                    "system": label[0],
+                    "variant": label[1],
+                    "info": json.loads(info.to_json()),
+                }
+            )
+        )
+        os.replace(tmp, index)
+    return module, info

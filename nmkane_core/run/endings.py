@@ -1,0 +1,98 @@
+"""How a run ended, as data: each loop status (and stop reason) with its summary status and message.
+
+:data:`ENDINGS` maps ``(STATUS_* code, stop reason)`` — the stop reason being what ended a
+run early between chunks (``"timeout"``, ``"cancelled"``, ``"max_steps"``, ``"max_rows"``) or
+None — to an :class:`Ending`: the run's ``summary["status"]`` and a message template filled
+from the run's facts (:func:`ending`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..kernel.constants import (
+    STATUS_DIVERGED,
+    STATUS_FAILED,
+    STATUS_J2_SINGULAR,
+    STATUS_OK,
+    STATUS_PROJECTION_FAILED,
+    STATUS_T_SINGULAR,
+)
+
+__all__ = ["ENDINGS", "OVERFLOW", "Ending", "ending"]
+
+_UNDEFINED = (
+    "a point where the model's expressions are not defined — a square root of a negative number, "
+    "a zero denominator — e.g. the end of the branch of a constraint nonlinear in the speeds"
+)
+
+
+@dataclass(frozen=True)
+class Ending:
+    """A run's status and the message that says why (a ``str.format`` template of the facts:
+    steps, method, t_final, t_end, matrix, rcond, rcond_min, projection, max_steps, max_rows)."""
+
+    status: str
+    message: str
+
+
+_SINGULAR = Ending(
+    "singular",
+    "{matrix} became singular or ill-conditioned after t = {t_end:.6g} s (reciprocal condition estimate "
+    "{rcond:.3g} ≤ rcond_min = {rcond_min:g}); the run stopped there and keeps the last good state",
+)
+
+ENDINGS: dict[tuple[int, str | None], Ending] = {
+    (STATUS_OK, None): Ending("ok", "completed: {steps:,} steps of {method} to t = {t_final:g} s"),
+    (STATUS_OK, "timeout"): Ending(
+        "timeout", "stopped at t = {t_end:.6g} s: wall-time limit reached; results up to there are kept"
+    ),
+    (STATUS_OK, "cancelled"): Ending(
+        "timeout", "stopped at t = {t_end:.6g} s: cancelled; results up to there are kept"
+    ),
+    (STATUS_J2_SINGULAR, None): _SINGULAR,
+    (STATUS_T_SINGULAR, None): _SINGULAR,
+    (STATUS_DIVERGED, None): Ending(
+        "diverged",
+        "the state or its derivative stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "
+        "the last finite state (an unstable step: try a smaller dt or gains of smaller magnitude; or the motion "
+        "reached " + _UNDEFINED + ")",
+    ),
+    (STATUS_PROJECTION_FAILED, None): Ending(
+        "failed",
+        "the {projection} projection met a singular correction matrix after t = {t_end:.6g} s; the run stopped there",
+    ),
+    (STATUS_FAILED, "max_steps"): Ending("failed", "the step budget ({max_steps:,}) was used up at t = {t_end:.6g} s"),
+    (STATUS_FAILED, "max_rows"): Ending(
+        "failed",
+        "the output reached its limit of {max_rows:,} rows at t = {t_end:.6g} s (the step size kept "
+        "shrinking — a singularity ahead? — or use a larger every); the rows up to there are kept",
+    ),
+    (STATUS_FAILED, None): Ending(
+        "failed",
+        "the step size fell below its minimum at t = {t_end:.6g} s: the solution cannot be continued there "
+        "(a blow-up, or " + _UNDEFINED + "); the rows up to there are kept",
+    ),
+}
+
+#: the energy, a violation or an output overflowed before the state did (the rows are cut)
+OVERFLOW = Ending(
+    "diverged",
+    "the energy, a constraint violation or an output stopped being finite (overflow) after t = {t_end:.6g} s; "
+    "the run stopped and keeps the rows up to there (try smaller initial speeds, a smaller dt or gains of "
+    "smaller magnitude)",
+)
+
+
+def ending(code: int, stop: str | None, facts: dict, fail_msg: str | None = None, hint: str = "") -> tuple[str, str]:
+    """(status, message) of a run that ended with loop status ``code`` and stop reason ``stop``.
+
+    ``fail_msg`` (a driver's own account of a failure, e.g. scipy's) replaces the message of a
+    failed run; ``hint`` (a system's singular hint) is appended to a singular run's."""
+    found = ENDINGS.get((code, stop)) or ENDINGS.get((code, None)) or ENDINGS[(STATUS_FAILED, None)]
+    if found.status == "failed" and fail_msg:
+        return found.status, fail_msg
+    message = found.message.format(**facts)
+    if found.status == "singular" and hint:
+        message += f" — {hint}"
+    return found.status, message

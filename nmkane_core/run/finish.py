@@ -1,0 +1,177 @@
+"""A driver's output made into a :class:`~nmkane_core.run.result.Run`: named arrays, how the run
+ended (:mod:`nmkane_core.run.endings`), the system's events, and the summary — one
+:class:`~nmkane_core.schema.RunSummary`, every number finite.
+
+Guarantees: rows from the first one whose state, energy, violations or outputs are not
+finite on are cut (the run then ends ``diverged``), and a summary number that overflowed is
+reported as ±1.8e308 and named in a warning, so the document is valid JSON of the schema.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import replace
+
+import numpy as np
+
+from ..integrate.job import LoopOutput
+from ..kernel.built import built
+from ..kernel.constants import (
+    STATS_MAX_DRIFT,
+    STATS_RCOND_J2,
+    STATS_RCOND_T,
+    STATS_VIOL,
+    STATUS_DIVERGED,
+    STATUS_J2_SINGULAR,
+)
+from ..schema import LIMITS, RunSummary
+from .endings import OVERFLOW, ending
+from .events import apply_events
+from .plan import Plan
+from .result import Run
+
+__all__ = ["finish"]
+
+FLOAT_MAX = sys.float_info.max
+
+
+def finish(plan: Plan, out: LoopOutput, wall: float, kernel_load_s: float = 0.0) -> Run:
+    """The :class:`Run` of a driver's output (``wall``: integration wall time, s)."""
+    mod = built(plan.system).module(plan.variant)
+    outputs = _outputs(plan, mod, out)
+    out, outputs, overflow = _finite_rows(plan, out, outputs)
+    status, message = _ending(plan, out, overflow)
+    run = _arrays(plan, out, outputs)
+    run.summary = _summary(plan, out, status, message, wall, kernel_load_s)
+    if plan.system.events is not None:
+        apply_events(run, plan.system)  # cut at the first declared event (nmkane_core.run.events)
+    run.summary = _validated(run.summary)
+    return run
+
+
+def _outputs(plan: Plan, mod, out: LoopOutput) -> np.ndarray:
+    """The model's extra outputs (``MechanicalModel.outputs``) on every row."""
+    O = np.empty((out.x.shape[0], mod.NO))
+    if mod.NO:
+        mod.outputs_rows(out.t, out.x, plan.p, O)
+    return O
+
+
+def _finite_rows(plan: Plan, out: LoopOutput, O: np.ndarray) -> tuple[LoopOutput, np.ndarray, bool]:
+    """The loops stop when the state stops being finite; its energy, constraint violations or
+    outputs can overflow first (huge speeds): keep the rows before, and say so (True)."""
+    good = np.isfinite(out.t) & np.isfinite(out.x).all(axis=1) & np.isfinite(out.V).all(axis=1)
+    good &= np.isfinite(O).all(axis=1)
+    if plan.info.has_energy:
+        good &= np.isfinite(out.E)
+    if good.all():
+        return out, O, False
+    keep = max(1, int(np.argmin(good)))  # row 0 is checked finite by plan.resolve
+    cut = replace(
+        out,
+        status=STATUS_DIVERGED,
+        stop=None,
+        t=out.t[:keep],
+        x=out.x[:keep],
+        E=out.E[:keep],
+        V=out.V[:keep],
+        t_end=float(out.t[keep - 1]),
+    )
+    _finite_stats(cut)
+    return cut, O[:keep], True
+
+
+def _finite_stats(out: LoopOutput) -> None:
+    """Maxima of a diverged run recomputed over the rows kept when they overflowed."""
+    stats = out.stats
+    if not np.isfinite(stats[STATS_MAX_DRIFT]):
+        E = out.E
+        stats[STATS_MAX_DRIFT] = float(np.max(np.abs(E - E[0]))) if np.isfinite(E).all() else 0.0
+    viol = stats[STATS_VIOL:]
+    bad = ~np.isfinite(viol)
+    if bad.any():
+        viol[bad] = np.max(np.abs(out.V), axis=0)[bad]
+
+
+def _ending(plan: Plan, out: LoopOutput, overflow: bool) -> tuple[str, str]:
+    j2 = out.status == STATUS_J2_SINGULAR
+    facts = {
+        "steps": out.steps,
+        "method": plan.integrator.name,
+        "t_final": plan.t_final,
+        "t_end": out.t_end,
+        "matrix": "J2" if j2 else "T",
+        "rcond": out.stats[STATS_RCOND_J2] if j2 else out.stats[STATS_RCOND_T],
+        "rcond_min": plan.rcond_min,
+        "projection": plan.projection.name,
+        "max_steps": LIMITS["max_steps"],
+        "max_rows": LIMITS["max_rows"],
+    }
+    if overflow:
+        return OVERFLOW.status, OVERFLOW.message.format(**facts)
+    hint = plan.system.singular_hints.get(plan.variant, "")
+    return ending(out.status, out.stop, facts, out.fail_msg, hint)
+
+
+def _arrays(plan: Plan, out: LoopOutput, O: np.ndarray) -> Run:
+    """The run's arrays by name: the state (with the outputs), energy, violations."""
+    md = plan.info
+    state = {name: out.x[:, i].copy() for i, name in enumerate(md.state_names)}
+    for i, name in enumerate(md.outputs):
+        state[name] = O[:, i].copy()  # contiguous, like every other array
+    state = {k: state[k] for k in built(plan.system).state_names if k in state}
+    return Run(
+        system=plan.system.name,
+        settings=plan.settings,
+        t=out.t.copy(),
+        state=state,
+        energy=out.E.copy() if md.has_energy else None,
+        violation={k: out.V[:, i].copy() for i, k in enumerate(md.viol_names)},
+        summary={},
+    )
+
+
+def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float, load: float) -> dict:
+    md, stats = plan.info, out.stats
+    E = out.E if md.has_energy else None
+    return {
+        "status": status,
+        "message": message,
+        "steps": int(out.steps),
+        "rhs_evals": int(out.evals),
+        "wall_time_s": wall,
+        "kernel_load_s": load,
+        "t_end": float(out.t_end),
+        "max_abs_violation": {k: float(stats[STATS_VIOL + i]) for i, k in enumerate(md.viol_names)},
+        "max_abs_energy_drift": float(stats[STATS_MAX_DRIFT]) if E is not None else None,
+        "final_energy_drift": float(E[-1] - E[0]) if E is not None else None,
+        "min_rcond": {"J2": float(stats[STATS_RCOND_J2]), "T": float(stats[STATS_RCOND_T])},
+        "warnings": list(plan.warnings),
+        "switches": out.switches,
+        "initial_correction": dict(plan.initial_correction),
+    }
+
+
+def _validated(summary: dict) -> dict:
+    """The summary through the schema (:class:`RunSummary`), numbers that overflowed made the
+    largest finite ones (JSON has no infinity) and named in a warning."""
+    fixed: list[str] = []
+    summary = _finite_copy(summary, "", fixed)
+    if fixed:
+        summary["warnings"] = [
+            *summary.get("warnings", []),
+            "overflowed to infinity, reported as ±1.8e308: " + ", ".join(fixed),
+        ]
+    return RunSummary.model_validate(summary).model_dump(mode="json", by_alias=True)
+
+
+def _finite_copy(value, path: str, fixed: list[str]):
+    if isinstance(value, float) and not math.isfinite(value):
+        fixed.append(path)
+        return -FLOAT_MAX if value < 0 else FLOAT_MAX
+    if isinstance(value, dict):
+        return {k: _finite_copy(v, f"{path}.{k}" if path else str(k), fixed) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_finite_copy(v, f"{path}[{i}]", fixed) for i, v in enumerate(value)]
+    return value
