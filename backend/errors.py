@@ -20,6 +20,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 from fastapi import FastAPI, Request
@@ -33,7 +34,18 @@ from nmkane_core.schema import RunSettings
 
 from .store import StoreFull
 
-__all__ = ["ErrorItem", "ErrorResponse", "error_response", "install_error_handlers", "plain"]
+__all__ = [
+    "ErrorItem",
+    "ErrorResponse",
+    "HANDLERS",
+    "error_doc",
+    "error_response",
+    "install_error_handlers",
+    "item",
+    "not_found",
+    "plain",
+    "too_large",
+]
 
 log = logging.getLogger("nmkane.backend")
 
@@ -144,6 +156,24 @@ def _short_msg(msg: str) -> str:
     return re.sub(rf"\S{{{MAX_ECHO + 1},}}", lambda m: m.group()[:MAX_ECHO] + "…", msg)
 
 
+def too_large(size: int | None, limit: int) -> dict:
+    """The item of a request body over ``limit`` bytes (``size``: its declared length, if known)."""
+    return item(["body"], "too_large", size, "request body too large", f"at most {limit:,} bytes")
+
+
+def error_doc(description: str, **more: Any) -> dict[str, Any]:
+    """An error answer as the OpenAPI document lists it (``responses=``): the one shape."""
+    return {"model": ErrorResponse, "description": description, **more}
+
+
+def not_found(param: str, value: str, what: str, source: str) -> JSONResponse:
+    """404 for an id that names nothing: ``param`` the path parameter, ``what`` the kind of
+    thing (``run``), ``source`` where ids come from (``POST /api/runs``)."""
+    return error_response(
+        404, [item(["path", param], "not_found", value, f"no {what} with this id", f"an id returned by {source}")]
+    )
+
+
 def error_response(status: int, items: list[dict], headers: dict | None = None) -> JSONResponse:
     return JSONResponse(status_code=status, content={"detail": items}, headers=headers)
 
@@ -205,103 +235,126 @@ def input_error_item(exc: InputError) -> dict:
     return item(loc, kind, exc.value, exc.reason, exc.allowed, msg=str(exc))
 
 
+# -- the handlers: one per kind of error ------------------------------------------------
+async def on_validation_error(request: Request, exc: RequestValidationError) -> JSONResponse:
+    """Schema errors: 422 with one item each; a body not declared as JSON: 415."""
+    if any(isinstance(e.get("input"), (bytes, bytearray)) for e in exc.errors()):
+        # FastAPI hands over the raw bytes when the content type is not JSON
+        return error_response(415, [_not_json(request.headers.get("content-type", ""))])
+    return error_response(422, validation_items(exc))
+
+
+def _not_json(content_type: str) -> dict:
+    return item(
+        ["header", "content-type"],
+        "unsupported_media_type",
+        content_type,
+        "the body is not declared as JSON",
+        "Content-Type: application/json (a JSON object with the run settings)",
+    )
+
+
+async def on_input_error(request: Request, exc: InputError) -> JSONResponse:
+    """nmkane's own checks: 422, one item per field (an error may name several)."""
+    parts = getattr(exc, "errors", None) or [exc]
+    return error_response(422, [input_error_item(e) for e in parts])
+
+
+async def on_store_full(request: Request, exc: StoreFull) -> JSONResponse:
+    """The store at its cap (policy ``refuse``): 507, saying how to make room."""
+    return error_response(
+        507,
+        [
+            item(
+                ["store"],
+                "store_full",
+                None,
+                "the run store is full",
+                "delete runs (DELETE /api/runs/{id}, `nmkane store prune`) or raise "
+                "NMKANE_MAX_STORED_RUNS / NMKANE_MAX_STORE_MB, or set "
+                "NMKANE_STORE_FULL=evict-oldest",
+                msg=str(exc),
+            )
+        ],
+    )
+
+
+async def on_http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
+    """HTTP errors raised by FastAPI and starlette (413, 400, 404, 405, others) in the one shape."""
+    headers = dict(exc.headers or {})
+    status = exc.status_code
+    if status == 413:
+        it = too_large(None, request.app.state.settings.max_request_bytes)
+    elif status == 400:  # FastAPI could not read the body (e.g. not UTF-8)
+        cause = exc.__cause__ or exc.__context__
+        reason = f"{exc.detail}: {type(cause).__name__}: {cause}" if cause else str(exc.detail)
+        it = item(["body"], "invalid_body", None, reason, "a JSON object in UTF-8 with the run settings")
+    elif status == 404:
+        it = item(["path"], "not_found", request.url.path, "no such resource", "the routes listed at /docs")
+    elif status == 405:
+        methods = allowed_methods(request.app.routes, request.url.path)
+        headers["Allow"] = ", ".join(methods)
+        it = item(
+            ["method"], "method_not_allowed", request.method, "method not allowed on this path", ", ".join(methods)
+        )
+    else:
+        it = item([], f"http_{status}", None, str(exc.detail), None, msg=str(exc.detail))
+    return error_response(status, [it], headers=headers)
+
+
+async def on_unexpected(request: Request, exc: Exception) -> JSONResponse:
+    """Anything else: logged with its traceback; the client gets 500 without details."""
+    log.exception("unexpected error on %s %s", request.method, request.url.path)
+    return error_response(
+        500,
+        [
+            item(
+                [],
+                "internal_error",
+                None,
+                type(exc).__name__,
+                msg="internal error: the failure was logged on the server",
+            )
+        ],
+    )
+
+
+def _every_route(routes: Iterable[Any]) -> Iterator[Any]:
+    """The routes of an app, with those of included routers (FastAPI before 0.16x copies them
+    into ``app.routes``; later versions keep an included router as one entry, its routes in
+    ``original_router``)."""
+    for route in routes:
+        inner = getattr(route, "original_router", None)
+        if inner is not None:
+            yield from _every_route(inner.routes)
+        else:
+            yield route
+
+
+def allowed_methods(routes: Iterable[Any], path: str) -> list[str]:
+    """The methods of the first route whose path matches ``path`` — the route documented for it
+    (``/api/runs/x.csv`` also matches ``/api/runs/{run_id}``, declared after it) — with those of
+    every route declared for the same path."""
+    flat = list(_every_route(routes))
+    first = next((r for r in flat if getattr(r, "path_regex", None) is not None and r.path_regex.match(path)), None)
+    if first is None:
+        return []
+    return sorted(
+        {m for r in flat if getattr(r, "path", None) == first.path for m in (getattr(r, "methods", None) or ())}
+    )
+
+
+#: Every error rendered in the one shape above, by the exception that carries it.
+HANDLERS: dict[type[Exception], Any] = {
+    RequestValidationError: on_validation_error,
+    InputError: on_input_error,
+    StoreFull: on_store_full,
+    StarletteHTTPException: on_http_error,
+    Exception: on_unexpected,
+}
+
+
 def install_error_handlers(app: FastAPI) -> None:
     """Render every error in the one shape above."""
-
-    @app.exception_handler(RequestValidationError)
-    async def _validation(request: Request, exc: RequestValidationError):
-        if any(isinstance(e.get("input"), (bytes, bytearray)) for e in exc.errors()):
-            # FastAPI hands over the raw bytes when the content type is not JSON
-            kind = request.headers.get("content-type", "")
-            return error_response(
-                415,
-                [
-                    item(
-                        ["header", "content-type"],
-                        "unsupported_media_type",
-                        kind,
-                        "the body is not declared as JSON",
-                        "Content-Type: application/json (a JSON object with the run settings)",
-                    )
-                ],
-            )
-        return error_response(422, validation_items(exc))
-
-    @app.exception_handler(InputError)
-    async def _input_error(request: Request, exc: InputError):
-        parts = getattr(exc, "errors", None) or [exc]  # several fields at once: one item each
-        return error_response(422, [input_error_item(e) for e in parts])
-
-    @app.exception_handler(StoreFull)
-    async def _store_full(request: Request, exc: StoreFull):
-        return error_response(
-            507,
-            [
-                item(
-                    ["store"],
-                    "store_full",
-                    None,
-                    "the run store is full",
-                    "delete runs (DELETE /api/runs/{id}, `nmkane store prune`) or raise "
-                    "NMKANE_MAX_STORED_RUNS / NMKANE_MAX_STORE_MB, or set "
-                    "NMKANE_STORE_FULL=evict-oldest",
-                    msg=str(exc),
-                )
-            ],
-        )
-
-    @app.exception_handler(StarletteHTTPException)
-    async def _http_error(request: Request, exc: StarletteHTTPException):
-        headers = dict(exc.headers or {})
-        status = exc.status_code
-        if status == 413:
-            limit = request.app.state.settings.max_request_bytes
-            it = item(["body"], "too_large", None, "request body too large", f"at most {limit:,} bytes")
-        elif status == 400:  # FastAPI could not read the body (e.g. not UTF-8)
-            cause = exc.__cause__ or exc.__context__
-            reason = f"{exc.detail}: {type(cause).__name__}: {cause}" if cause else str(exc.detail)
-            it = item(["body"], "invalid_body", None, reason, "a JSON object in UTF-8 with the run settings")
-        elif status == 404:
-            it = item(["path"], "not_found", request.url.path, "no such resource", "the routes listed at /docs")
-        elif status == 405:
-            # the methods of the first route whose path matches (the one documented for it:
-            # /api/runs/x.csv also matches /api/runs/{run_id}, declared after it)
-            first = next(
-                (
-                    route
-                    for route in request.app.routes
-                    if getattr(route, "path_regex", None) is not None and route.path_regex.match(request.url.path)
-                ),
-                None,
-            )
-            methods = sorted(
-                {
-                    m
-                    for route in request.app.routes
-                    if first is not None and getattr(route, "path", None) == first.path
-                    for m in (getattr(route, "methods", None) or ())
-                }
-            )
-            headers["Allow"] = ", ".join(methods)
-            it = item(
-                ["method"], "method_not_allowed", request.method, "method not allowed on this path", ", ".join(methods)
-            )
-        else:
-            it = item([], f"http_{status}", None, str(exc.detail), None, msg=str(exc.detail))
-        return error_response(status, [it], headers=headers)
-
-    @app.exception_handler(Exception)
-    async def _unexpected(request: Request, exc: Exception):
-        log.exception("unexpected error on %s %s", request.method, request.url.path)
-        return error_response(
-            500,
-            [
-                item(
-                    [],
-                    "internal_error",
-                    None,
-                    type(exc).__name__,
-                    msg="internal error: the failure was logged on the server",
-                )
-            ],
-        )
+    for kind, handler in HANDLERS.items():
+        app.add_exception_handler(kind, handler)

@@ -1,12 +1,21 @@
 """What stands between the network and the REST API: Host allow-list, token, read deadline.
 
+The rule for hosts and tokens is the one the web app's server keeps too,
+:mod:`nmkane_core.access`; here it is applied to ASGI requests.
+
 * :class:`HostCheck` (ASGI): a request whose ``Host`` is neither one of the allowed names nor
   an IP address gets 400 (DNS rebinding: a page on ``evil.example`` that resolves to
   127.0.0.1 sends ``Host: evil.example``).  Loopback names are always allowed; ``nmkane
-  serve`` adds the bound address and ``--allow-host`` names.
+  serve`` adds the bound address and ``--allow-host`` names.  (starlette's
+  ``TrustedHostMiddleware`` does not fit: it has no rule for IP addresses and answers in
+  plain text, not in the service's error shape.)
 * :class:`TokenCheck` (ASGI): with a token configured, every request that writes (not GET,
-  HEAD or OPTIONS) must carry ``Authorization: Bearer <token>``; otherwise 401.
-  ``nmkane serve`` makes one (``secrets``) when it binds a non-loopback address.
+  HEAD or OPTIONS) must carry ``Authorization: Bearer <token>``; otherwise 401 with a
+  ``WWW-Authenticate`` header.  The header is read as FastAPI's ``HTTPBearer`` reads it
+  (``get_authorization_scheme_param``; the scheme in any case); ``HTTPBearer`` itself, a
+  dependency of each route, would not guard paths without a route, and would change the
+  OpenAPI document whether a token is configured or not.  ``nmkane serve`` makes a token
+  (:func:`nmkane_core.access.new_token`) when it binds a non-loopback address.
 * :func:`read_deadline_protocol`: uvicorn's HTTP protocol with a deadline on reading a
   request — its head and its body — so a client that stops sending is answered 408 and
   disconnected instead of holding a connection for ever (uvicorn's own ``timeout_keep_alive``
@@ -16,105 +25,52 @@
 from __future__ import annotations
 
 import asyncio
-import ipaddress
-import secrets
-from collections.abc import Iterable
+
+from fastapi.security.utils import get_authorization_scheme_param
+
+from nmkane_core.access import HostAllowList, token_matches
 
 from .errors import error_response, item
 
-__all__ = [
-    "LOOPBACK_NAMES",
-    "HostCheck",
-    "TokenCheck",
-    "allowed_host_names",
-    "host_allowed",
-    "host_name",
-    "is_loopback",
-    "new_token",
-    "read_deadline_protocol",
-]
-
-LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+__all__ = ["HostCheck", "TokenCheck", "read_deadline_protocol"]
 
 
-def new_token() -> str:
-    """A fresh access token: 192 random bits, URL-safe."""
-    return secrets.token_urlsafe(24)
-
-
-def is_loopback(host: str) -> bool:
-    """True for a loopback address or ``localhost`` (what ``--host`` may bind without a token)."""
-    host = host.strip("[]").lower()
-    if host == "localhost" or host.endswith(".localhost"):
-        return True
-    try:
-        return ipaddress.ip_address(host).is_loopback
-    except ValueError:
-        return False
-
-
-def host_name(value: str) -> str:
-    """The name in a ``Host`` header, without the port (``[::1]:8000`` → ``::1``), lower case."""
-    value = value.strip().lower()
-    if value.startswith("["):
-        return value[1 : value.find("]")] if "]" in value else value
-    if value.count(":") == 1:
-        return value.split(":", 1)[0]
-    return value
-
-
-def allowed_host_names(bound: str | None = None, extra: Iterable[str] = ()) -> tuple[str, ...]:
-    """Loopback names, the bound address (unless a wildcard) and ``extra`` names."""
-    names = list(LOOPBACK_NAMES)
-    if bound and bound not in ("0.0.0.0", "::", ""):
-        names.append(host_name(bound) if bound.startswith("[") else bound.lower())
-    names += [host_name(n) if ":" in n and not n.count(":") > 1 else n.strip("[]").lower() for n in extra]
-    return tuple(dict.fromkeys(names))
-
-
-def _is_ip(name: str) -> bool:
-    try:
-        ipaddress.ip_address(name)
-        return True
-    except ValueError:
-        return False
-
-
-def host_allowed(name: str, allowed: Iterable[str]) -> bool:
-    """``name`` (from :func:`host_name`) is an allowed name or an IP address: a browser that
-    addresses a server by IP involves no DNS, so no rebinding."""
-    return name in allowed or _is_ip(name)
+def _header(scope, name: bytes) -> str | None:
+    """A request header's value (the first, as text), or None."""
+    raw = next((v for k, v in scope.get("headers") or () if k == name), None)
+    return None if raw is None else raw.decode("latin-1")
 
 
 class HostCheck:
-    """Pure ASGI: refuse (400) requests whose ``Host`` is neither in ``allowed`` (names without
-    port) nor an IP address."""
+    """Pure ASGI: refuse (400) requests whose ``Host`` the allow-list ``rule`` does not admit
+    (neither one of its names nor an IP address)."""
 
-    def __init__(self, app, allowed: Iterable[str]):
+    def __init__(self, app, rule: HostAllowList):
         self.app = app
-        self.allowed = frozenset(n.lower() for n in allowed)
+        self.rule = rule
 
     async def __call__(self, scope, receive, send):
         if scope["type"] not in ("http", "websocket"):
             return await self.app(scope, receive, send)
-        raw = next((v for k, v in scope.get("headers") or () if k == b"host"), b"")
-        name = host_name(raw.decode("latin-1"))
-        if host_allowed(name, self.allowed):
+        host = _header(scope, b"host") or ""
+        if self.rule.admits(host):
             return await self.app(scope, receive, send)
-        response = error_response(
+        return await self.refusal(host)(scope, receive, send)
+
+    def refusal(self, host: str):
+        allowed = "Host: " + ", ".join(sorted(self.rule.names))
+        return error_response(
             400,
             [
                 item(
                     ["header", "host"],
                     "host_not_allowed",
-                    raw.decode("latin-1"),
+                    host,
                     "this server does not answer to that host name (a protection against DNS rebinding)",
-                    "Host: " + ", ".join(sorted(self.allowed)) + " (add names with `nmkane serve --allow-host NAME` "
-                    "or NMKANE_ALLOWED_HOSTS)",
+                    allowed + " (add names with `nmkane serve --allow-host NAME` or NMKANE_ALLOWED_HOSTS)",
                 )
             ],
         )
-        return await response(scope, receive, send)
 
 
 class TokenCheck:
@@ -124,30 +80,32 @@ class TokenCheck:
 
     def __init__(self, app, token: str):
         self.app = app
-        self.expected = f"Bearer {token}".encode()
+        self.token = token
 
     async def __call__(self, scope, receive, send):
         if scope["type"] != "http" or scope["method"] in self.READ_METHODS:
             return await self.app(scope, receive, send)
-        given = next((v for k, v in scope.get("headers") or () if k == b"authorization"), b"")
-        if secrets.compare_digest(given, self.expected):
+        header = _header(scope, b"authorization")
+        scheme, given = get_authorization_scheme_param(header)
+        if scheme.lower() == "bearer" and token_matches(given, self.token):
             return await self.app(scope, receive, send)
-        response = error_response(
+        return await self.refusal(sent=bool(header))(scope, receive, send)
+
+    @staticmethod
+    def refusal(sent: bool):
+        return error_response(
             401,
             [
                 item(
                     ["header", "authorization"],
                     "unauthorized",
                     None,
-                    "missing or wrong access token"
-                    if given
-                    else "this service asks for an access token to change runs",
+                    "missing or wrong access token" if sent else "this service asks for an access token to change runs",
                     "Authorization: Bearer <the token printed by `nmkane serve` at start>",
                 )
             ],
             headers={"WWW-Authenticate": 'Bearer realm="nmkane"'},
         )
-        return await response(scope, receive, send)
 
 
 _TIMEOUT_BODY = (

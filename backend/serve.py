@@ -45,9 +45,11 @@ from typing import Any
 
 import uvicorn
 
+from nmkane_core.access import allowed_host_names, is_loopback, new_token
+
 from .app import create_app
 from .config import Settings
-from .guard import allowed_host_names, is_loopback, new_token, read_deadline_protocol
+from .guard import read_deadline_protocol
 
 __all__ = ["serve", "AppProcess", "APP_GROUP", "WARM_JOIN_S"]
 
@@ -202,6 +204,81 @@ def _auth(host: str, auth: bool, settings: Settings) -> str | None:
     return new_token()
 
 
+def _exposed(settings: Settings, host: str, auth: bool, allow_hosts: tuple[str, ...]) -> Settings:
+    """The settings for serving on ``host``: the token (see :func:`_auth`) and every allowed host
+    name (loopback names, ``host``, the configured and the ``allow_hosts`` names)."""
+    token = _auth(host, auth, settings)
+    if not is_loopback(host) and token is None:
+        print(
+            f"nmkane: WARNING: serving {host} without an access token (--no-auth): anyone who can reach "
+            "these ports can run and delete runs",
+            flush=True,
+        )
+    allowed = allowed_host_names(host, (*settings.allowed_hosts, *allow_hosts))
+    return settings.model_copy(update={"token": token, "allowed_hosts": allowed})
+
+
+def _url_host(host: str) -> str:
+    return f"[{host}]" if ":" in host else host
+
+
+def _announce_api(host: str, port: int, settings: Settings) -> None:
+    url = f"http://{_url_host(host)}:{port}"
+    print(f"nmkane REST API    {url}/api   (docs: {url}/docs; runs stored in {settings.database})", flush=True)
+    if settings.token:
+        print(f"nmkane access token {settings.token}   (REST writes: 'Authorization: Bearer <token>')", flush=True)
+
+
+def _start_web(host: str, port: int, settings: Settings, options: dict, in_process: bool):
+    """Start the web app (a child process unless ``in_process``) and print its URL; None when
+    it is not installed (the REST API serves alone)."""
+    try:
+        _web_app() if in_process else _check_web_app()
+    except ImportError as e:  # the 3D web app is optional for the API
+        log.warning("3D web app not available (%s); serving the REST API only", e)
+        print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
+        return None
+    options = {**options, "token": settings.token, "allowed_hosts": settings.allowed_hosts}
+    handle = _web_app()(host, port, **options) if in_process else AppProcess(host, port, options)
+    query = f"?token={settings.token}" if settings.token else ""
+    url = getattr(handle, "url", None) or f"http://{_url_host(host)}:{handle.port}/{query}"
+    print(f"nmkane 3D web app  {url}", flush=True)
+    return handle
+
+
+def _catch_stop_signals(stopping: list[int]) -> dict:
+    """In the main thread, SIGINT and SIGTERM append to ``stopping``; returns the previous handlers.
+
+    The handler only appends to a list: no lock.  (It used to call Event.set(); a second
+    signal arriving while the first handler held the Event's lock — Ctrl-C twice, or a
+    supervisor forwarding SIGTERM on top of its own — deadlocked the main thread for good.)"""
+    previous = {}
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            previous[sig] = signal.signal(sig, lambda signum, _frame: stopping.append(signum))
+    return previous
+
+
+def _wait_for_stop(stopping: list[int], api_thread: threading.Thread) -> None:
+    print("press Ctrl-C to stop", flush=True)
+    while not stopping:
+        time.sleep(0.2)  # a signal interrupts the sleep; its handler runs here
+        if not api_thread.is_alive():
+            log.error("the REST API stopped unexpectedly")
+            return
+
+
+def _stop_all(handle, server: uvicorn.Server | None, thread: threading.Thread | None) -> None:
+    """Stop the web app, then the REST API (runs in flight are stored first)."""
+    if handle is not None:
+        try:
+            handle.stop()
+        except Exception:  # keep stopping the API
+            log.exception("stopping the 3D web app failed")
+    if server is not None and thread is not None:
+        _stop_api(server, thread)
+
+
 def serve(
     host: str = "127.0.0.1",
     api_port: int = 8000,
@@ -233,67 +310,21 @@ def serve(
     ignored.  The previous handlers come back only when ``serve`` returns for another
     reason (the API stopped).
     """
-    settings = settings if settings is not None else Settings()
-    settings.token = _auth(host, auth, settings)
-    settings.allowed_hosts = allowed_host_names(host, (*settings.allowed_hosts, *allow_hosts))
-    if not is_loopback(host) and settings.token is None:
-        print(
-            f"nmkane: WARNING: serving {host} without an access token (--no-auth): anyone who can reach "
-            "these ports can run and delete runs",
-            flush=True,
-        )
-    # The handler only appends to a list: no lock.  (It used to call Event.set(); a second
-    # signal arriving while the first handler held the Event's lock — Ctrl-C twice, or a
-    # supervisor forwarding SIGTERM on top of its own — deadlocked the main thread for good.)
+    settings = _exposed(settings if settings is not None else Settings(), host, auth, allow_hosts)
+    options = dict(app_options or {})
+    if max_sessions is not None:
+        options["max_sessions"] = max_sessions
     stopping: list[int] = []
-    in_main = threading.current_thread() is threading.main_thread()
-    previous = {}
-    if in_main:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            previous[sig] = signal.signal(sig, lambda signum, _frame: stopping.append(signum))
-    handle = None
-    server = thread = None
+    previous = _catch_stop_signals(stopping)
+    handle = server = thread = None
     try:
         server, thread, port = _start_api(host, api_port, settings)
-        url_host = f"[{host}]" if ":" in host else host
-        print(
-            f"nmkane REST API    http://{url_host}:{port}/api   (docs: http://{url_host}:{port}/docs; "
-            f"runs stored in {settings.database})",
-            flush=True,
-        )
-        query = f"?token={settings.token}" if settings.token else ""
-        if settings.token:
-            print(f"nmkane access token {settings.token}   (REST writes: 'Authorization: Bearer <token>')", flush=True)
+        _announce_api(host, port, settings)
         if web:
-            try:
-                _check_web_app() if app_process else _web_app()
-            except ImportError as e:  # the 3D web app is optional for the API
-                log.warning("3D web app not available (%s); serving the REST API only", e)
-                print(f"nmkane: 3D web app not available ({e}); serving the REST API only", flush=True)
-            else:
-                options = {**(app_options or {}), "token": settings.token, "allowed_hosts": settings.allowed_hosts}
-                if max_sessions is not None:
-                    options["max_sessions"] = max_sessions
-                if app_process:
-                    handle = AppProcess(host, viser_port, options)
-                else:
-                    handle = _web_app()(host, viser_port, **options)
-                web_url = getattr(handle, "url", None) or f"http://{url_host}:{handle.port}/{query}"
-                print(f"nmkane 3D web app  {web_url}", flush=True)
-        print("press Ctrl-C to stop", flush=True)
-        while not stopping:
-            time.sleep(0.2)  # a signal interrupts the sleep; its handler runs here
-            if not thread.is_alive():
-                log.error("the REST API stopped unexpectedly")
-                break
+            handle = _start_web(host, viser_port, settings, options, in_process=not app_process)
+        _wait_for_stop(stopping, thread)
     finally:
-        if handle is not None:
-            try:
-                handle.stop()
-            except Exception:  # keep stopping the API
-                log.exception("stopping the 3D web app failed")
-        if server is not None and thread is not None:
-            _stop_api(server, thread)
+        _stop_all(handle, server, thread)
         for sig, h in previous.items():  # see the docstring: after a signal stop, repeats are ignored
             signal.signal(sig, signal.SIG_IGN if stopping else h)
         if server is not None:

@@ -6,10 +6,11 @@
     GET  /api/sweeps/{id}.csv     the rows as CSV (the columns of ``nmkane sweep --out``)
 
 A sweep is checked before the 202 (every varied value against the system; its size against
-``NMKANE_MAX_SWEEP_RUNS``, default 10,000; its longest run against the service's
-``max_steps``): bad input answers 422 naming the field.  Sweeps run one at a time, their
-batches on the service's worker pool, or on the Dask scheduler named by
-``NMKANE_DASK_SCHEDULER`` (``tcp://HOST:PORT``; its workers need nmkane installed).  Rows are
+the setting ``max_sweep_runs``, ``NMKANE_MAX_SWEEP_RUNS``, default 10,000; its longest run
+against the service's ``max_steps``): bad input answers 422 naming the field.  Sweeps run one
+at a time, their batches on the service's worker pool, or on the Dask scheduler of the
+setting ``dask_scheduler``, ``NMKANE_DASK_SCHEDULER`` (``tcp://HOST:PORT``; its workers need
+nmkane installed).  Rows are
 stored in the service's SQLite file (tables ``sweeps`` and ``sweep_rows``), batch by batch,
 each batch in one transaction.
 
@@ -24,11 +25,11 @@ import contextlib
 import csv
 import io
 import math
-import os
 import secrets
 import threading
+from typing import Annotated
 
-from fastapi import APIRouter, Path, Query, Request
+from fastapi import APIRouter, Depends, FastAPI, Path, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
 
@@ -38,11 +39,14 @@ from nmkane_core.sweep.output import columns as output_columns
 from nmkane_core.sweep.runner import constraint_columns, run_sweep
 from nmkane_core.sweep.spec import SweepSpec, sweep_spec
 
-from .errors import ErrorResponse, error_response, item
+from .config import Settings
+from .deps import AppSettings
+from .errors import error_doc, error_response, item, not_found
 from .models import RunSettings
+from .service import RunService
 from .sweep_store import SweepStore, owner_alive, process_owner
 
-__all__ = ["SweepRequest", "SweepStore", "max_sweep_runs", "owner_alive", "process_owner", "router"]
+__all__ = ["SweepManager", "SweepRequest", "SweepStore", "owner_alive", "process_owner", "router"]
 
 
 @contextlib.asynccontextmanager
@@ -56,15 +60,6 @@ async def _lifespan(app):
 
 router = APIRouter(lifespan=_lifespan)
 SWEEP_ID = Path(description="the sweep's id, as returned by POST /api/sweeps", min_length=1, max_length=64)
-_ERR = {"model": ErrorResponse}
-
-
-def max_sweep_runs() -> int:
-    """Runs per sweep this service accepts (``NMKANE_MAX_SWEEP_RUNS``, default 10,000)."""
-    try:
-        return max(1, int(os.environ.get("NMKANE_MAX_SWEEP_RUNS", "10000")))
-    except ValueError:
-        return 10_000
 
 
 class SweepRequest(BaseModel):
@@ -160,22 +155,23 @@ class PoolExecutor(_Executor):
 class SweepManager:
     """The store and the one thread that runs sweeps in order."""
 
-    def __init__(self, app):
-        self.app = app
-        self.store = SweepStore(app.state.settings.database)
+    def __init__(self, settings: Settings, service: RunService):
+        self.settings, self.service = settings, service
+        self.store = SweepStore(settings.database)
         self.queue = cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="nmkane-sweep")
 
     def executor(self):
-        address = os.environ.get("NMKANE_DASK_SCHEDULER", "").strip()
-        limit = self.app.state.settings.max_wall_time_s
-        if address:
+        limit = self.settings.max_wall_time_s
+        if self.settings.dask_scheduler is not None:
             from nmkane_core.sweep.executors import DaskExecutor
 
-            return DaskExecutor(address, time_limit=limit)
-        svc = self.app.state.service
-        if svc.pool is None:
-            svc.start()
-        return PoolExecutor(svc.pool, self.app.state.settings.max_concurrent_runs, time_limit=limit)
+            return DaskExecutor(self.settings.dask_scheduler, time_limit=limit)
+        if self.service.pool is None:
+            self.service.start()
+        pool = self.service.pool
+        if pool is None:  # stopped meanwhile
+            raise RuntimeError("the run service is stopping")
+        return PoolExecutor(pool, self.settings.max_concurrent_runs, time_limit=limit)
 
     def run(self, sweep_id: str, base: dict, spec: SweepSpec) -> None:
         self.store.set_status(sweep_id, "running")
@@ -188,18 +184,21 @@ class SweepManager:
             self.store.set_status(sweep_id, "failed", f"{type(e).__name__}: {e}")
 
 
-def _manager(request: Request) -> SweepManager:
-    return _manager_of(request.app)
-
-
-def _manager_of(app) -> SweepManager:
+def _manager_of(app: FastAPI) -> SweepManager:
+    """The app's sweep manager, made at its first use (the lifespan's start, or a request)."""
     with _LOCK:
         m = getattr(app.state, "sweeps", None)
         if m is None:
-            m = app.state.sweeps = SweepManager(app)
+            m = app.state.sweeps = SweepManager(app.state.settings, app.state.service)
     return m
 
 
+async def get_sweeps(request: Request) -> SweepManager:
+    """The app's sweep manager (a dependency of the routes)."""
+    return _manager_of(request.app)
+
+
+Sweeps = Annotated[SweepManager, Depends(get_sweeps)]
 _LOCK = threading.Lock()
 _FIELDS = {"--grid": "grid", "--log-grid": "log_grid", "--sample": "sample", "--samples": "samples"}
 
@@ -216,12 +215,12 @@ def _unprocessable(e: InputError):
     return error_response(422, [item(loc, "value_error", e.value, e.reason, e.allowed, msg=msg)])
 
 
-def _check_limits(base: dict, spec: SweepSpec, max_steps: int) -> None:
+def _check_limits(base: dict, spec: SweepSpec, settings: Settings) -> None:
     from nmkane_core.run.plan import resolve
     from nmkane_core.sweep.runner import _axis_values
     from nmkane_core.sweep.spec import apply_point
 
-    limit = max_sweep_runs()
+    limit, max_steps = settings.max_sweep_runs, settings.max_steps
     if len(spec) > limit:
         raise InputError(
             "--grid",
@@ -252,28 +251,29 @@ def _check_limits(base: dict, spec: SweepSpec, max_steps: int) -> None:
     response_model=SweepCreated,
     operation_id="create_sweep",
     responses={
-        400: {**_ERR, "description": "the body could not be read as text (e.g. not UTF-8)"},
-        413: {**_ERR, "description": "request body larger than max_request_bytes"},
-        415: {**_ERR, "description": "the body is not declared as JSON (Content-Type)"},
-        422: {**_ERR, "description": "a bad specification, or a sweep over this service's limits"},
+        400: error_doc("the body could not be read as text (e.g. not UTF-8)"),
+        413: error_doc("request body larger than max_request_bytes"),
+        415: error_doc("the body is not declared as JSON (Content-Type)"),
+        422: error_doc("a bad specification, or a sweep over this service's limits"),
     },
 )
-def create_sweep(body: SweepRequest, request: Request):
+def create_sweep(body: SweepRequest, sweeps: Sweeps, settings: AppSettings):
     """Start a sweep; answers 202 with its id (fetch progress and rows with GET /api/sweeps/{id})."""
     from nmkane_core.sweep.runner import check_spec
 
     base = body.settings.model_dump(exclude_none=True)
     try:
-        spec = sweep_spec(body.grid, body.log_grid, body.sample, body.samples, body.seed, max_points=max_sweep_runs())
+        spec = sweep_spec(
+            body.grid, body.log_grid, body.sample, body.samples, body.seed, max_points=settings.max_sweep_runs
+        )
         check_spec(base, spec)
-        _check_limits(base, spec, request.app.state.settings.max_steps)
+        _check_limits(base, spec, settings)
         columns = output_columns(spec.names, constraint_columns(base, spec))
     except InputError as e:
         return _unprocessable(e)
-    m = _manager(request)
     sweep_id = secrets.token_urlsafe(12)
-    m.store.create(sweep_id, base["system"], len(spec), body.model_dump(mode="json"), columns)
-    m.queue.submit(m.run, sweep_id, base, spec)
+    sweeps.store.create(sweep_id, base["system"], len(spec), body.model_dump(mode="json"), columns)
+    sweeps.queue.submit(sweeps.run, sweep_id, base, spec)
     return JSONResponse(
         {"id": sweep_id, "status": "queued", "total": len(spec)},
         status_code=202,
@@ -281,19 +281,8 @@ def create_sweep(body: SweepRequest, request: Request):
     )
 
 
-def _not_found(sweep_id):
-    return error_response(
-        404,
-        [
-            item(
-                ["path", "sweep_id"],
-                "not_found",
-                sweep_id,
-                "no sweep with this id",
-                "an id returned by POST /api/sweeps",
-            )
-        ],
-    )
+def _no_sweep(sweep_id: str):
+    return not_found("sweep_id", sweep_id, "sweep", "POST /api/sweeps")
 
 
 @router.get(
@@ -301,16 +290,15 @@ def _not_found(sweep_id):
     operation_id="get_sweep_csv",
     responses={404: {"description": "no sweep with this id"}},
 )
-def get_sweep_csv(request: Request, sweep_id: str = SWEEP_ID):
+def get_sweep_csv(sweeps: Sweeps, sweep_id: str = SWEEP_ID):
     """The rows so far as CSV (the columns of ``nmkane sweep --out FILE.csv``)."""
-    m = _manager(request)
-    state = m.store.get(sweep_id)
+    state = sweeps.store.get(sweep_id)
     if state is None:
-        return _not_found(sweep_id)
+        return _no_sweep(sweep_id)
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(state["columns"])
-    for r in m.store.rows(sweep_id):
+    for r in sweeps.store.rows(sweep_id):
         w.writerow(
             ["" if r.get(c) is None else repr(r[c]) if isinstance(r.get(c), float) else r[c] for c in state["columns"]]
         )
@@ -323,17 +311,16 @@ def get_sweep_csv(request: Request, sweep_id: str = SWEEP_ID):
     "/api/sweeps/{sweep_id}",
     response_model=SweepState,
     operation_id="get_sweep",
-    responses={404: {**_ERR, "description": "no sweep with this id"}},
+    responses={404: error_doc("no sweep with this id")},
 )
 def get_sweep(
-    request: Request,
+    sweeps: Sweeps,
     sweep_id: str = SWEEP_ID,
     offset: int = Query(0, ge=0, description="rows to skip"),
     limit: int = Query(1000, ge=1, le=10_000, description="rows to return"),
 ):
     """Status, progress (``done`` of ``total``) and the rows so far, in completion order."""
-    m = _manager(request)
-    state = m.store.get(sweep_id)
+    state = sweeps.store.get(sweep_id)
     if state is None:
-        return _not_found(sweep_id)
-    return {**state, "rows": m.store.rows(sweep_id, offset, limit), "offset": offset}
+        return _no_sweep(sweep_id)
+    return {**state, "rows": sweeps.store.rows(sweep_id, offset, limit), "offset": offset}

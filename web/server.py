@@ -34,9 +34,7 @@ from __future__ import annotations
 
 import contextlib
 import gc
-import ipaddress
 import os
-import secrets
 import signal
 import threading
 import time
@@ -44,6 +42,7 @@ from urllib.parse import parse_qs, quote, urlsplit
 
 import viser
 
+from nmkane_core.access import HostAllowList, host_name, token_matches
 from nmkane_core.run.registry import get_system
 from nmkane_core.run.simulate import simulate as core_simulate
 
@@ -56,24 +55,8 @@ FPS = 40.0  # poses sent per second at most (the target is ≥ 30 for a few brow
 DUTY = 0.6  # at most this share of the animation thread's time is work: many sessions lower the rate
 REFRESH_HZ = 4.0  # plot markers, scrubber, readouts
 MAX_SESSIONS = 40  # browsers served at once by default (NMKANE_MAX_SESSIONS)
-LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 TRIM_DELAY_S = 2.0  # after a session closes, return its memory this much later
 REJECTED = 1002  # close code viser's client shows as "Connection rejected: <reason>"
-
-
-def _host_name(value: str) -> str:
-    value = value.strip().lower()
-    if value.startswith("["):
-        return value[1 : value.find("]")] if "]" in value else value
-    return value.split(":", 1)[0] if value.count(":") == 1 else value
-
-
-def _is_ip(name: str) -> bool:
-    try:
-        ipaddress.ip_address(name)
-        return True
-    except ValueError:
-        return False
 
 
 def _reachable(host: str) -> str:
@@ -166,7 +149,7 @@ class WebApp:
         self.max_sessions = _max_sessions_default() if max_sessions is None else int(max_sessions)
         if self.max_sessions < 1:
             raise ValueError(f"max_sessions = {max_sessions!r}: an integer ≥ 1 is needed")
-        self.allowed_hosts = frozenset([*LOOPBACK_NAMES, _host_name(host), *(_host_name(h) for h in allowed_hosts)])
+        self.allowed_hosts = HostAllowList.of(host, allowed_hosts)  # the REST API's rule (nmkane_core.access)
         self._admitted: set[int] = set()  # connections past the gate (sessions or about to be)
         self._trim_due: float | None = None  # when to return closed sessions' memory (monotonic)
         self.rejected = 0
@@ -210,15 +193,14 @@ class WebApp:
         """Why a websocket handshake is turned away (None: admitted); checks Host, Origin, token."""
         headers = request.headers
         host = headers.get("Host", "")
-        name = _host_name(host)
-        if name not in self.allowed_hosts and not _is_ip(name):
-            return f"host {name[:40]!r} not allowed (nmkane serve --allow-host)"
+        if not self.allowed_hosts.admits(host):
+            return f"host {host_name(host)[:40]!r} not allowed (nmkane serve --allow-host)"
         origin = headers.get("Origin")
         if origin is not None and urlsplit(origin).netloc.lower() != host.lower():
             return "cross-origin connection refused"
         if self.token is not None:
             given = parse_qs(urlsplit(request.path).query).get("token", [""])[0]
-            if not secrets.compare_digest(given.encode(), self.token.encode()):
+            if not token_matches(given, self.token):
                 return "access token missing or wrong: open the URL nmkane serve printed"
         return None
 
@@ -244,11 +226,11 @@ class WebApp:
 
         def process_request(connection, request):
             if request.headers.get("Upgrade", "").lower() != "websocket":  # the websocket: see _gate
-                name = _host_name(request.headers.get("Host", ""))
-                if name not in self.allowed_hosts and not _is_ip(name):
+                host = request.headers.get("Host", "")
+                if not self.allowed_hosts.admits(host):
                     self.rejected += 1
                     return connection.respond(
-                        HTTPStatus.FORBIDDEN, f"host {name[:40]!r} not allowed (nmkane serve --allow-host)\n"
+                        HTTPStatus.FORBIDDEN, f"host {host_name(host)[:40]!r} not allowed (nmkane serve --allow-host)\n"
                     )
             return original(connection, request) if original is not None else None
 
