@@ -46,19 +46,25 @@ try:
 except metadata.PackageNotFoundError:  # running from a source tree without install
     VERSION = "0.1.0"
 
-DESCRIPTION = (
-    "Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005) as a service: run "
-    "simulations of the Appell–Hamel mechanism and the sliding particle, and fetch "
-    "them later by id. Limits are listed in GET /api/systems under `service_limits`. "
-    'Every error answers `{"detail": [{loc, field, value, reason, allowed, msg, type}]}`.'
-)
+
+def description() -> str:
+    """The OpenAPI description, naming the systems registered when the app is made."""
+    from nmkane_core.run.registry import get_system, system_names
+
+    systems = "; ".join(f"`{n}` ({get_system(n).title or n})" for n in system_names())
+    return (
+        "Nonminimal Kane's equations (Bajodah, Hodges & Chen 2005) as a service: run simulations of "
+        f"any registered system — here {systems} — and fetch them later by id. GET /api/systems lists "
+        "each one's parameters, variants, constraints and defaults; limits are listed there under "
+        '`service_limits`. Every error answers `{"detail": [{loc, field, value, reason, allowed, msg, type}]}`.'
+    )
 
 
 def create_app(settings: Settings | None = None) -> FastAPI:
     """The FastAPI app (one per settings; tests build one against a temporary database)."""
     settings = settings if settings is not None else Settings()
     app = FastAPIOffline(  # /docs served with local assets: works offline
-        title="nmkane", version=VERSION, description=DESCRIPTION, lifespan=_lifespan
+        title="nmkane", version=VERSION, description=description(), lifespan=_lifespan
     )
     app.state.settings = settings
     app.state.service = RunService(settings)

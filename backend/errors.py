@@ -30,7 +30,7 @@ from pydantic import BaseModel, Field
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from nmkane_core.errors import InconsistentStateError, InputError
-from nmkane_core.schema import RunSettings
+from nmkane_core.schema import RunSettings, allowed, field_range
 
 from .store import StoreFull
 
@@ -200,6 +200,9 @@ _BOUNDS = {"gt": ">", "ge": "≥", "lt": "<", "le": "≤"}
 def _allowed(err: dict) -> str | None:
     ctx = err.get("ctx") or {}
     kind = err.get("type", "")
+    loc = list(err.get("loc") or ())
+    if loc[:1] == ["body"] and len(loc) == 2 and loc[1] in RunSettings.model_fields and field_range(loc[1]):
+        return allowed(loc[1])  # a run setting's range, in the words every face uses
     bounds = [f"{_BOUNDS[k]} {ctx[k]}" for k in ("gt", "ge", "lt", "le") if k in ctx]
     if bounds:
         return "a number " + " and ".join(bounds)

@@ -187,7 +187,7 @@ class RunService:
                 first.append((f"{name} {variant}, adaptive", adaptive))
                 later.append((f"{name} {variant}, fixed step, projected", {**base, "projection": "yoon"}))
                 later.append((f"{name} {variant}, adaptive, projected", {**adaptive, "projection": "yoon"}))
-        first.append(("scipy adapter", {"system": "appell-hamel", "integrator": "rk45", "t_final": 0.05}))
+        first.append(("scipy adapter", {"system": system_names()[0], "integrator": "rk45", "t_final": 0.05}))
         return first, later
 
     def warm(self, report=None, steps=None, title: str = "kernels") -> None:

@@ -30,6 +30,8 @@ SPELLED = {
     "project_initial": "--project-initial",
 }
 GAINS = ("gamma", "gamma1", "gamma2")
+#: options of the commands that are not run settings, by the field name errors use
+COMMAND_OPTIONS = {"out": "--out", "time_limit": "--time-limit"}
 
 
 def option_of(field: str) -> str:
@@ -40,6 +42,8 @@ def option_of(field: str) -> str:
         return f"--init {field.split('.', 1)[1]}"
     if field in SPELLED:
         return SPELLED[field]
+    if field in COMMAND_OPTIONS:
+        return COMMAND_OPTIONS[field]
     if field in RunSettings.model_fields:
         return "--" + field.replace("_", "-")
     return field

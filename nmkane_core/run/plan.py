@@ -157,27 +157,34 @@ def _variant(system: System, s: RunSettings) -> str:
 
 def check_budget(method, dt: float, t_final: float, every: int, max_steps: int, max_rows: int, where: str = "") -> None:
     """A fixed-step run's steps (t_final/dt) and output rows within ``max_steps`` and
-    ``max_rows``; the errors say which ``dt`` or ``every`` would do (``where``: whose limits,
-    e.g. " on this service").  Adaptive and scipy runs are bounded while they run."""
+    ``max_rows``; every violated limit is named at once, with the ``dt`` or ``every`` that would
+    do (``where``: whose limits, e.g. " on this service").  Adaptive and scipy runs are bounded
+    while they run."""
     if not isinstance(method, Tableau) or method.adaptive:
         return
     nsteps = math.ceil(t_final / dt - 1e-9)
+    errors = []
     if nsteps > max_steps:
-        raise InputError(
-            "dt",
-            dt,
-            f"t_final/dt ≤ {max_steps:,} steps{where} (dt ≥ {round_up(t_final / max_steps):.3g} s for "
-            f"t_final = {t_final:g} s)",
-            f"{nsteps:,} steps",
+        errors.append(
+            InputError(
+                "dt",
+                dt,
+                f"t_final/dt ≤ {max_steps:,} steps{where} (dt ≥ {round_up(t_final / max_steps):.3g} s for "
+                f"t_final = {t_final:g} s)",
+                f"{nsteps:,} steps",
+            )
         )
     rows = output_rows(nsteps, every)
     if rows > max_rows:
-        raise InputError(
-            "every",
-            every,
-            f"an integer ≥ {min_every(nsteps, max_rows)} (at most {max_rows:,} output rows{where})",
-            f"{rows:,} rows",
+        errors.append(
+            InputError(
+                "every",
+                every,
+                f"an integer ≥ {min_every(nsteps, max_rows)} (at most {max_rows:,} output rows{where})",
+                f"{rows:,} rows",
+            )
         )
+    raise_all(errors)
 
 
 def _gains(s: RunSettings, system: System, info: ModelInfo, where: str, warnings: list[str]):

@@ -151,8 +151,8 @@ def test_openapi_documents_runs_as_the_run_result_schema(client):
         ({"system": "appell-hamel", "every": 2.5}, "every", "int_type"),
         ({"system": "appell-hamel", "params": ["rho", 1]}, "params", "dict_type"),
         ({"system": 7}, "system", "string_type"),
-        ({"system": "appell-hamel", "dt": 0}, "dt", "greater_than"),  # dt <= 0
-        ({"system": "appell-hamel", "dt": -0.01}, "dt", "greater_than"),
+        ({"system": "appell-hamel", "dt": 0}, "dt", "greater_than_equal"),  # dt < min_dt
+        ({"system": "appell-hamel", "dt": -0.01}, "dt", "greater_than_equal"),
         ({"system": "appell-hamel", "t_final": 0}, "t_final", "greater_than"),
         ({"system": "appell-hamel", "dt": 1e-6, "t_final": 100, "every": 1000}, "dt", "value_error"),  # steps cap
         ({"system": "appell-hamel", "params": {"rho": -1}}, "params.rho", "value_error"),
