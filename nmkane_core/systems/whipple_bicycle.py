@@ -22,7 +22,7 @@ written directly in the benchmark parameters (Meijaard Table 1): the rear frame 
 benchmark frame turned by λ about y, so that C.z is the steer axis; d1, d2, d3 (Moore's
 offsets) and the mass centres l1..l4 follow from w, c, λ, rR, rF, xB, zB, xH, zH.
 
-:mod:`nmkane_core.systems.whipple_bicycle_analysis` has the state of upright straight running at a speed and the
+`nmkane_core.systems.whipple_bicycle_analysis` has the state of upright straight running at a speed and the
 eigenvalues of the linearized roll/steer motion at speeds.
 """
 
@@ -93,7 +93,7 @@ DEFAULT_INITIAL = {
 def _geometry():
     """Symbols, frames and points of the bicycle (sympy.physics.mechanics), shared by the
     model, the visuals and the events: (q, u, par, frames, points), ``par`` the parameters
-    in :data:`PARAM_NAMES` order, ``frames``/``points`` dicts by the names used below."""
+    in `PARAM_NAMES` order, ``frames``/``points`` dicts by the names used below."""
     import sympy as sp
     from sympy.physics import mechanics as me
 
@@ -143,8 +143,8 @@ def _geometry():
 
 
 def _mechanics():
-    """Bodies, loads and constraints (sympy.physics.mechanics), as a dict, for :func:`_model`
-    and for the sympy-route benchmark (:mod:`nmkane_core.bench.rows`)."""
+    """Bodies, loads and constraints (sympy.physics.mechanics), as a dict, for `_model`
+    and for the sympy-route benchmark (`nmkane_core.bench.rows`)."""
     from sympy.physics import mechanics as me
 
     q, u, par, fr, pt, (_, _, _, root) = _geometry()

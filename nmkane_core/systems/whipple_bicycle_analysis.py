@@ -1,9 +1,9 @@
-"""The Whipple bicycle (:mod:`nmkane_core.systems.whipple_bicycle`) about upright straight running.
+"""The Whipple bicycle (`nmkane_core.systems.whipple_bicycle`) about upright straight running.
 
-:func:`upright_state` is the full consistent state at a forward speed, and
-:func:`bicycle_eigenvalues` the eigenvalues of the roll/steer motion linearized there (the
+`upright_state` is the full consistent state at a forward speed, and
+`bicycle_eigenvalues` the eigenvalues of the roll/steer motion linearized there (the
 table behind Meijaard et al. (2007) Fig. 3: capsize, weave and castor modes against speed),
-both through the generic :func:`nmkane_core.analysis.at_state.linearize`.
+both through the generic [`linearize`][nmkane_core.linearize].
 """
 
 from __future__ import annotations
