@@ -11,12 +11,14 @@ MARKER = re.compile(r"^<!-- nmkane:([a-z0-9-]+) -->$", re.MULTILINE)
 
 
 def cell(value: object) -> str:
-    """One table cell: pipes escaped, newlines folded."""
+    """One table cell: pipes escaped outside code spans (inside them a table keeps them), newlines folded."""
     text = "" if value is None else str(value)
-    return text.replace("|", "\\|").replace("\n", " ")
+    parts = text.replace("\n", " ").split("`")
+    return "`".join(p if i % 2 else p.replace("|", "\\|") for i, p in enumerate(parts))
 
 
 def table(header: Sequence[str], rows: Iterable[Sequence[object]]) -> str:
+    """A Markdown table; every cell goes through `cell` here (callers pass raw text)."""
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
     return "\n".join(lines) + "\n"

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 
-from _md import DOCS, cell, code, fill, number, table
+from _md import DOCS, code, fill, number, table
 
 
 @lru_cache(maxsize=1)
@@ -120,8 +120,8 @@ def pages() -> dict[str, str]:
         rows.append(
             (
                 f"[`{name}`]({name}.md)",
-                cell(s["title"]),
-                cell(s["description"]),
+                s["title"],
+                s["description"],
                 ", ".join(s[option + "s"]) if len(s[option + "s"]) > 1 else "",
                 len(s["coordinates"]),
                 ", ".join(s["constraint_names"][s["default_" + option]]),

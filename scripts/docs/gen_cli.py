@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from _md import cell, fill, table
+from _md import fill, table
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -35,7 +35,7 @@ def _option(action: argparse.Action) -> str:
         names = f"`{action.metavar or action.dest}`"
     if action.nargs != 0 and action.option_strings:
         if action.choices:
-            names += " " + "\\|".join(f"`{c}`" for c in action.choices)
+            names += " `{" + ",".join(str(c) for c in action.choices) + "}`"
         else:
             names += f" `{action.metavar or action.dest.upper()}`"
     return names
@@ -59,7 +59,7 @@ def _command(path: list[str], parser: argparse.ArgumentParser, help_text: str, l
     usage = parser.format_usage().removeprefix("usage: ").strip()
     out += ["```text", usage, "```", ""]
     rows = [
-        (_option(a), cell(a.help % {"default": a.default} if a.help and "%(" in a.help else a.help), _default(a))
+        (_option(a), a.help % {"default": a.default} if a.help and "%(" in a.help else a.help, _default(a))
         for a in parser._actions
         if not isinstance(a, (argparse._HelpAction, argparse._SubParsersAction)) and a.help != argparse.SUPPRESS
     ]

@@ -18,7 +18,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 sys.path.insert(0, str(HERE.parents[1]))  # the checkout's nmkane_core, backend (not an installed copy)
-os.environ.setdefault("COLUMNS", "100")  # argparse usage lines wrap at this width
+os.environ["COLUMNS"] = "88"  # argparse wraps usage lines at this width: the width of a code block
 
 import gen_catalogue  # noqa: E402
 import gen_cli  # noqa: E402

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 
-from _md import cell, fill, table
+from _md import fill, table
 
 METHODS = ("get", "post", "put", "patch", "delete")
 
@@ -30,9 +30,9 @@ def _type(schema: dict) -> str:
         return f"[{name}](#{_anchor(name)})"
     for key in ("anyOf", "oneOf", "allOf"):
         if key in schema:
-            return " \\| ".join(_type(s) for s in schema[key])
+            return " or ".join(_type(s) for s in schema[key])
     if "enum" in schema:
-        return " \\| ".join(f"`{json.dumps(v)}`" for v in schema["enum"])
+        return " or ".join(f"`{json.dumps(v)}`" for v in schema["enum"])
     if "const" in schema:
         return f"`{json.dumps(schema['const'])}`"
     t = schema.get("type", "any")
@@ -47,8 +47,17 @@ def _default(schema: dict) -> str:
     return f"`{json.dumps(schema['default'])}`" if "default" in schema else ""
 
 
+def _route_anchor(path: str, method: str) -> str:
+    return "route-" + method + "-" + "-".join(p.replace("{", "").replace("}", "").replace(".", "-") for p in path.split("/") if p)
+
+
+def _first_sentence(op: dict) -> str:
+    text = (op.get("description") or op.get("summary") or "").strip().split("\n\n", 1)[0]
+    return text.split(". ", 1)[0].split("; ", 1)[0].replace("\n", " ").rstrip(".")
+
+
 def _route(path: str, method: str, op: dict) -> list[str]:
-    out = [f"### {method.upper()} `{path}`", ""]
+    out = [f"### {method.upper()} `{path}` {{#{_route_anchor(path, method)}}}", ""]
     if op.get("summary"):
         out += [f"**{op['summary']}.** " + (op.get("description") or "").strip(), ""]
     params = op.get("parameters", [])
@@ -104,7 +113,8 @@ def pages() -> dict[str, str]:
             if method in item:
                 op = item[method]
                 routes += _route(path, method, op)
-                summary.append((f"`{method.upper()} {path}`", cell(op.get("summary", ""))))
+                link = f"[`{method.upper()} {path}`](#{_route_anchor(path, method)})"
+                summary.append((link, _first_sentence(op)))
     schemas: list[str] = []
     for name, schema in sorted(doc.get("components", {}).get("schemas", {}).items()):
         schemas += _schema(name, schema)
