@@ -48,7 +48,8 @@ def _default(schema: dict) -> str:
 
 
 def _route_anchor(path: str, method: str) -> str:
-    return "route-" + method + "-" + "-".join(p.replace("{", "").replace("}", "").replace(".", "-") for p in path.split("/") if p)
+    parts = (p.replace("{", "").replace("}", "").replace(".", "-") for p in path.split("/") if p)
+    return "route-" + method + "-" + "-".join(parts)
 
 
 def _first_sentence(op: dict) -> str:
