@@ -47,3 +47,17 @@ def test_the_run_settings_table_names_every_field_of_run_settings():
             named.update(re.findall(r"`([a-z_0-9]+)`", line.split("|")[1]))
     fields = set(RunSettings.model_fields)
     assert named == fields, f"in the table, not a field: {sorted(named - fields)}; missing: {sorted(fields - named)}"
+
+
+def test_every_public_name_gets_a_reference_page():
+    sys.path.insert(0, str(ROOT / "scripts" / "docs"))
+    try:
+        import gen_reference
+    finally:
+        sys.path.pop(0)
+    import nmkane_core
+
+    pages = gen_reference.pages()
+    assert {f"reference/{name}.md" for name in nmkane_core.__all__} <= set(pages)
+    for name in nmkane_core.__all__:
+        assert f"::: nmkane_core.{name}\n" in pages[f"reference/{name}.md"]
