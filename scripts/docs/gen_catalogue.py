@@ -117,18 +117,17 @@ def pages() -> dict[str, str]:
         else:
             out[page] = f"# {s['title'] or name}\n\n`{name}` — {s['description']}\n\n{facts(s)}"
         option = s["option"]
-        rows.append(
-            (
-                f"[`{name}`]({name}.md)",
-                s["title"],
-                s["description"],
-                ", ".join(s[option + "s"]) if len(s[option + "s"]) > 1 else "",
-                len(s["coordinates"]),
-                ", ".join(s["constraint_names"][s["default_" + option]]),
+        variants = s[option + "s"]
+        constraints = ", ".join(s["constraint_names"][s["default_" + option]])
+        if len(variants) > 1:
+            constraints += (
+                f" ({option} `{s['default_' + option]}`; also "
+                + ", ".join(f"`{v}`" for v in variants if v != s["default_" + option])
+                + ")"
             )
-        )
+        rows.append((f"[{s['title'] or name}]({name}.md)<br>`{name}`", s["description"], constraints))
         nav.append(f"* [{s['title'] or name}]({name}.md)")
-    listing = table(("system", "title", "what it is", "variants", "coordinates", "constraints"), rows)
+    listing = table(("system", "what it is", "constraints"), rows)
     out["catalogue/index.md"] = fill("catalogue/index.md", {"systems": listing})
     out["catalogue/SUMMARY.md"] = "\n".join(nav) + "\n"
     return out
