@@ -3,7 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup setup-dev serve test lint format bench figures clean
+.PHONY: setup setup-dev serve test lint format docs docs-serve bench figures clean
 
 # the app (library, REST service, web app, figures); the dev stamp adds tests and linters
 $(VENV)/.installed-all: pyproject.toml
@@ -35,6 +35,16 @@ format: setup-dev
 	$(BIN)/ruff check --fix nmkane_core backend web tests scripts examples
 	$(BIN)/ruff format nmkane_core backend web tests scripts examples
 
+# the docs site (mkdocs, strict: a broken link, a missing reference or a docstring that does
+# not render fails the build) into site/; docs-serve rebuilds it on change at 127.0.0.1:8001
+DOCS_ENV := NO_MKDOCS_2_WARNING=1 DISABLE_MKDOCS_2_WARNING=true PYTHONPATH=$(CURDIR)
+
+docs: setup-dev
+	$(DOCS_ENV) $(BIN)/mkdocs build --strict --site-dir site
+
+docs-serve: setup-dev
+	$(DOCS_ENV) $(BIN)/mkdocs serve --strict --dev-addr 127.0.0.1:8001
+
 bench: setup
 	$(BIN)/nmkane bench
 
@@ -42,4 +52,4 @@ figures: setup
 	$(BIN)/nmkane figures --out figures
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) build site *.egg-info .pytest_cache .mypy_cache .ruff_cache

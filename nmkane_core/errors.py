@@ -12,6 +12,17 @@ class InputError(NmkaneError, ValueError):
 
     The CLI prints ``str(err)`` on one line and exits 2; the REST service answers 422 with
     ``field``, ``value`` and ``allowed`` in the body.
+
+    Parameters
+    ----------
+    field : str
+        Where: a settings field, ``params.NAME``, ``state.NAME``, an option.
+    value : object
+        The value given.
+    allowed : str
+        What is allowed, in words (``"a number in (0, 1e3]"``).
+    reason : str, optional
+        Why the value was refused, when "not allowed" is not enough.
     """
 
     def __init__(self, field: str, value: object, allowed: str, reason: str | None = None):

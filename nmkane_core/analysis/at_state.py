@@ -1,8 +1,8 @@
 """Analysis of any system at a state: accelerations, and the linearized equations of motion.
 
-:func:`accelerations` evaluates the nonminimal equations T u̇ = V (44) at a full consistent
+[`accelerations`][nmkane_core.accelerations] evaluates the nonminimal equations T u̇ = V (44) at a full consistent
 state — without the stabilization terms, which vanish on the constraint manifold anyway —
-and :func:`linearize` the state matrix of the independent coordinates and speeds about a
+and [`linearize`][nmkane_core.linearize] the state matrix of the independent coordinates and speeds about a
 state, with its eigenvalues: the motion is perturbed in the independent values only, the
 dependent ones being completed from the constraints (holonomic ψ(q) = 0 by Newton's method,
 then the velocity constraints for u_D), so the linearization lives on the constraint
@@ -81,10 +81,34 @@ def accelerations(
 ) -> dict[str, float]:
     """du/dt of every speed at a full consistent state (all q and u), no stabilization terms.
 
-    ``system`` is a :class:`System` or a registered name; ``state`` maps every coordinate and
-    speed name to its value; ``params`` overrides parameter defaults; ``variant`` picks a
-    model (default: the system's).  Raises :class:`InputError` for unknown or missing names
-    and :class:`InconsistentStateError` when the state violates the constraints."""
+    Evaluates the nonminimal equations T u̇ = V (44); the Baumgarte terms vanish on the
+    constraint manifold anyway.
+
+    Parameters
+    ----------
+    system : System or str
+        A [`System`][nmkane_core.System] or a registered name.
+    state : mapping of str to float
+        Every coordinate and speed name to its value.
+    params : mapping of str to float, optional
+        Parameter values overriding the system's defaults.
+    variant : str, optional
+        Which model (default: the system's).
+    t : float, optional
+        The time, for models that depend on it.
+
+    Returns
+    -------
+    dict of str to float
+        Speed name → du/dt.
+
+    Raises
+    ------
+    InputError
+        For unknown or missing names, or a state where J2 or T is singular.
+    InconsistentStateError
+        When the state violates the constraints.
+    """
     system, _, module, info, p, x = _setup(system, state, params, variant)
     _check_consistent(system, module, info, x, p, CHECK_TOL)
     xdot, _, _ = module.rhs(t, x, p, *_zero_gains(info))
@@ -95,13 +119,24 @@ def accelerations(
 
 @dataclass(frozen=True)
 class Linearization:
-    """ż ≈ A (z − z0) for z = the kept independent coordinates and speeds (``names``)."""
+    """ż ≈ A (z − z0) for z = the kept independent coordinates and speeds (``names``).
+
+    Attributes
+    ----------
+    names : tuple of str
+        The kept independent coordinates and speeds, in the order of ``A``'s rows.
+    A : numpy.ndarray
+        The state matrix.
+    eigenvalues : numpy.ndarray
+        Its eigenvalues (complex).
+    """
 
     names: tuple[str, ...]
     A: np.ndarray
     eigenvalues: np.ndarray
 
     def as_dict(self) -> dict:
+        """JSON-ready: ``names``, ``A`` as nested lists, eigenvalues as ``[re, im]`` pairs."""
         return {
             "names": list(self.names),
             "A": self.A.tolist(),
@@ -119,11 +154,38 @@ def linearize(
 ) -> Linearization:
     """The state matrix of the independent coordinates and speeds about ``state``, and its eigenvalues.
 
-    ``keep`` selects which independent coordinates and speeds form the linearized state
-    (default: all of them); leave out coordinates the motion does not depend on (a
-    position in the plane, a heading, a wheel angle) — for a bicycle, keep roll, steer and
-    their rates.  ``step`` is the perturbation size of the central differences (scaled by
-    each value's magnitude)."""
+    Only the independent values are perturbed; the dependent ones are completed from the
+    constraints, so the linearization lives on the constraint manifold.
+
+    Parameters
+    ----------
+    system : System or str
+        A [`System`][nmkane_core.System] or a registered name.
+    state : mapping of str to float
+        A full consistent state (every coordinate and speed).
+    params : mapping of str to float, optional
+        Parameter values overriding the system's defaults.
+    variant : str, optional
+        Which model (default: the system's).
+    keep : sequence of str, optional
+        Which independent coordinates and speeds form the linearized state (default: all of
+        them); leave out coordinates the motion does not depend on (a position in the
+        plane, a heading, a wheel angle) — for a bicycle, keep roll, steer and their rates.
+    step : float, optional
+        The perturbation size of the central differences (scaled by each value's magnitude).
+
+    Returns
+    -------
+    Linearization
+        ``names``, the state matrix ``A`` and its ``eigenvalues``.
+
+    Raises
+    ------
+    InputError
+        For unknown names, or a kept name that is not independent.
+    InconsistentStateError
+        When the state violates the constraints.
+    """
     sysm, variant, module, info, p, x0 = _setup(system, state, params, variant)
     _check_consistent(sysm, module, info, x0, p, CHECK_TOL)
     q_ind = [q for q in info.q if q not in info.q_dependent]

@@ -1,8 +1,8 @@
-"""Eigenvalues against a swept value, as a system declares it (:class:`~nmkane_core.declare.stability.Stability`).
+"""Eigenvalues against a swept value, as a system declares it (`Stability`).
 
-:func:`sweep` gives the eigenvalues of the linearized motion
-(:func:`nmkane_core.analysis.at_state.linearize`) at each value, :func:`crossings` the values where
-a real eigenvalue or a complex pair's real part changes sign (bisection), :func:`state_at`
+`sweep` gives the eigenvalues of the linearized motion
+([`linearize`][nmkane_core.linearize]) at each value, `crossings` the values where
+a real eigenvalue or a complex pair's real part changes sign (bisection), `state_at`
 the full consistent state at a value.
 """
 
@@ -82,7 +82,7 @@ def crossings(
     system: System | str, rows: list[dict], params: Mapping[str, float] | None = None, xtol: float = 1e-11
 ) -> list[dict]:
     """Where the number of eigenvalues with a positive real part changes between rows of
-    :func:`sweep`, refined by bisection (the kind: a complex pair's or a real one's crossing):
+    `sweep`, refined by bisection (the kind: a complex pair's or a real one's crossing):
     ``[{"name", "kind" ("complex"|"real"), "value", "reference"}]`` (``name`` and
     ``reference`` from the declaration, None when it has none)."""
     system, st = _declared(system)

@@ -1,13 +1,13 @@
 """Sweeps over run settings, parameters and initial values, on local cores or a Dask cluster,
 and the choice of Baumgarte gains (``nmkane sweep``, ``nmkane tune``).
 
-* :mod:`.spec` — ``--grid``/``--log-grid``/``--sample`` parsing, the points of a sweep;
-* :mod:`.executors` — this process, local worker processes, Dask (batches, kernels loaded once
+* `.spec` — ``--grid``/``--log-grid``/``--sample`` parsing, the points of a sweep;
+* `.executors` — this process, local worker processes, Dask (batches, kernels loaded once
   per worker);
-* :mod:`.output` — the streamed, resumable CSV/Parquet output;
-* :mod:`.runner` — :func:`run_sweep`;
-* :mod:`.plot` — heatmap or lines of a metric (matplotlib, the ``figures`` extra);
-* :mod:`.tune` — Γ, Γ1, Γ2 chosen within the integrator's stability region.
+* `.output` — the streamed, resumable CSV/Parquet output;
+* `.runner` — `run_sweep`;
+* `.plot` — heatmap or lines of a metric (matplotlib, the ``figures`` extra);
+* `.tune` — Γ, Γ1, Γ2 chosen within the integrator's stability region.
 """
 
 from __future__ import annotations

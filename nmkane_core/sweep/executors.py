@@ -7,7 +7,7 @@ sweep of 10⁵ runs never holds more than those in memory (rows stream to the ou
 batches finish, in completion order).
 
 Workers load plug-in systems (``--systems``: file paths or modules, which must exist on
-every worker) and the kernels once per process, in :func:`init_worker`: the process pool
+every worker) and the kernels once per process, in `init_worker`: the process pool
 calls it as its initializer, a Dask cluster through ``Client.run`` before the first task;
 ``run_batch`` calls it too (a no-op once done), so a worker that joins later is ready on its
 first task.

@@ -51,9 +51,9 @@ def _axis_values(spec: SweepSpec):
 
 
 def check_spec(base: dict, spec: SweepSpec) -> None:
-    """Every varied value (at most :data:`VALIDATE_VALUES` per axis; the ends of a sample
+    """Every varied value (at most `VALIDATE_VALUES` per axis; the ends of a sample
     range) is resolved against the base settings: a value the system refuses is an
-    :class:`InputError` naming the option, before any run starts."""
+    [`InputError`][nmkane_core.InputError] naming the option, before any run starts."""
     from ..run.plan import resolve
 
     resolve(base)
@@ -101,7 +101,7 @@ def run_sweep(
     executor=None,
 ) -> SweepResult:
     """Run every point of ``spec`` over ``base`` run settings, rows streamed to ``out``: a file
-    name (:class:`SweepWriter`) or any object with ``done`` (keys already there) and
+    name (`SweepWriter`) or any object with ``done`` (keys already there) and
     ``write(rows)``, e.g. the service's store.
 
     ``systems``: plug-in system files or modules (loaded by every worker); ``dask``: None

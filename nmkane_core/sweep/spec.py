@@ -11,7 +11,7 @@ value).  Values come from
 
 Grids combine as a Cartesian product; samples are drawn jointly (one hypercube) and, if
 grids are given too, every sample point is combined with every grid point.  Every error is
-an :class:`~nmkane_core.errors.InputError` naming the option, the text and what is allowed.
+an [`InputError`][nmkane_core.InputError] naming the option, the text and what is allowed.
 """
 
 from __future__ import annotations
@@ -211,7 +211,7 @@ def parse_sample(text: str) -> tuple[str, tuple[float, float]]:
 def sweep_spec(
     grid=(), log_grid=(), sample=(), samples: int | None = None, seed: int | None = None, max_points: int = MAX_POINTS
 ) -> SweepSpec:
-    """A :class:`SweepSpec` from the texts of ``--grid``, ``--log-grid`` and ``--sample`` options."""
+    """A `SweepSpec` from the texts of ``--grid``, ``--log-grid`` and ``--sample`` options."""
     spec = SweepSpec()
     for text in grid:
         spec.axes.append(parse_axis(text))

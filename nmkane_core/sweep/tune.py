@@ -5,9 +5,9 @@ fixed-step explicit Runge–Kutta method integrates those modes stably only when
 eigenvalue λ of the error dynamics has λ·Δt inside the method's stability region
 |R(z)| ≤ 1, R the stability polynomial of the tableau (R(z) = Σ_k z^k bᵀA^{k−1}𝟙).  On the
 real axis that region is an interval [x*, 0]: −2.785 for RK4, about −3.5 for Kutta–Merson
-(:func:`real_stability_interval` computes it from the tableau).
+(`real_stability_interval` computes it from the tableau).
 
-:func:`tune` runs candidate gains (log-spaced, inside that region) and picks the one with
+`tune` runs candidate gains (log-spaced, inside that region) and picks the one with
 the smallest max constraint violation over the horizon, among runs that end ``ok`` and whose
 max energy drift stays within ``energy_factor`` × that of the unstabilized run (Γ = Γ1 =
 Γ2 = 0).  Γ first (the nonholonomic constraints, Γ1 = Γ2 as given), then Γ1, Γ2 together

@@ -1,4 +1,4 @@
-"""The paper's procedure, steps 1–5, for any :class:`~nmkane_core.symbolic.model.MechanicalModel`.
+"""The paper's procedure, steps 1–5, for any [`MechanicalModel`][nmkane_core.MechanicalModel].
 
 Read beside Bajodah, Hodges & Chen (2005), Section 2 and 3:
 
@@ -14,7 +14,7 @@ Read beside Bajodah, Hodges & Chen (2005), Section 2 and 3:
 
 Everything here is symbolic and done once per model.  The numeric kernels never use
 the symbolic inverses below (A, B, B̂, T, V): they evaluate J1, J2, B1 u + B2, Q and P and
-solve numerically (see :mod:`nmkane_core.symbolic.reference` and :mod:`nmkane_core.kernel.codegen`).  The
+solve numerically (see the numpy reference path and the kernel generator).  The
 symbolic A, A1, A2, T, V exist to be inspected, printed in LaTeX and checked against the
 paper's printed matrices.
 """
@@ -39,7 +39,28 @@ class Derivation:
     """Symbolic results of the procedure for one model (all ``sympy.Matrix``).
 
     Speeds are ordered ``u_perm = [u_I, u_D]`` in every matrix below (the paper's
-    ordering (16)); ``perm`` maps that order back to the model's ``u``.
+    ordering (16)); ``perm`` maps that order back to the model's ``u``.  Built by
+    [`derive`][nmkane_core.derive].
+
+    Parameters
+    ----------
+    model : MechanicalModel
+        The description to derive.
+
+    Attributes
+    ----------
+    C, D : sympy.Matrix
+        (1) q̇ = C u + D.
+    phi : sympy.Matrix
+        The velocity-level constraints [φ; ψ̇] whose acceleration form (13) is used.
+    J1, J2 : sympy.Matrix
+        (17)–(18) ∂φ/∂u_I and ∂φ/∂u_D.
+    B1, B2 : sympy.Matrix
+        (14)–(15) ∂φ/∂q C and ∂φ/∂q D + ∂φ/∂t.
+    Gamma, Gamma1, Gamma2 : sympy.Matrix
+        The Baumgarte gains as symbols (108), (113) (numeric kernels take them at run time).
+    Q, P : sympy.Matrix
+        (42) the holonomic system, speeds in the order [u_I, u_D].
     """
 
     def __init__(self, model: MechanicalModel):
@@ -166,12 +187,42 @@ class Derivation:
     NAMES = ("J1", "J2", "B1", "B2", "A", "B", "B_hat", "A1", "A2", "Q", "P", "T", "V", "V_hat")
 
     def matrix(self, name: str) -> sp.Matrix:
+        """One derived matrix by its paper name.
+
+        Parameters
+        ----------
+        name : str
+            One of `NAMES`: ``J1``, ``J2``, ``B1``, ``B2``, ``A``, ``B``, ``B_hat``, ``A1``,
+            ``A2``, ``Q``, ``P``, ``T``, ``V``, ``V_hat``.
+
+        Returns
+        -------
+        sympy.Matrix
+
+        Raises
+        ------
+        KeyError
+            For an unknown name (the message lists the known ones).
+        """
         if name not in self.NAMES:
             raise KeyError(f"unknown matrix {name!r}; known: {', '.join(self.NAMES)}")
         return getattr(self, name)
 
     def latex(self, name: str, simplify: bool = True) -> str:
-        """LaTeX of one derived matrix, e.g. ``latex("A1")`` (for teaching panels)."""
+        """LaTeX of one derived matrix, e.g. ``latex("A1")`` (for teaching panels).
+
+        Parameters
+        ----------
+        name : str
+            As for `matrix`.
+        simplify : bool, optional
+            Simplify each entry first (entries of 400 operations or more are left as they are).
+
+        Returns
+        -------
+        str
+            ``"A_1 = \\left[...\\right]"``.
+        """
         mat = self.matrix(name)
         if simplify:
             mat = mat.applyfunc(lambda e: sp.simplify(e) if sp.count_ops(e) < 400 else e)
@@ -189,5 +240,17 @@ class Derivation:
 
 
 def derive(model: MechanicalModel) -> Derivation:
-    """Run the paper's procedure on ``model`` (symbolic, once)."""
+    """Run the paper's procedure on ``model`` (symbolic, once).
+
+    Parameters
+    ----------
+    model : MechanicalModel
+        The description.
+
+    Returns
+    -------
+    Derivation
+        Every matrix of steps 1–5 under its paper name; the inverses are computed when first
+        asked for.
+    """
     return Derivation(model)

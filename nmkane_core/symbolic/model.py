@@ -1,17 +1,17 @@
 """A mechanical model described with sympy, in the paper's terms.
 
-A :class:`MechanicalModel` is pure description: the generalized coordinates ``q`` and
+A `MechanicalModel` is pure description: the generalized coordinates ``q`` and
 speeds ``u``, the kinematical equations (1) ``q̇ = C(q,t) u + D(q,t)``, the equations of
 the *holonomic* (unconstrained) system (41)–(43) ``Q(q,t) u̇ = P(q,u,t)``, the
 nonholonomic constraints φ(q,u,t) = 0 (possibly nonlinear in u), the holonomic
 constraints ψ(q,t) = 0 and the partition u = [u_I, u_D] (16).  Nothing here derives
-anything; :mod:`nmkane_core.symbolic.derivation` does that, once per model.
+anything; [`derive`][nmkane_core.derive] does that, once per model.
 
 Two ways to give the holonomic equations:
 
 * explicitly, ``Q`` and ``P`` (the paper's (99)–(100) for example);
 * from sympy.physics.mechanics bodies, particles and loads with
-  :meth:`MechanicalModel.from_mechanics`, which runs ``KanesMethod`` on the
+  `MechanicalModel.from_mechanics`, which runs ``KanesMethod`` on the
   *unconstrained* system (no velocity constraints) to obtain Q (``mass_matrix``) and P
   (``forcing``).
 """
@@ -27,7 +27,18 @@ __all__ = ["MechanicalModel", "plain_symbols"]
 
 
 def plain_symbols(names: str | Sequence[str]) -> tuple[sp.Symbol, ...]:
-    """Real sympy symbols, the kind a model is written in."""
+    """Real sympy symbols, the kind a model is written in.
+
+    Parameters
+    ----------
+    names : str or sequence of str
+        Names as `sympy.symbols` takes them: ``"x y z"``, ``"u1:4"`` or a list.
+
+    Returns
+    -------
+    tuple of sympy.Symbol
+        One real symbol per name (a tuple even for one name: ``(z,) = plain_symbols("z")``).
+    """
     syms = sp.symbols(names, real=True)
     return tuple(syms) if isinstance(syms, (tuple, list)) else (syms,)
 
@@ -48,52 +59,55 @@ class MechanicalModel:
 
     Parameters
     ----------
-    q, u:
+    q, u : tuple of sympy.Symbol
         Generalized coordinates and speeds, n of each (plain real sympy symbols, see
-        :func:`plain_symbols`; their names are the state names of runs).
-    params:
+        [`plain_symbols`][nmkane_core.plain_symbols]; their names are the state names of runs).
+    params : tuple of sympy.Symbol
         Parameter symbols, in the order numeric parameter vectors use; every symbol of the
         expressions that is not in ``q``, ``u`` or ``t`` must be one of them.
-    C, D:
+    C, D : sympy.Matrix
         (1) ``q̇ = C u + D``; ``C`` n×n invertible, ``D`` n×1 (``sp.eye(n)``,
         ``sp.zeros(n, 1)`` when the speeds are the coordinates' rates).
-    Q, P:
+    Q, P : sympy.Matrix
         (42) the holonomic (unconstrained) system ``Q u̇ = P``: Q n×n symmetric positive
         definite, P n×1 (applied and inertia forces).
-    nonholonomic:
+    nonholonomic : mapping of str to sympy.Expr, optional
         Named constraints φ_i(q, u, t) = 0: any smooth function of the speeds —
         linear, polynomial, or not polynomial at all (square roots such as the speed
         along a path √(u1² + u2²) − v, trigonometric, rational, exponential).  Where a
         constraint's expression is not defined (the argument of a square root below
         zero, a zero denominator) a run ends with a status.
-    holonomic:
+    holonomic : mapping of str to sympy.Expr, optional
         Named ψ_i(q, t) = 0.
-    u_independent:
+    u_independent : tuple of sympy.Symbol, optional
         u_I of (16); the remaining speeds (in the order of ``u``) are u_D, solved from
         the constraints: choose them so that J2 = ∂[φ; ψ̇]/∂u_D is invertible along the
         motion (runs report where it is not, status ``singular``).  Required when there
         are constraints.
-    energy:
+    energy : sympy.Expr, optional
         Optional total energy E(q, u, t), reported with its drift (diagnostics only).
-    outputs:
+    outputs : mapping of str to sympy.Expr, optional
         Optional extra reported quantities, name → expression of q, u, t (e.g. the
         minimal formulation of the sliding particle reports y and u2 that it does not
         integrate).
-    monitors:
+    monitors : mapping of str to sympy.Expr, optional
         Optional extra named quantities reported beside the constraint values, e.g. the
         surface equation for a minimal formulation that satisfies it by construction.
-    q_dependent:
+    q_dependent : tuple of sympy.Symbol, optional
         Coordinates solved from the holonomic constraints when completing an initial
         state (one per holonomic constraint); chosen by pivoting on ∂ψ/∂q when not given.
-    name:
+    name : str, optional
         Optional short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``), shown in
         generated code and messages; a system names its variants itself.
-    t:
+    t : sympy.Symbol, optional
         The time symbol (default ``Symbol("t", real=True)``).
-    description:
+    description : str, optional
         Optional text about the model.
 
-    Raises :class:`ValueError` naming the field when the shapes or symbols do not fit.
+    Raises
+    ------
+    ValueError
+        Naming the field, when the shapes or symbols do not fit.
     """
 
     name: str = ""
@@ -133,6 +147,13 @@ class MechanicalModel:
 
     # ------------------------------------------------------------------ checks
     def validate(self) -> None:
+        """Check shapes, the partition and the symbols of every expression (run on creation).
+
+        Raises
+        ------
+        ValueError
+            Naming the model and what does not fit.
+        """
         n = len(self.q)
         if len(self.u) != n:
             raise ValueError(f"model {self.name!r}: {n} coordinates but {len(self.u)} speeds")
@@ -176,6 +197,7 @@ class MechanicalModel:
     # ------------------------------------------------------------- properties
     @property
     def n(self) -> int:
+        """Number of coordinates (and of speeds)."""
         return len(self.q)
 
     @property
@@ -192,10 +214,12 @@ class MechanicalModel:
 
     @property
     def constraint_names(self) -> tuple[str, ...]:
+        """The constraints' names, nonholonomic first, then holonomic (the rows of φ)."""
         return tuple(self.nonholonomic) + tuple(self.holonomic)
 
     @property
     def state_names(self) -> tuple[str, ...]:
+        """The names of q then u: the state names of runs (``run.state[name]``)."""
         return tuple(str(s) for s in self.q + self.u)
 
     # ------------------------------------------------------------ from mechanics
@@ -222,11 +246,34 @@ class MechanicalModel:
     ) -> MechanicalModel:
         """Build a model from sympy.physics.mechanics bodies, particles and loads.
 
-        ``q`` and ``u`` are ``dynamicsymbols``; ``kd_eqs`` the kinematical differential
-        equations (``q' - u`` ...).  KanesMethod is run on the *unconstrained* system, so
-        ``mass_matrix`` is the holonomic Q and ``forcing`` the holonomic P of (42); the
-        constraints are then attached exactly as for an explicit model.  Constraint and
-        energy expressions may use the dynamicsymbols; they are converted to plain symbols.
+        ``KanesMethod`` is run on the *unconstrained* system, so its ``mass_matrix`` is the
+        holonomic Q and its ``forcing`` the holonomic P of (42); the constraints are then
+        attached exactly as for an explicit model.  Constraint and energy expressions may
+        use the dynamicsymbols; they are converted to plain symbols.
+
+        Parameters
+        ----------
+        name : str, optional
+            As for the model.
+        q, u : sequence of sympy.Function
+            The coordinates and speeds as ``dynamicsymbols``.
+        kd_eqs : sequence of sympy.Expr
+            The kinematical differential equations (``q' - u`` ...), solved for q̇ = C u + D (1).
+        bodies : sequence
+            ``RigidBody`` and ``Particle`` objects.
+        loads : sequence
+            ``(point or frame, vector)`` forces and torques.
+        frame : sympy.physics.vector.ReferenceFrame
+            The inertial frame.
+        params : sequence of sympy.Symbol
+            The parameter symbols.
+        nonholonomic, holonomic, u_independent, energy, outputs, q_dependent, monitors, description
+            As for the model (see the class's parameters).
+
+        Returns
+        -------
+        MechanicalModel
+            The model, in plain symbols.
         """
         from sympy.physics.mechanics import KanesMethod, dynamicsymbols
 

@@ -96,7 +96,7 @@ class ReferenceKernel:
         return out
 
     def rhs(self, t, x, p, G=None, G1=None, G2=None, rcond_min: float = 0.0) -> np.ndarray:
-        """ẋ = [C u + D; T⁻¹ V̂]; raises :class:`SingularMatrix` below ``rcond_min``."""
+        """ẋ = [C u + D; T⁻¹ V̂]; raises `SingularMatrix` below ``rcond_min``."""
         x = np.asarray(x, float)
         N = self.dims["N"]
         mats = self.matrices(t, x, p, G, G1, G2)

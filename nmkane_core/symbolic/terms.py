@@ -1,7 +1,7 @@
 """What a numeric kernel evaluates: the derivation's matrices before any inverse.
 
-Both kernels — the numpy reference (:mod:`nmkane_core.symbolic.reference`) and the compiled one
-(:mod:`nmkane_core.kernel.codegen`) — evaluate the same expressions, in the order [u_I, u_D]:
+Both kernels — the numpy reference (`nmkane_core.symbolic.reference`) and the compiled one
+(`nmkane_core.kernel.codegen`) — evaluate the same expressions, in the order [u_I, u_D]:
 
 * ``J``    = [J1  J2]  (17)–(18), m×n
 * ``b``    = B1 u + B2 (14)–(15), the velocity part of the acceleration form (19)
@@ -92,7 +92,7 @@ def row_degrees(d: Derivation) -> list:
     its degree k ≥ 1 in u when it is a polynomial in u, else 0.
 
     The estimate is the pivot ratio min|pivot| / max|pivot| of J2's LU factors, which depends on
-    the rows' relative sizes; the kernels (``rhs_ws`` in :mod:`nmkane_core.kernel.source.loops`) first
+    the rows' relative sizes; the kernels (``rhs_ws`` in `nmkane_core.kernel.source.loops`) first
     bring the rows to comparable sizes:
 
     * a row of polynomial degree k > 1 (its gradient grows like |u|^(k−1)) is divided by

@@ -1,6 +1,6 @@
 """The built-in systems, defined through the public API (nothing special-cased):
 the paper's two examples and a catalogue of classic nonholonomic systems.
-:mod:`nmkane_core.run.registry` registers :data:`BUILTIN`."""
+`nmkane_core.run.registry` registers `BUILTIN`."""
 
 from . import appell_hamel, chaplygin_sleigh, knife_edge, odometer_puck, rolling_disk, sliding_particle, whipple_bicycle
 

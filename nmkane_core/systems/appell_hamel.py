@@ -10,7 +10,7 @@ The holonomic equations Q u̇ = P come from sympy.physics.mechanics' KanesMethod
 tests check them against the paper's (99)–(100).  Two constraint models of the same
 mechanism: ``nonlinear`` (57)+(58)+(59) and ``linear`` (101)+(102)+(59).
 
-Visuals (:func:`_visuals`): the frame, wheel, pulleys, thread and load as the viewer draws
+Visuals (`_visuals`): the frame, wheel, pulleys, thread and load as the viewer draws
 them.  Everything riding on the frame is placed in the *body frame*: origin at P's (x, y)
 on the plane, x along the heading θ, y along the wheel's axle, z up.  The wheel centre o is
 ρ behind P at height a (53)–(54) and spins by φ about the axle; the drum (radius b) sits

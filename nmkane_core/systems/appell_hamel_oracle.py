@@ -3,7 +3,7 @@ of the Appell–Hamel mechanism from sympy.physics.mechanics' KanesMethod.
 
 Linear velocity constraints (101), (102) and ż = −bφ̇ (the derivative of (59)), dependent
 speeds u3, u4, u5 — built from bodies and loads only, sharing nothing with
-:mod:`nmkane_core.symbolic.derivation`.  ``rhs`` is "the usual sympy route": lambdify
+`nmkane_core.symbolic.derivation`.  ``rhs`` is "the usual sympy route": lambdify
 ``mass_matrix_full`` and ``forcing_full`` and solve with numpy at every call.
 """
 

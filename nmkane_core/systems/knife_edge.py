@@ -2,7 +2,7 @@
 
 Its blade cannot slip sideways.  With no forces the forward speed v and the turning rate ω
 stay constant and the contact point runs on a circle of radius v/ω (a closed form the
-tests compare with).  Model: :mod:`._planar` with the mass centre on the contact point.
+tests compare with).  Model: `._planar` with the mass centre on the contact point.
 """
 
 from __future__ import annotations

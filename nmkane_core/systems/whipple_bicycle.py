@@ -24,8 +24,8 @@ offsets) and the mass centres l1..l4 follow from w, c, λ, rR, rF, xB, zB, xH, z
 
 The system declares its stability sweep (``stability=``): upright straight running at a
 forward speed, linearized in roll, steer and their rates —
-:func:`nmkane_core.analysis.eigensweep.state_at` gives that state and
-:func:`~nmkane_core.analysis.eigensweep.sweep` the eigenvalues against speed (Meijaard et al.
+`nmkane_core.analysis.eigensweep.state_at` gives that state and
+`nmkane_core.analysis.eigensweep.sweep` the eigenvalues against speed (Meijaard et al.
 (2007) Fig. 3).
 """
 
@@ -96,7 +96,7 @@ DEFAULT_INITIAL = {
 def _geometry():
     """Symbols, frames and points of the bicycle (sympy.physics.mechanics), shared by the
     model, the visuals and the events: (q, u, par, frames, points), ``par`` the parameters
-    in :data:`PARAM_NAMES` order, ``frames``/``points`` dicts by the names used below."""
+    in `PARAM_NAMES` order, ``frames``/``points`` dicts by the names used below."""
     import sympy as sp
     from sympy.physics import mechanics as me
 
@@ -146,8 +146,8 @@ def _geometry():
 
 
 def _mechanics():
-    """Bodies, loads and constraints (sympy.physics.mechanics), as a dict, for :func:`_model`
-    and for the sympy-route benchmark (:mod:`nmkane_core.bench.rows`)."""
+    """Bodies, loads and constraints (sympy.physics.mechanics), as a dict, for `_model`
+    and for the sympy-route benchmark (`nmkane_core.bench.rows`)."""
     from sympy.physics import mechanics as me
 
     q, u, par, fr, pt, (_, _, _, root) = _geometry()

@@ -164,16 +164,6 @@ def test_kernels_are_cached_by_model_no_sympy_later_and_never_stale(tmp_path):
     assert changed["x"] == truth["x"] and abs(changed["x"] - first["x"]) > 0.1 * first["x"]
 
 
-def test_the_readme_user_system_example_runs_as_written():
-    text = (ROOT / "README.md").read_text()
-    start = text.index("## Your own system")
-    block = text[start:].split("```python\n", 1)[1].split("```", 1)[0]
-    namespace: dict = {}
-    exec(compile(block, "README.md", "exec"), namespace)
-    run = namespace["run"]
-    assert run.status == "ok"
-
-
 def test_threads_asking_at_once_all_see_the_builtin_systems():
     """The first use registers the built-ins; a second thread asking meanwhile got an empty
     list (the web app then failed to build a browser's page: StopIteration)."""

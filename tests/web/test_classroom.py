@@ -1,5 +1,5 @@
 """Issue 16, classroom capacity: the load script's parts work (no timing asserted here: the
-numbers come from ``scripts/classroom.py`` on a quiet machine, see README "Classroom")."""
+numbers come from ``scripts/classroom.py`` on a quiet machine, see docs/reliability.md, "Classroom")."""
 
 import asyncio
 import sys
