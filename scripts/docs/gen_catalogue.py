@@ -18,12 +18,23 @@ from _md import DOCS, code, fill, number, table
 
 @lru_cache(maxsize=1)
 def systems_document() -> dict:
-    """The body of ``GET /api/systems`` (the route's own function, no server needed)."""
-    from backend.app import create_app
+    """The body of ``GET /api/systems``, asked of the app itself (no server, no store written)."""
+    import tempfile
+    import warnings
 
-    app = create_app()
-    route = next(r for r in app.routes if getattr(r, "path", None) == "/api/systems")
-    return route.endpoint()
+    with warnings.catch_warnings():  # starlette's TestClient on httpx: a deprecation notice, not ours
+        warnings.simplefilter("ignore")
+        from fastapi.testclient import TestClient
+
+    from backend.app import create_app
+    from backend.config import Settings
+
+    with tempfile.TemporaryDirectory() as tmp:
+        app = create_app(Settings(data_dir=tmp, warm_kernels=False))
+        with TestClient(app, base_url="http://localhost") as client:
+            answer = client.get("/api/systems")
+    answer.raise_for_status()
+    return answer.json()
 
 
 def _range(p: dict) -> str:
