@@ -30,6 +30,7 @@ lint: setup-dev
 	$(BIN)/ruff check nmkane_core backend web tests scripts examples
 	$(BIN)/ruff format --check nmkane_core backend web tests scripts examples
 	$(BIN)/mypy
+	$(BIN)/lint-imports
 
 format: setup-dev
 	$(BIN)/ruff check --fix nmkane_core backend web tests scripts examples

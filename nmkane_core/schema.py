@@ -52,7 +52,7 @@ class RunSettings(BaseModel):
     model_config = ConfigDict(
         extra="forbid",
         allow_inf_nan=False,
-        json_schema_extra={"examples": [{"system": "appell-hamel", "model": "nonlinear", "dt": 0.01, "t_final": 20}]},
+        json_schema_extra={"examples": [{"dt": 0.01, "t_final": 20}]},  # the catalogue's first system
     )
 
     system: str | None = Field(

@@ -1,5 +1,6 @@
-"""The house's layering: imports run one way, the core has no import circles, modules stay
-small, and ``import nmkane_core`` loads none of the faces' heavy dependencies."""
+"""The house's layering: imports run one way, no package has import circles (import-linter's
+contracts), generic code names no system, modules and functions stay small, and
+``import nmkane_core`` loads none of the faces' heavy dependencies."""
 
 from __future__ import annotations
 
@@ -8,94 +9,91 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("nmkane_core", "backend", "web")
 MAX_LINES = 500
 
 
-def _modules(package: str) -> dict[str, Path]:
-    out = {}
-    for path in sorted((ROOT / package).rglob("*.py")):
-        rel = path.relative_to(ROOT).with_suffix("")
-        parts = list(rel.parts)
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        out[".".join(parts)] = path
-    return out
+def test_the_layer_contracts_hold():
+    """Imports run one way — faces on the core, each stage of the core on the stages below it —
+    and no package has an import circle, imports for type checkers included (the contracts in
+    pyproject.toml, checked by import-linter; ``make lint`` runs it too)."""
+    lint = Path(sys.executable).with_name("lint-imports")
+    out = subprocess.run([str(lint)], capture_output=True, text=True, cwd=ROOT)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "0 broken" in out.stdout, out.stdout
 
 
-def _type_checking_lines(tree: ast.AST) -> set[int]:
-    lines: set[int] = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
-            for child in node.body:
-                lines.update(range(child.lineno, (child.end_lineno or child.lineno) + 1))
-    return lines
+GENERIC_WORDS = {"edge", "disk", "rolling", "particle"}  # words of system names that are ordinary mechanics
+#: the parts of the core that may name a system: the systems themselves, the paper's figures, the benchmarks
+NAMED_SYSTEMS_ALLOWED = ("systems", "paper", "bench")
 
 
-def _imports(module: str, path: Path) -> set[str]:
-    """Every module ``module`` imports, at any depth of its code (lazy imports count too),
-    except imports only for type checkers."""
-    tree = ast.parse(path.read_text())
-    skip = _type_checking_lines(tree)
-    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
-    out: set[str] = set()
-    for node in ast.walk(tree):
-        if getattr(node, "lineno", None) in skip:
+def _system_words() -> set[str]:
+    from nmkane_core.systems import BUILTIN
+
+    words = set(BUILTIN)
+    for name in BUILTIN:
+        words |= {w for w in name.split("-") if len(w) > 3 and w not in GENERIC_WORDS}
+    return words | {"appell", "hamel", "bicycle", "sleigh"}
+
+
+def test_generic_core_code_names_no_system():
+    """Nothing about a specific mechanism in generic code: outside the systems' own modules,
+    the paper's figures and the benchmarks, no source file of the core (code, comments or
+    docstrings) names a built-in system or a word of one (as tests/web/test_web_names_no_system.py
+    checks web/)."""
+    import re
+
+    words = _system_words()
+    assert {"appell-hamel", "whipple", "chaplygin"} <= words
+    found = []
+    for path in sorted((ROOT / "nmkane_core").rglob("*.py")):
+        rel = path.relative_to(ROOT / "nmkane_core")
+        if rel.parts[0] in NAMED_SYSTEMS_ALLOWED:
             continue
-        if isinstance(node, ast.Import):
-            out.update(a.name for a in node.names)
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                base = package.split(".")
-                base = base[: len(base) - node.level + 1]
-                target = ".".join(base + ([node.module] if node.module else []))
-            else:
-                target = node.module or ""
-            out.add(target)
-            out.update(f"{target}.{a.name}" for a in node.names)  # `from . import x` names a module
-    return out
+        text = path.read_text(encoding="utf-8").lower()
+        for w in sorted(words):
+            for m in re.finditer(re.escape(w), text):
+                found.append(f"{rel}:{text.count(chr(10), 0, m.start()) + 1}: {w!r}")
+    assert not found, "generic core code names systems:\n" + "\n".join(found)
 
 
-def _top(name: str) -> str:
-    return name.split(".")[0]
+MAX_FUNCTION_LINES, LONG_FUNCTION_LINES, MAX_LONG_FUNCTIONS = 100, 60, 10
 
 
-@pytest.mark.parametrize(
-    "package,forbidden",
-    [
-        ("nmkane_core", {"backend", "web"}),
-        ("backend", {"web"}),
-        ("web", {"backend"}),
-    ],
-)
-def test_imports_run_one_way(package, forbidden):
-    bad = [f"{m} imports {i}" for m, p in _modules(package).items() for i in _imports(m, p) if _top(i) in forbidden]
-    assert not bad, "\n".join(bad)
+def _code_lines(fn) -> int:
+    """A function's lines without its docstring (documentation does not make code long)."""
+    n = fn.end_lineno - fn.lineno + 1
+    first = fn.body[0]
+    if isinstance(first, ast.Expr) and isinstance(first.value, ast.Constant) and isinstance(first.value.value, str):
+        n -= first.end_lineno - first.lineno + 1
+    return n
 
 
-def test_the_core_has_no_import_circles():
-    mods = _modules("nmkane_core")
-    graph = {m: {i for i in _imports(m, p) if i in mods and i != m} for m, p in mods.items()}
-    # a package's __init__ re-exporting its children is not a circle of responsibilities
-    graph = {m: {i for i in deps if not m.startswith(i + ".")} for m, deps in graph.items()}
-    cycles, state = [], {}
+def _function_lengths() -> list[tuple[int, str]]:
+    """(lines, file:function) of every function of the three packages, the numba kernel source
+    (generated into straight-line loops) left out."""
 
-    def visit(m, stack):
-        state[m] = 1
-        for n in sorted(graph[m]):
-            if state.get(n) == 1:
-                cycles.append(" -> ".join([*stack[stack.index(n) :], n]))
-            elif n not in state:
-                visit(n, [*stack, n])
-        state[m] = 2
+    out = []
+    for pkg in PACKAGES:
+        for path in sorted((ROOT / pkg).rglob("*.py")):
+            if "kernel/source" in path.as_posix():
+                continue
+            for node in ast.walk(ast.parse(path.read_text())):
+                if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    out.append((_code_lines(node), f"{path.relative_to(ROOT)}:{node.name}"))
+    return sorted(out, reverse=True)
 
-    for m in sorted(graph):
-        if m not in state:
-            visit(m, [m])
-    assert not cycles, "\n".join(cycles)
+
+def test_functions_are_short_enough_to_read():
+    """No function over 100 lines outside the numba kernel source, and at most 10 over 60,
+    docstrings not counted (``python scripts/longest_functions.py`` lists them)."""
+    lengths = _function_lengths()
+    too_long = [f"{n} {name}" for n, name in lengths if n > MAX_FUNCTION_LINES]
+    long = [f"{n} {name}" for n, name in lengths if n > LONG_FUNCTION_LINES]
+    assert not too_long, "\n".join(too_long)
+    assert len(long) <= MAX_LONG_FUNCTIONS, "\n".join(long)
 
 
 def test_no_hand_written_module_is_too_big():

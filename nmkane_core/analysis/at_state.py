@@ -170,7 +170,7 @@ def linearize(
     keep : sequence of str, optional
         Which independent coordinates and speeds form the linearized state (default: all of
         them); leave out coordinates the motion does not depend on (a position in the
-        plane, a heading, a wheel angle) — for a bicycle, keep roll, steer and their rates.
+        plane, a heading, a wheel angle) — for a vehicle on wheels, keep roll, steer and their rates.
     step : float, optional
         The perturbation size of the central differences (scaled by each value's magnitude).
 

@@ -311,9 +311,15 @@ def _user_system_rows(add) -> None:
 
 def _bicycle_rows(add, quick: bool) -> None:
     """The Whipple bicycle (8 coordinates, 4 nonholonomic + 1 holonomic constraints): first use
-    in an empty cache, a fresh cached process, 10 s of motion warm, eigenvalues at 100 speeds."""
-    from ..analysis.eigensweep import sweep
+    in an empty cache, a fresh cached process, 10 s of motion warm, the sympy route, eigenvalues
+    at 100 speeds."""
+    _bicycle_cold_rows(add)
+    evals, wall, x = _bicycle_motion_row(add)
+    _bicycle_sympy_rows(add, evals, wall, x)
+    _bicycle_eigenvalue_row(add, quick)
 
+
+def _bicycle_cold_rows(add) -> None:
     probe = (
         "from nmkane_core import accelerations\nfrom nmkane_core.analysis.eigensweep import state_at\n"
         "accelerations('whipple-bicycle', state_at('whipple-bicycle', 5.0))"
@@ -340,6 +346,10 @@ def _bicycle_rows(add, quick: bool) -> None:
         f"(a process computing accelerations at a state; load average {load:.1f})",
     )
     add("Whipple bicycle: fresh process, kernel cached (same process)", cached, None, "≤ 2 s", cached <= 2.0)
+
+
+def _bicycle_motion_row(add) -> tuple[int, float, np.ndarray]:
+    """10 s of motion, warm; returns the run's evaluations, its wall time and the initial state."""
     plan = resolve(
         {
             "system": "whipple-bicycle",
@@ -361,22 +371,30 @@ def _bicycle_rows(add, quick: bool) -> None:
         wall <= 0.1,
         f"({evals:,} rhs evaluations)",
     )
-    # the same model through sympy's KanesMethod + lambdify + a numeric solve per call
+    return evals, wall, plan.x0
+
+
+def _bicycle_sympy_rows(add, evals: int, wall: float, x: np.ndarray) -> None:
+    """The same model through sympy's KanesMethod + lambdify + a numeric solve per call."""
+    loop_eps = evals / wall
     from ..systems.whipple_bicycle_oracle import bicycle_sympy_rhs
 
     t0 = time.perf_counter()
     sym = bicycle_sympy_rhs()
-    derive = time.perf_counter() - t0
-    add("Whipple bicycle, sympy route: KanesMethod + constraint derivatives + lambdify", derive, None)
-    x = plan.x0
+    add("Whipple bicycle, sympy route: KanesMethod + constraint derivatives + lambdify", time.perf_counter() - t0, None)
     sym_eps = _evals_per_s(sym, x)
     add(
         "Whipple bicycle, sympy route: per call (numpy solve of the multiplier system)",
         1 / sym_eps,
         sym_eps,
-        note=f"{sym_eps:,.0f} evals/s; the compiled loop: {evals / wall:,.0f} evals/s "
-        f"({evals / wall / sym_eps:,.0f}×); 10 s at dt=0.001 Kutta–Merson through it ≈ {evals / sym_eps:.1f} s",
+        note=f"{sym_eps:,.0f} evals/s; the compiled loop: {loop_eps:,.0f} evals/s "
+        f"({loop_eps / sym_eps:,.0f}×); 10 s at dt=0.001 Kutta–Merson through it ≈ {evals / sym_eps:.1f} s",
     )
+
+
+def _bicycle_eigenvalue_row(add, quick: bool) -> None:
+    from ..analysis.eigensweep import sweep
+
     speeds = np.linspace(0.0, 10.0, 20 if quick else 100)
     sweep("whipple-bicycle", speeds[:2])  # warm
     wall, _ = _best(lambda: sweep("whipple-bicycle", speeds), repeat=2)

@@ -75,82 +75,103 @@ def sweep_rows(add, quick: bool = False, long: bool = False, workers: int = 2) -
     horizon = 20.0 if quick else 500.0  # long enough that a run, not the scheduling, is what is timed
     base = {"system": "sliding-particle", "dt": 0.001, "t_final": horizon, "every": 10**6}
     tiny = {**base, "t_final": 0.01}
-    n = 64
-    enough = (os.cpu_count() or 1) >= workers
+    one = _one_core_row(add, base, tiny, horizon)
+    _process_row(add, base, tiny, one, workers)
+    _dask_rows(add, base, tiny, one, workers)
+    if long:
+        _streaming_memory_row(add, workers)
 
+
+class _OneCore:
+    """The one-core reference: its rate (runs/s), rows and the tiny runs' time."""
+
+    def __init__(self, rate: float, rows, tiny_seconds: float):
+        self.rate, self.rows, self.tiny_seconds = rate, rows, tiny_seconds
+
+
+N_RUNS = 64  # the grid's runs (GRID)
+N_TINY = 640  # runs of 10 steps (TINY_GRID), for the overhead per run
+
+
+def _one_core_row(add, base: dict, tiny: dict, horizon: float) -> _OneCore:
     with SerialExecutor() as ex:
         _timed(ex, tiny, WARM_GRID)
         t1, rows1 = _timed(ex, base, GRID)
         t1_tiny, _ = _timed(ex, tiny, TINY_GRID)
-    rate1 = n / t1
+    rate1 = N_RUNS / t1
     add(
-        f"sweep: {n} sliding-particle runs, {horizon:g} s at dt=0.001, one core (this process)",
+        f"sweep: {N_RUNS} sliding-particle runs, {horizon:g} s at dt=0.001, one core (this process)",
         t1,
         None,
         note=f"({rate1:.1f} runs/s; {_load()})",
     )
+    return _OneCore(rate1, rows1, t1_tiny)
 
+
+def _process_row(add, base: dict, tiny: dict, one: _OneCore, workers: int) -> None:
     t0 = time.perf_counter()
     with ProcessExecutor(workers) as ex:
         _timed(ex, tiny, WARM_GRID)  # the worker processes start and load the kernels
         start = time.perf_counter() - t0
         tp, rows_p = _timed(ex, base, GRID)
-    speed = (n / tp) / rate1
+    speed = (N_RUNS / tp) / one.rate
     add(
-        f"sweep: the same {n} runs, local executor, {workers} processes",
+        f"sweep: the same {N_RUNS} runs, local executor, {workers} processes",
         tp,
         None,
         "≥ 1.8× one core",
-        speed >= 1.8 if enough else None,
-        f"({n / tp:.1f} runs/s: {speed:.2f}× one core; start-up {start:.1f} s not counted; "
-        f"rows {'equal' if _same(rows1, rows_p) else 'DIFFERENT'}; {_load()})",
+        speed >= 1.8 if (os.cpu_count() or 1) >= workers else None,
+        f"({N_RUNS / tp:.1f} runs/s: {speed:.2f}× one core; start-up {start:.1f} s not counted; "
+        f"rows {'equal' if _same(one.rows, rows_p) else 'DIFFERENT'}; {_load()})",
     )
 
+
+def _dask_rows(add, base: dict, tiny: dict, one: _OneCore, workers: int) -> None:
     try:
         import distributed  # noqa: F401
     except ImportError:
         add("sweep: Dask LocalCluster", 0.0, None, note="(skipped: pip install 'nmkane[sweep]')")
-    else:
-        t0 = time.perf_counter()
-        with DaskExecutor(f"local:{workers}", warm=(base,)) as ex:
-            start = time.perf_counter() - t0
-            _timed(ex, tiny, WARM_GRID)
-            td, rows_d = _timed(ex, base, GRID)
-            td_tiny, _ = _timed(ex, tiny, TINY_GRID)
-        speed = (n / td) / rate1
-        add(
-            f"sweep: the same {n} runs, Dask LocalCluster, {workers} worker processes",
-            td,
-            None,
-            "≥ 1.7× one core",
-            speed >= 1.7 if enough else None,
-            f"({n / td:.1f} runs/s: {speed:.2f}× one core; cluster start-up {start:.1f} s not counted; "
-            f"rows {'equal' if _same(rows1, rows_d) else 'DIFFERENT'}; {_load()})",
-        )
-        m = 640
-        over = td_tiny / m - t1_tiny / (m * workers)
-        add(
-            f"sweep: Dask overhead per run ({m} runs of 10 steps)",
-            max(over, 1e-9),
-            None,
-            "≤ 5 ms",
-            over <= 0.005,
-            f"(Dask {td_tiny / m * 1e3:.2f} ms/run wall vs one core {t1_tiny / m * 1e3:.2f} ms/run "
-            f"÷ {workers}; {_load()})",
-        )
+        return
+    t0 = time.perf_counter()
+    with DaskExecutor(f"local:{workers}", warm=(base,)) as ex:
+        start = time.perf_counter() - t0
+        _timed(ex, tiny, WARM_GRID)
+        td, rows_d = _timed(ex, base, GRID)
+        td_tiny, _ = _timed(ex, tiny, TINY_GRID)
+    speed = (N_RUNS / td) / one.rate
+    add(
+        f"sweep: the same {N_RUNS} runs, Dask LocalCluster, {workers} worker processes",
+        td,
+        None,
+        "≥ 1.7× one core",
+        speed >= 1.7 if (os.cpu_count() or 1) >= workers else None,
+        f"({N_RUNS / td:.1f} runs/s: {speed:.2f}× one core; cluster start-up {start:.1f} s not counted; "
+        f"rows {'equal' if _same(one.rows, rows_d) else 'DIFFERENT'}; {_load()})",
+    )
+    over = td_tiny / N_TINY - one.tiny_seconds / (N_TINY * workers)
+    add(
+        f"sweep: Dask overhead per run ({N_TINY} runs of 10 steps)",
+        max(over, 1e-9),
+        None,
+        "≤ 5 ms",
+        over <= 0.005,
+        f"(Dask {td_tiny / N_TINY * 1e3:.2f} ms/run wall vs one core {one.tiny_seconds / N_TINY * 1e3:.2f} ms/run "
+        f"÷ {workers}; {_load()})",
+    )
 
-    if long:
-        rss = {k: _sweep_peak_rss(k, workers) for k in (1_000, 10_000)}
-        grow = rss[10_000][0] - rss[1_000][0]
-        add(
-            "sweep: 10,000 runs streamed to CSV (`nmkane sweep` process, peak RSS)",
-            rss[10_000][1],
-            None,
-            f"≤ +{RSS_FLAT_MB:g} MB vs 1,000",
-            grow <= RSS_FLAT_MB,
-            f"(peak RSS {rss[10_000][0]:.0f} MB for 10,000 runs, {rss[1_000][0]:.0f} MB for 1,000; "
-            f"{workers} worker processes; {_load()})",
-        )
+
+def _streaming_memory_row(add, workers: int) -> None:
+    rss = {k: _sweep_peak_rss(k, workers) for k in (1_000, 10_000)}
+    grow = rss[10_000][0] - rss[1_000][0]
+    add(
+        "sweep: 10,000 runs streamed to CSV (`nmkane sweep` process, peak RSS)",
+        rss[10_000][1],
+        None,
+        f"≤ +{RSS_FLAT_MB:g} MB vs 1,000",
+        grow <= RSS_FLAT_MB,
+        f"(peak RSS {rss[10_000][0]:.0f} MB for 10,000 runs, {rss[1_000][0]:.0f} MB for 1,000; "
+        f"{workers} worker processes; {_load()})",
+    )
 
 
 def _sweep_peak_rss(runs: int, workers: int) -> tuple[float, float]:

@@ -1,5 +1,5 @@
 """``nmkane stability SYSTEM``: eigenvalues of the linearized motion against the value a
-system declares to sweep (a bicycle's speed), the values where the stability changes beside
+system declares to sweep (a vehicle's forward speed), the values where the stability changes beside
 published ones, and optionally the figure (see :mod:`nmkane_core.analysis.eigensweep`)."""
 
 from __future__ import annotations
@@ -126,7 +126,7 @@ def _run(args: argparse.Namespace) -> int:
 
 COMMAND = Command(
     "stability",
-    "eigenvalues of the linearized motion against the value a system declares to sweep (e.g. a bicycle's speed)",
+    "eigenvalues of the linearized motion against the value a system declares to sweep (e.g. a forward speed)",
     _add,
     _run,
 )

@@ -1,4 +1,4 @@
-"""Eigenvalues of a system's linearized motion against a swept value (a bicycle's speed).
+"""Eigenvalues of a system's linearized motion against a swept value (a forward speed).
 
 A system declares what to sweep, ``System(stability=Stability(...))``: the swept value's
 name, unit and default range, a function giving the independent initial values at a

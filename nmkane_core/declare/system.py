@@ -1,10 +1,10 @@
 """Named systems: what a user declares once, bound by name, checked when registered.
 
-A :class:`System` gathers what users choose by name (``appell-hamel``, ``knife-edge``): its
+A :class:`System` gathers what users choose by name (the names of the catalogue): its
 physical parameters (keyed by the model's own symbols or their names), its default initial
-state and its *variants* — equivalent models of the same mechanism (the Appell–Hamel
-constraint models ``nonlinear``/``linear``, the sliding particle's ``nonminimal`` and
-``minimal`` formulations).  A system with one variant gives just its model (or a function
+state and its *variants* — equivalent models of the same mechanism (two constraint models
+of one mechanism, ``nonlinear``/``linear``, as in the paper's Example 1; a ``nonminimal``
+and a ``minimal`` formulation, as in its Example 2).  A system with one variant gives just its model (or a function
 that builds it).  Everything else is taken from the model: coordinates and speeds from
 ``q`` and ``u``, the independent values a user sets from ``u_independent`` and the
 coordinates not solved from holonomic constraints.
@@ -61,7 +61,7 @@ class System:
     Parameters
     ----------
     name:
-        The public name (``knife-edge``): CLI argument, REST ``system`` field.
+        The public name (lower case with hyphens, e.g. ``my-cart``): CLI argument, REST ``system`` field.
     variants:
         A :class:`MechanicalModel`, a zero-argument function building one, or a mapping
         variant name → model or function (equivalent models of one mechanism).
@@ -84,7 +84,7 @@ class System:
         constraints complete and check initial states (default: the default variant).
     equivalents:
         Variant → variants that describe the same motion, to switch to where the first is
-        singular (the Appell–Hamel nonlinear model's J2 where the wheel stops rolling).
+        singular (a model whose J2 is singular where a wheel stops rolling, say, beside one that is not).
     singular_hints:
         Variant → a sentence appended to a ``singular`` run's message (why it happens).
     default_dt, default_t_final, default_integrator, default_gamma, default_gamma1, default_gamma2:
@@ -145,7 +145,7 @@ class System:
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name.strip():
-            raise InputError("System.name", self.name, "a non-empty string such as 'knife-edge'", "no name")
+            raise InputError("System.name", self.name, "a non-empty string such as 'my-cart'", "no name")
         raw = self.variants
         if isinstance(raw, Mapping):
             if not raw:

@@ -14,7 +14,7 @@ class Switcher:
     """Switching between equivalent constraint models near singular configurations.
 
     A system may declare, for a variant, equivalent variants (the same motion on the
-    constraint manifold, e.g. the Appell–Hamel nonlinear and linear models); the job lists
+    constraint manifold, e.g. the nonlinear and linear constraint models of the paper's Example 1); the job lists
     them as its alternatives.  When J2 or T of the chosen model gets a reciprocal-condition
     estimate at or below ``rcond_switch``, the run continues with the first alternative that
     is well-conditioned there, and returns to the chosen model once its estimate is above

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import itertools
 import re
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 
@@ -17,8 +18,20 @@ from .claims import drift
 from .runs import T_FIG16, Runs
 from .text import plain_caption
 
-if TYPE_CHECKING:
-    from .figure_specs import FigureSpec
+
+class Drawable(Protocol):
+    """What :func:`draw_figure` needs of a figure (a :class:`~.figure_specs.FigureSpec` has it)."""
+
+    @property
+    def number(self) -> int: ...
+
+    @property
+    def caption(self) -> str: ...
+
+    @property
+    def draw(self) -> Callable:  # draw(fig, runs): fills the matplotlib Figure
+        ...
+
 
 __all__ = [
     "draw_figure",
@@ -348,7 +361,7 @@ def _log_ticks(ax):
     ax.yaxis.set_minor_formatter(NullFormatter())
 
 
-def draw_figure(spec: FigureSpec, runs: Runs, path: str) -> None:
+def draw_figure(spec: Drawable, runs: Runs, path: str) -> None:
     """Draw ``spec`` from ``runs`` under the paper's caption and save it as a PNG at ``path``."""
     import matplotlib
 

@@ -1,5 +1,5 @@
 """Events a system declares: named functions of the state and parameters that end a run
-when they reach zero (a bicycle touching the ground, a particle leaving a surface).
+when they reach zero (a vehicle touching the ground, a body leaving a surface).
 
 A system declares ``System(events=fn)`` where ``fn()`` (sympy inside: called only when the
 compiled form is not cached yet) returns ``{name: expression}``; each expression is of the
@@ -13,7 +13,7 @@ crossing, the crossing time found by linear interpolation between the two rows a
 where an interpolated last row (state, energy and violations) is put.  The run's status is
 then ``"event"``, with ``summary["event"] = {"name", "t"}``.  A run that failed (singular,
 diverged, ...) before the first crossing keeps its failure; one that failed after it (a
-bicycle lying flat makes its contact geometry singular) ends with the event, which came
+vehicle lying flat can make its contact geometry singular) ends with the event, which came
 first.  The crossing time is as fine as the output rows (``every``): a crossing and
 recrossing between two rows is not seen.  Maxima in the summary (constraint violations,
 energy drift) are recomputed over the rows kept.

@@ -4,7 +4,7 @@ Given values for the *independent* coordinates and speeds (the rest taken from t
 system's defaults), the dependent ones are solved from the constraints by Newton's
 method with the compiled kernel's Jacobians: first the holonomic ψ(q) = 0 for the
 dependent coordinates, then the velocity constraints [φ; ψ̇] = 0 for u_D.  A system may
-name a ``completion_variant`` (the Appell–Hamel mechanism uses its linear model, whose
+name a ``completion_variant`` (a mechanism with a constraint nonlinear in the speeds may use its linear model, whose
 velocity constraints have one solution) — the state is then checked against the chosen
 variant's own constraints.  A full state (every name given) is not changed, only checked.
 """

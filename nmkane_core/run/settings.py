@@ -46,7 +46,7 @@ def validate_settings(settings: Mapping) -> RunSettings:
         raise InputError(
             "settings",
             shown(settings),
-            "a mapping (dict) of run settings, e.g. {'system': 'appell-hamel', 'dt': 0.01}",
+            "a mapping (dict) of run settings, e.g. {'dt': 0.01, 't_final': 20}",
             f"a {type(settings).__name__}",
         )
     try:

@@ -58,7 +58,7 @@ def simulate(
     ----------
     settings:
         What to run: a :class:`~nmkane_core.schema.RunSettings`, a mapping with the same
-        fields (``{"system": "knife-edge", "dt": 0.001, "t_final": 10, "initial": {...}}``;
+        fields (``{"system": NAME, "dt": 0.001, "t_final": 10, "initial": {...}}``;
         omitted fields take the system's defaults), or a :class:`Plan` already made by
         :func:`resolve`.  Settings are checked before anything runs: bad input raises
         :class:`~nmkane_core.errors.InputError` naming the field, the value and what is

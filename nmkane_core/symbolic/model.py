@@ -292,7 +292,7 @@ class MechanicalModel:
         us = plain_symbols([str(s).replace("(t)", "") for s in u])
         ts = sp.Symbol("t", real=True)
         # xreplace, not subs: an exact swap of nodes, linear in the size of the expression
-        # (subs took minutes on a bicycle's mass matrix)
+        # (subs took minutes on the mass matrix of a model with 8 coordinates)
         to_qdot = dict(zip(qd, qdot, strict=True))
         to_plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), t: ts}
 

@@ -96,7 +96,7 @@ def row_degrees(d: Derivation) -> list:
     bring the rows to comparable sizes:
 
     * a row of polynomial degree k > 1 (its gradient grows like |u|^(k−1)) is divided by
-      max(1, |u|∞)^(k−1), so that a constraint quadratic in the speeds (the Appell–Hamel (57))
+      max(1, |u|∞)^(k−1), so that a constraint quadratic in the speeds (the paper's (57))
       is flagged where its gradient degenerates (φ̇ → 0, cancellation) and not merely because
       the speeds are large; rows of degree 1 are left as they are.  (The paper's systems have
       only such rows: their estimates and thresholds do not depend on what follows.)
@@ -124,7 +124,7 @@ def _row_degree(e, u) -> int:
 def pythagorean(e):
     """``e`` with every sum c·sin²a + c·cos²a replaced by c (same c, same a), bottom-up.
 
-    Kane's mass matrices are full of such sums (the Appell–Hamel Q[0,0] is
+    Kane's mass matrices are full of such sums (Q[0,0] of the paper's Example 1 is
     I sin²φ + I cos²φ + M(ρ² sin²θ + ρ² cos²θ) = I + Mρ²): each one left in costs the kernels
     transcendental calls at every evaluation.  Exact, linear in the size of ``e`` (a
     structural match: no expansion, which can blow up, and no general ``trigsimp``, which
