@@ -49,7 +49,7 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
     t, h = 0.0, min(job.dt, job.t_final)
     accepted = attempts = 0
     status, stop = STATUS_OK, None
-    sw = Switcher(job)
+    sw = Switcher(job, stopper)
     while t < job.t_final:
         size = sw.SWITCHED_CHUNK if sw.switched else ROWS_PER_CALL
         budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ATTEMPTS_PER_CALL, LIMITS["max_steps"] - attempts))
@@ -58,6 +58,7 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
             job, sw.p, x, rows, stats, t=t, h=h, max_steps=budget, accepted=accepted, rcond_min=sw.threshold
         )
         status, t, h, nrow, accepted, att = sw.module.integrate_adaptive(*args)
+        sw.h = h
         attempts += att
         chunks.add(rows, nrow)
         bar.update(t)

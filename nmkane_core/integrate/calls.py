@@ -20,7 +20,17 @@ from ..kernel.interface import AdaptiveArgs, FixedArgs
 from .job import Job
 from .methods import ScipyMethod, Tableau
 
-__all__ = ["HMIN_REL", "Rows", "Stopper", "adaptive_args", "fixed_args", "initial_stats", "prepare"]
+__all__ = [
+    "HMIN_REL",
+    "Rows",
+    "Stopper",
+    "adaptive_args",
+    "conditioning",
+    "fixed_args",
+    "initial_stats",
+    "prepare",
+    "prime",
+]
 
 HMIN_REL = 1e-13  # adaptive runs fail below a step of HMIN_REL · max(1, t_final)
 
@@ -36,17 +46,25 @@ class Rows:
 
 
 class Stopper:
-    """Why a run should stop between chunks of compiled work: cancelled, or past its time limit."""
+    """Why a run should stop between chunks of compiled work: cancelled, or past its time limit.
+
+    The limit bounds integration, not compilation: time spent loading a kernel's loop during
+    the run (a switch target's, on its first use) is excluded (:meth:`exclude`)."""
 
     def __init__(self, time_limit: float | None, cancel: Callable[[], bool] | None):
         self.start = time.perf_counter()
         self.time_limit = time_limit
         self.cancel = cancel
+        self.excluded = 0.0
+
+    def exclude(self, seconds: float) -> None:
+        self.excluded += seconds
 
     def reason(self) -> str | None:
         if self.cancel is not None and self.cancel():
             return "cancelled"
-        if self.time_limit is not None and time.perf_counter() - self.start > self.time_limit:
+        spent = time.perf_counter() - self.start - self.excluded
+        if self.time_limit is not None and spent > self.time_limit:
             return "timeout"
         return None
 
@@ -62,18 +80,22 @@ def fixed_args(
     k1: int,
     row: int,
     rcond_min: float,
+    t0: float = 0.0,
+    steps: tuple[float, float, int] | None = None,
 ) -> FixedArgs:
-    """``integrate_fixed``'s arguments: steps k0 … k1−1 of the job's fixed-step run."""
+    """``integrate_fixed``'s arguments: steps k0 … k1−1 of the job's fixed-step run (or, with
+    ``steps = (dt, t_final, nsteps)`` from ``t0``, of another grid: a trial step)."""
     tab = job.method
     assert isinstance(tab, Tableau)
+    dt, t_final, nsteps = steps if steps is not None else (job.dt, job.t_final, fixed_steps(job))
     return FixedArgs(
         x=x,
-        t0=0.0,
-        dt=job.dt,
-        t_final=job.t_final,
+        t0=t0,
+        dt=dt,
+        t_final=t_final,
         k0=k0,
         k1=k1,
-        nsteps=fixed_steps(job),
+        nsteps=nsteps,
         every=job.every,
         p=p,
         G=job.G,
@@ -159,16 +181,24 @@ def initial_stats(job: Job, module, p: np.ndarray) -> tuple[np.ndarray, float, n
 
 
 def prepare(job: Job) -> None:
-    """Load — or, on a model's first use, compile — everything a run of ``job`` calls, so that
-    the run itself starts at once (``time_limit`` bounds integration, not compilation): the
-    chosen variant's loop and those of every alternative it may switch to."""
-    for module, p in [(job.module, job.p), *((a.module, a.p) for a in job.alternatives)]:
-        _prime(job, module, p)
+    """Load — or, on a model's first use, compile — what a run of ``job`` calls, so that the
+    run itself starts at once (``time_limit`` bounds integration, not compilation): the chosen
+    variant's loop and the helpers around it.  The loop of an alternative the run may switch
+    to is loaded when it is first needed (:func:`prime`; the run's clock stops meanwhile), so
+    a first run does not compile loops it does not use."""
+    prime(job, job.module, job.p)
+
+
+def prime(job: Job, module, p: np.ndarray) -> float:
+    """Call ``module``'s loop for ``job`` once with no work (and the helpers a driver calls
+    around it: the initial diagnostics, scipy's right-hand side); returns the seconds it took
+    (compiling, or loading compiled code, on first use)."""
+    t0 = time.perf_counter()
+    _prime(job, module, p)
+    return time.perf_counter() - t0
 
 
 def _prime(job: Job, module, p: np.ndarray) -> None:
-    """Call the run's compiled loop once with no work (and the helpers a driver calls around
-    it: initial diagnostics, the switcher's conditioning check, scipy's right-hand side)."""
     precompile.wait(module)  # a new kernel's loop may be compiling next door
     x = job.x0.copy()
     stats, _, _ = initial_stats(job, module, p)
@@ -176,10 +206,27 @@ def _prime(job: Job, module, p: np.ndarray) -> None:
         module.rhs_ws(0.0, x, p, job.G, job.G1, job.G2, np.empty((1, x.size)), 0, module.make_workspace())
         module.diagnostics(0.0, x, p, np.empty(module.NV))
         return
-    module.rhs(0.0, x, p, job.G, job.G1, job.G2)  # the switcher's conditioning check
     rows = Rows(1, x.size, module.NV)
     if job.method.adaptive:
         args = adaptive_args(job, p, x, rows, stats, t=0.0, h=job.dt, max_steps=0, accepted=0, rcond_min=0.0)
         module.integrate_adaptive(*args)
     else:
         module.integrate_fixed(*fixed_args(job, p, x, rows, stats, k0=0, k1=0, row=0, rcond_min=0.0))
+
+
+def conditioning(job: Job, module, p: np.ndarray, t: float, x: np.ndarray, h: float) -> float:
+    """The smallest reciprocal-condition estimate of J2 and T over one trial step of size ``h``
+    from (t, x) with ``module``'s loop (on copies: nothing of the run changes).  The switcher
+    asks this of a model before it switches to it or back (no other compiled function needed)."""
+    rows = Rows(2, x.size, module.NV)
+    stats = np.zeros(STATS_VIOL + module.NV)
+    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    y = x.copy()
+    if job.method.adaptive:
+        module.integrate_adaptive(
+            *adaptive_args(job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0)
+        )
+    else:
+        args = fixed_args(job, p, y, rows, stats, k0=0, k1=1, row=0, rcond_min=0.0, t0=t, steps=(h, t + h, 1))
+        module.integrate_fixed(*args)
+    return float(min(stats[STATS_RCOND_J2], stats[STATS_RCOND_T]))

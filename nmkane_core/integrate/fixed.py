@@ -34,7 +34,7 @@ def run_fixed(job: Job, bar, stopper: Stopper) -> LoopOutput:
     x = job.x0.copy()
     row, k, status, stop = 1, 0, STATUS_OK, None
     chunk = FIRST_CHUNK
-    sw = Switcher(job)
+    sw = Switcher(job, stopper)
     while k < nsteps:
         t_call = time.perf_counter()
         k_end = min(nsteps, k + (sw.SWITCHED_CHUNK if sw.switched else chunk))

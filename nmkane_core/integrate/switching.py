@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernel.constants import STATS_VIOL
+from .calls import Stopper, conditioning, prime
 from .job import Alternative, Job
 
 __all__ = ["Switcher"]
@@ -25,8 +26,11 @@ class Switcher:
     SWITCH_BACK = 10.0
     SWITCHED_CHUNK = 25  # steps per call while switched, to return promptly
 
-    def __init__(self, job: Job):
+    def __init__(self, job: Job, stopper: Stopper):
         self.job = job
+        self.stopper = stopper
+        self.h = job.dt  # the size of a conditioning check's trial step (the driver keeps it current)
+        self.primed = {id(job.module)}
         self.home = Alternative(job.variant, job.module, job.p)
         self.cur = self.home
         self.no_cure = False
@@ -56,8 +60,12 @@ class Switcher:
         return job.rcond_min
 
     def _rcond(self, model: Alternative, t, x) -> float:
-        _, rc0, rc1 = model.module.rhs(t, x, model.p, self.job.G, self.job.G1, self.job.G2)
-        return min(rc0, rc1)
+        """The model's condition over a trial step from (t, x); its loop is loaded on first use,
+        off the run's clock."""
+        if id(model.module) not in self.primed:
+            self.stopper.exclude(prime(self.job, model.module, model.p))
+            self.primed.add(id(model.module))
+        return conditioning(self.job, model.module, model.p, t, x, self.h)
 
     def leave(self, t, x, row) -> bool:
         """The chosen model is ill-conditioned at (t, x): switch if an equivalent one is not.
