@@ -461,7 +461,7 @@ def test_kernel_warm_up_reports_each_step(tmp_path):
     steps = [ln for ln in lines if re.match(r"nmkane: kernels \[\d+/\d+\] ", ln)]
     assert len(steps) == len(lines) - 1 >= 17
     assert {
-        "appell-hamel nonlinear, fixed step",
+        "appell-hamel nonlinear, default",
         "sliding-particle minimal, adaptive",
         "scipy adapter",
         "appell-hamel linear, adaptive, projected",
@@ -475,10 +475,13 @@ def test_background_warm_up_serves_meanwhile_and_stops_with_the_service(tmp_path
     svc = RunService(Settings(data_dir=tmp_path, warm_kernels=False))
     svc.start()
     first, later = svc.warm_steps()
-    assert all("projection" in s for _, s in later) and not any("projection" in s for _, s in first)
+    # first: what a request naming only a system runs (one per system); later: all the rest
+    assert [s["system"] for _, s in first] == list(dict.fromkeys(s["system"] for _, s in first))
+    assert not any("projection" in s or "integrator" in s for _, s in first)
+    assert any("projection" in s for _, s in later) and any(s.get("integrator") for _, s in later)
     lines = []
     svc.warm_in_background(later[:2], lines.append).join(600)
-    assert svc.warmed.is_set() and lines[-1].startswith("nmkane: projection loops ready in")
+    assert svc.warmed.is_set() and lines[-1].startswith("nmkane: the other loops ready in")
     svc.stop()  # a stopped service warms nothing more
     lines.clear()
     svc.warm_in_background(later, lines.append).join(60)
