@@ -59,6 +59,8 @@ def encode_document(run: Run, run_id: str, summary: dict | None = None) -> bytes
         "state": run.state,
         "energy": run.energy,
         "violation": run.violation,
+        "constraint_forces": run.constraint_forces,
+        "multipliers": run.multipliers,
         "summary": summary,
     }
     return orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)

@@ -23,6 +23,8 @@ from .methods import ScipyMethod, Tableau
 __all__ = [
     "HMIN_REL",
     "Rows",
+    "forces_at",
+    "rows_for",
     "Stopper",
     "adaptive_args",
     "conditioning",
@@ -36,13 +38,24 @@ HMIN_REL = 1e-13  # adaptive runs fail below a step of HMIN_REL · max(1, t_fina
 
 
 class Rows:
-    """Output buffers of one loop call: times, states, energies and violations."""
+    """Output buffers of one loop call: times, states, energies, violations and, when they are
+    wanted, constraint forces and multipliers (else arrays of no rows: the loops skip them)."""
 
-    def __init__(self, size: int, n2: int, nv: int):
+    def __init__(self, size: int, n2: int, nv: int, forces: tuple[int, int] | None = None):
         self.t = np.empty(size)
         self.x = np.empty((size, n2))
         self.E = np.empty(size)
         self.V = np.empty((size, nv))
+        n, m = forces if forces is not None else (0, 0)
+        self.F = np.zeros((size if forces else 0, n))
+        self.L = np.zeros((size if forces else 0, m))
+
+
+def rows_for(job: Job, module, size: int) -> Rows:
+    """Output buffers of ``size`` rows for ``module``'s loop (forces when the job wants them;
+    room for the multipliers of any model the run may switch to)."""
+    m = max([job.module.M, *(a.module.M for a in job.alternatives)])
+    return Rows(size, job.x0.size, module.NV, (module.N, m) if job.forces else None)
 
 
 class Stopper:
@@ -80,6 +93,7 @@ def fixed_args(
     k1: int,
     row: int,
     rcond_min: float,
+    pending: int = -1,
     t0: float = 0.0,
     steps: tuple[float, float, int] | None = None,
 ) -> FixedArgs:
@@ -110,7 +124,10 @@ def fixed_args(
         out_x=rows.x,
         out_E=rows.E,
         out_V=rows.V,
+        out_F=rows.F,
+        out_L=rows.L,
         row=row,
+        pending=pending,
         stats=stats,
     )
 
@@ -127,6 +144,8 @@ def adaptive_args(
     max_steps: int,
     accepted: int,
     rcond_min: float,
+    pending: int = -1,
+    t_final: float | None = None,
 ) -> AdaptiveArgs:
     """``integrate_adaptive``'s arguments: from ``t`` with first step ``h``, at most ``max_steps``
     attempts and as many rows as ``rows`` holds."""
@@ -135,7 +154,7 @@ def adaptive_args(
     return AdaptiveArgs(
         x=x,
         t=t,
-        t_final=job.t_final,
+        t_final=job.t_final if t_final is None else t_final,
         h=h,
         rtol=job.rtol,
         atol=job.atol,
@@ -159,6 +178,9 @@ def adaptive_args(
         out_x=rows.x,
         out_E=rows.E,
         out_V=rows.V,
+        out_F=rows.F,
+        out_L=rows.L,
+        pending=pending,
         stats=stats,
     )
 
@@ -205,8 +227,11 @@ def _prime(job: Job, module, p: np.ndarray) -> None:
     if isinstance(job.method, ScipyMethod):
         module.rhs_ws(0.0, x, p, job.G, job.G1, job.G2, np.empty((1, x.size)), 0, module.make_workspace())
         module.diagnostics(0.0, x, p, np.empty(module.NV))
+        if job.forces:
+            F, L = np.zeros((1, module.N)), np.zeros((1, module.M))
+            module.forces_rows(np.zeros(1), x[None, :], p, job.G, job.G1, job.G2, F, L)
         return
-    rows = Rows(1, x.size, module.NV)
+    rows = rows_for(job, module, 1)
     if job.method.adaptive:
         args = adaptive_args(job, p, x, rows, stats, t=0.0, h=job.dt, max_steps=0, accepted=0, rcond_min=0.0)
         module.integrate_adaptive(*args)
@@ -230,3 +255,25 @@ def conditioning(job: Job, module, p: np.ndarray, t: float, x: np.ndarray, h: fl
         args = fixed_args(job, p, y, rows, stats, k0=0, k1=1, row=0, rcond_min=0.0, t0=t, steps=(h, t + h, 1))
         module.integrate_fixed(*args)
     return float(min(stats[STATS_RCOND_J2], stats[STATS_RCOND_T]))
+
+
+def forces_at(job: Job, module, p: np.ndarray, t: float, x: np.ndarray, rows: Rows, row: int) -> None:
+    """The constraint forces of the state (t, x) into ``rows.F[row]``, ``rows.L[row]``: the first
+    stage of a trial step of ``module``'s loop (on copies: nothing of the run changes; no other
+    compiled function needed).  For a row no step of the run started from: its last."""
+    trial = rows_for(job, module, 2)
+    stats = np.zeros(STATS_VIOL + module.NV)
+    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    y = x.copy()
+    h = job.dt
+    if job.method.adaptive:
+        adaptive = adaptive_args(
+            job, p, y, trial, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, pending=0, t_final=t + h
+        )
+        module.integrate_adaptive(*adaptive)
+    else:
+        fixed = fixed_args(
+            job, p, y, trial, stats, k0=0, k1=1, row=1, rcond_min=0.0, pending=0, t0=t, steps=(h, t + h, 1)
+        )
+        module.integrate_fixed(*fixed)
+    rows.F[row], rows.L[row] = trial.F[0], trial.L[0]

@@ -81,7 +81,11 @@ def apply_events(run, system):
         run.summary["max_abs_energy_drift"] = float(np.max(np.abs(run.energy - run.energy[0])))
         run.summary["final_energy_drift"] = float(run.energy[-1] - run.energy[0])
     run.violation = {key: cut(v) for key, v in run.violation.items()}
+    run.constraint_forces = {key: cut(v) for key, v in run.constraint_forces.items()}
+    run.multipliers = {key: cut(v) for key, v in run.multipliers.items()}
     run.summary["max_abs_violation"] = {key: float(np.max(np.abs(v))) for key, v in run.violation.items()}
+    if run.multipliers:
+        run.summary["max_abs_multiplier"] = {key: float(np.max(np.abs(v))) for key, v in run.multipliers.items()}
     run.summary["status"] = "event"
     run.summary["event"] = {"name": name, "t": tc}
     run.summary["t_end"] = tc

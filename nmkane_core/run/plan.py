@@ -58,6 +58,7 @@ class Plan:
     settings: dict
     warnings: list[str] = field(default_factory=list)
     initial_correction: dict[str, float] = field(default_factory=dict)
+    forces: bool = True  # report constraint forces and multipliers
 
     @property
     def info(self) -> ModelInfo:
@@ -89,6 +90,7 @@ class Plan:
             rcond_switch=self.rcond_switch,
             proj=self.projection.as_array(self.info),
             alternatives=alternatives,
+            forces=self.forces,
         )
 
 
@@ -141,6 +143,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         settings=_resolved(s, system, variant, method, dt, t_final, params, full, proj),
         warnings=warnings,
         initial_correction=correction,
+        forces=s.constraint_forces,
     )
 
 
