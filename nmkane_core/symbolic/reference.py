@@ -4,9 +4,23 @@ It follows the paper literally, step for step, with numpy/scipy linear algebra:
 A = −J2⁻¹J1 and B̂ = B + J2⁻¹s by an LU solve (20), (108), (113); A1, A2 (22), (40);
 T = [A1; A2 Q], V̂ = [B̂; A2 P] (44), (110); u̇ = T⁻¹V̂ by an LU solve (111).
 Slow (a few tens of µs per call) but obviously right; used by tests and as a fallback.
+
+Beside it, the rank-robust solve (``rhs(..., solve="robust")``, :func:`robust_solve`, design
+in ``docs/closed-loops.md``): the same equations written as Gauss's principle in the mass
+metric — u̇ minimizes (u̇ − a)ᵀQ(u̇ − a) subject to J u̇ = c, a = Q⁻¹P, c = −(B1 u + B2) + s —
+solved through a Cholesky factor of Q and a Householder QR with column pivoting of
+L⁻¹Jᵀ, so that redundant constraints and an instantaneous loss of rank (a mechanism
+passing a singular position) need no partition and no invertible J2.  Where J2 is
+invertible it is the paper's u̇ (the same solution of the same equations); ``solve="auto"``
+keeps the paper's path there and re-picks the partition by pivoting (Wehage & Haug
+1982) or falls back to the robust solve where J2 is ill-conditioned.  The algorithm is
+written with explicit loops (Cholesky, triangular solves, Householder reflections): it is
+the specification of the compiled kernel's allocation-free version.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import scipy.linalg as sla
@@ -15,6 +29,21 @@ import sympy as sp
 from ..errors import SingularMatrix
 from .derivation import Derivation
 from .terms import kernel_terms
+
+#: relative threshold of the rank decisions in the robust solve: a constraint gradient
+#: (a column of L⁻¹Jᵀ) shorter than this times the longest is vanishing there, and a pivot
+#: of the QR of the equilibrated columns below it marks an equation dependent on the
+#: previous ones (see docs/closed-loops.md for the choice)
+RANK_TOL = 1e-10
+#: rank threshold of the declaration check (redundant equations at the default state)
+DECLARATION_RANK_TOL = 1e-8
+#: the acceleration constraints J u̇ = c are called inconsistent (the motion cannot stay on
+#: the constraints: a run ends ``singular``) when the equations dropped as dependent miss
+#: by more than this, relative to the size of c
+CONSISTENCY_TOL = 1e-6
+#: below this estimate of J2's condition (pivot ratio) ``solve="auto"`` leaves the paper's
+#: path: it re-picks the partition, or uses the robust solve
+RCOND_ROBUST = 1e-6
 
 
 def pivot_rcond(lu: np.ndarray) -> float:
@@ -26,8 +55,207 @@ def pivot_rcond(lu: np.ndarray) -> float:
     return float(piv.min() / big) if big > 0 else 0.0
 
 
+# --------------------------------------------------------------------------- rank-robust solve
+class ConstraintsInconsistent(SingularMatrix):
+    """J u̇ = c has no solution: c is not in the range of J (at a singular or redundant
+    position the dependent equations disagree), so the motion cannot stay on the constraints."""
+
+    def __init__(self, t: float, rank: int, m: int, dropped: list, residual: float):
+        self.rank, self.m, self.dropped, self.residual = rank, m, dropped, residual
+        ArithmeticError.__init__(
+            self,
+            f"the acceleration constraints are inconsistent at t = {t:.6g} s: rank {rank} of {m}, the "
+            f"dependent equations {dropped} miss by {residual:.3g} (relative); the motion cannot "
+            "continue on the constraints here",
+        )
+        self.matrix, self.rcond, self.t = "J", 0.0, t
+
+
+def cholesky_lower(Q: np.ndarray) -> np.ndarray | None:
+    """Q = L Lᵀ by the column (Cholesky–Banachiewicz) loop; None when Q is not positive definite."""
+    n = Q.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        d = Q[j, j] - L[j, :j] @ L[j, :j]
+        if not d > 0.0:
+            return None
+        L[j, j] = np.sqrt(d)
+        L[j + 1 :, j] = (Q[j + 1 :, j] - L[j + 1 :, :j] @ L[j, :j]) / L[j, j]
+    return L
+
+
+def forward_solve(L: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """L X = B for lower-triangular L (B a vector or a matrix, by rows)."""
+    X = np.array(B, float, copy=True)
+    for i in range(L.shape[0]):
+        X[i] = (X[i] - L[i, :i] @ X[:i]) / L[i, i]
+    return X
+
+
+def backward_solve_transposed(L: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Lᵀ X = B for lower-triangular L."""
+    X = np.array(B, float, copy=True)
+    n = L.shape[0]
+    for i in range(n - 1, -1, -1):
+        X[i] = (X[i] - L[i + 1 :, i] @ X[i + 1 :]) / L[i, i]
+    return X
+
+
+def qr_column_pivoting(A: np.ndarray, tol: float):
+    """Householder QR with column pivoting, A Π = Z R, stopped at the numerical rank.
+
+    At step k the remaining column of largest norm (recomputed exactly; the first one on a
+    tie) becomes column k; the step stops when that norm is at most ``tol`` times the first
+    pivot's.  Returns (H, beta, piv, rank): H holds R on and above its diagonal (rows
+    ``< rank``) and the Householder vectors below it (LAPACK's layout, v_k[0] = 1 implied by
+    storing v_k scaled), beta the reflector coefficients (H_k = I − beta_k v_k v_kᵀ), piv
+    the column order (the first ``rank`` are the independent ones)."""
+    H = np.array(A, float, copy=True)
+    n, m = H.shape
+    piv = np.arange(m)
+    beta = np.zeros(m)
+    first = 0.0
+    rank = 0
+    for k in range(min(n, m)):
+        norms = np.einsum("ij,ij->j", H[k:, k:], H[k:, k:])
+        j = k + int(np.argmax(norms))
+        nk = float(np.sqrt(norms[j - k]))
+        if k == 0:
+            first = nk
+        if nk <= tol * first or nk == 0.0:
+            break
+        if j != k:
+            H[:, [k, j]] = H[:, [j, k]]
+            piv[[k, j]] = piv[[j, k]]
+        x0 = H[k, k]
+        alpha = -nk if x0 >= 0.0 else nk
+        v0 = x0 - alpha  # v = x − alpha e1, scaled so that v[0] = 1
+        H[k + 1 :, k] /= v0
+        beta[k] = -v0 / alpha  # = 2 / (vᵀv) for the scaled v
+        H[k, k] = alpha
+        if k + 1 < m:  # apply H_k to the remaining columns
+            w = H[k, k + 1 :] + H[k + 1 :, k] @ H[k + 1 :, k + 1 :]
+            H[k, k + 1 :] -= beta[k] * w
+            H[k + 1 :, k + 1 :] -= beta[k] * np.outer(H[k + 1 :, k], w)
+        rank = k + 1
+    return H, beta, piv, rank
+
+
+def _apply_Z(H: np.ndarray, beta: np.ndarray, rank: int, y: np.ndarray) -> np.ndarray:
+    """Z_r y = H_0 H_1 … H_{r−1} [y; 0] (the reflectors applied in reverse order)."""
+    z = np.zeros(H.shape[0])
+    z[:rank] = y
+    for k in range(rank - 1, -1, -1):
+        d = z[k] + H[k + 1 :, k] @ z[k + 1 :]
+        z[k] -= beta[k] * d
+        z[k + 1 :] -= beta[k] * d * H[k + 1 :, k]
+    return z
+
+
+class RobustSolution:
+    """What :func:`robust_solve` found: u̇, the multipliers λ (F_c = Jᵀλ, the basic
+    solution: zero on the dependent equations), the rank of J, the equations kept
+    (``independent``, in pivot order) and dropped (``dependent``: vanishing gradients
+    first, then those the QR found dependent), the pivots |R_kk| (their smallest is the
+    conditioning of the constraint normals in the mass metric) and the relative residual
+    of the dropped equations."""
+
+    __slots__ = ("udot", "lam", "rank", "independent", "dependent", "pivots", "residual", "m")
+
+    def __init__(self, udot, lam, rank, independent, dependent, pivots, residual, m):
+        self.udot, self.lam, self.rank = udot, lam, rank
+        self.independent, self.dependent, self.pivots = independent, dependent, pivots
+        self.residual, self.m = residual, m
+
+    @property
+    def rcond(self) -> float:
+        """Smallest kept pivot (the equilibrated constraint normals' conditioning), 1 when m = 0."""
+        return float(self.pivots.min()) if self.pivots.size else 1.0
+
+
+def robust_solve(Q, P, J, c, tol: float = RANK_TOL) -> RobustSolution:
+    """Gauss's principle in the mass metric: u̇ = argmin (u̇ − a)ᵀQ(u̇ − a) s.t. J u̇ = c, a = Q⁻¹P.
+
+    1. Q = L Lᵀ (Cholesky; Q not positive definite → :class:`SingularMatrix` "Q");
+    2. â = L⁻¹P, K = L⁻¹Jᵀ (n×m): in w = Lᵀu̇ the problem is min |w − â|² s.t. Kᵀw = c;
+    3. the columns of K (constraint normals in the mass metric) with norm ≤ tol·max are
+       vanishing (dropped); the others are scaled to unit norm (row equilibration of J);
+    4. Householder QR with column pivoting of the scaled K: K̃ Π = Z R, rank r where the
+       pivot falls to ``tol``;
+    5. e = D(c − Kᵀâ) permuted; R11ᵀ y = e[:r]; the dropped equations' residual is
+       e[r:] − R12ᵀ y (and e of the vanishing ones);
+    6. w = â + Z_r y, u̇ = L⁻ᵀ w; λ from R11 λ̃ = y (zero on the dropped equations).
+
+    Where J has full rank m this is the unique solution of J u̇ = c, Nᵀ(Q u̇ − P) = 0 (N a
+    basis of J's null space) — the paper's (44)/(110) for any invertible J2."""
+    Q = np.asarray(Q, float)
+    P = np.asarray(P, float)
+    J = np.asarray(J, float).reshape(-1, Q.shape[0])
+    c = np.asarray(c, float)
+    n, m = Q.shape[0], J.shape[0]
+    L = cholesky_lower(Q)
+    if L is None:
+        raise SingularMatrix("Q", 0.0, float("nan"))
+    a_hat = forward_solve(L, P)
+    if m == 0:
+        return RobustSolution(backward_solve_transposed(L, a_hat), np.zeros(0), 0, [], [], np.zeros(0), 0.0, 0)
+    K = forward_solve(L, J.T)  # n×m
+    norms = np.sqrt(np.einsum("ij,ij->j", K, K))
+    big = norms.max(initial=0.0)
+    keep = np.flatnonzero(norms > tol * big) if big > 0.0 else np.zeros(0, int)
+    vanishing = [int(i) for i in np.flatnonzero(~np.isin(np.arange(m), keep))]
+    e_all = c - K.T @ a_hat
+    scale = max(np.abs(c).max(initial=0.0), np.abs(K.T @ a_hat).max(initial=0.0), 1e-300)
+    Ks = K[:, keep] / norms[keep]
+    es = e_all[keep] / norms[keep]
+    H, beta, piv, r = qr_column_pivoting(Ks, tol)
+    ep = es[piv]
+    R11 = np.triu(H[:r, :r])
+    y = forward_solve(R11.T, ep[:r])
+    res_dep = ep[r:] - H[:r, r:].T @ y  # residual of the dependent equations (scaled rows)
+    residual = max(
+        float(np.abs(res_dep * norms[keep][piv[r:]]).max(initial=0.0)),
+        float(np.abs(e_all[vanishing]).max(initial=0.0)),
+    ) / scale
+    w = a_hat + _apply_Z(H, beta, r, y)
+    udot = backward_solve_transposed(L, w)
+    lam_t = backward_solve_transposed(R11.T, y) if r else np.zeros(0)  # R11 λ̃ = y
+    lam = np.zeros(m)
+    lam[keep[piv[:r]]] = lam_t / norms[keep[piv[:r]]]
+    independent = [int(i) for i in keep[piv[:r]]]
+    dependent = vanishing + [int(i) for i in keep[piv[r:]]]
+    return RobustSolution(udot, lam, r, independent, dependent, np.abs(np.diag(R11)), residual, m)
+
+
+def partition_by_pivoting(J: np.ndarray, tol: float = RANK_TOL) -> tuple[list[int], list[int], int]:
+    """Wehage & Haug's partition: Gaussian elimination with complete pivoting on J (rows
+    equilibrated).  Returns (dependent columns — u_D, in pivot order —, independent rows,
+    rank); the remaining columns are u_I, the remaining rows redundant there."""
+    A = np.array(J, float, copy=True)
+    m, n = A.shape
+    rn = np.abs(A).max(axis=1, initial=0.0)
+    big = rn.max(initial=0.0)
+    rows = [i for i in range(m) if rn[i] > tol * big]
+    A = A[rows] / rn[rows, None] if rows else np.zeros((0, n))
+    row_id, col_id = list(rows), list(range(n))
+    dep_cols, ind_rows = [], []
+    for _ in range(min(A.shape)):
+        if A.size == 0:
+            break
+        i, j = np.unravel_index(int(np.argmax(np.abs(A))), A.shape)
+        if abs(A[i, j]) <= tol:
+            break
+        dep_cols.append(col_id[j])
+        ind_rows.append(row_id[i])
+        A = A - np.outer(A[:, j] / A[i, j], A[i])
+        A = np.delete(np.delete(A, i, 0), j, 1)
+        del row_id[i], col_id[j]
+    return dep_cols, ind_rows, len(dep_cols)
+
+
+
 class ReferenceKernel:
-    """Lambdified terms and the paper's solve, in numpy."""
+    """Lambdified terms and the paper's solve, in numpy (and the rank-robust one)."""
 
     def __init__(self, derivation: Derivation):
         kt = kernel_terms(derivation)
@@ -42,66 +270,83 @@ class ReferenceKernel:
         self._phin, self._psid, self._psi = lam(kt.phin), lam(kt.psid), lam(kt.psi)
         self._Q, self._P, self._qdot = lam(kt.Q), lam(kt.P), lam(kt.qdot)
         self._energy, self._viol, self._outputs = lam(kt.energy), lam(kt.viol), lam(kt.outputs)
+        d = derivation
+        psi_q = d.psi.jacobian(d.q) if d.m_h else sp.zeros(0, d.model.n)
+        self._psi_q = lam(psi_q)
+        self._C_is_I = d.model.C == sp.eye(d.model.n)
         self.perm = np.array(kt.perm)
+        self.reset()
 
     @staticmethod
     def _vec(v, size):
         return np.asarray(v, dtype=float).reshape(size)
 
-    def matrices(self, t, x, p, G=None, G1=None, G2=None) -> dict:
-        """J1, J2, A, B̂, A1, A2, T, V̂ evaluated numerically (for inspection and tests)."""
+    def _terms(self, t, x, p, G=None, G1=None, G2=None):
+        """Q, P, J, b, s at a state, speeds in the order [u_I, u_D] (``perm``)."""
         d = self.dims
-        N, M, MNH, MH, PI = d["N"], d["M"], d["MNH"], d["MH"], d["PI"]
+        N, M, MNH, MH = d["N"], d["M"], d["MNH"], d["MH"]
         G = np.zeros((MNH, MNH)) if G is None else np.asarray(G, float)
         G1 = np.zeros((MH, MH)) if G1 is None else np.asarray(G1, float)
         G2 = np.zeros((MH, MH)) if G2 is None else np.asarray(G2, float)
         Q = np.asarray(self._Q(t, x, p), float).reshape(N, N)
         P = self._vec(self._P(t, x, p), N)
-        out = {"Q": Q, "P": P}
-        if M:
-            J = np.asarray(self._J(t, x, p), float).reshape(M, N)
-            b = self._vec(self._b(t, x, p), M)
-            s = np.concatenate(
-                [
-                    G @ self._vec(self._phin(t, x, p), MNH),
-                    G1 @ self._vec(self._psid(t, x, p), MH) + G2 @ self._vec(self._psi(t, x, p), MH),
-                ]
-            )
-            J1, J2 = J[:, :PI], J[:, PI:]
-            # the compiled kernel's row scaling for the condition estimate (kernel_terms.row_degrees)
-            unorm = max(1.0, np.abs(np.asarray(x)[N:]).max(initial=0.0))
-            deg = np.array(self.terms.row_degree, float)
-            sc = unorm ** -(np.maximum(deg, 1.0) - 1.0)
-            share = 1.0
-            for i in np.flatnonzero(deg == 0):  # not polynomial in u: scale-free
-                a = np.nan_to_num(np.abs(J[i]), nan=0.0, posinf=np.inf)
-                big = a.max(initial=0.0)
-                if 0.0 < big < np.inf:
-                    sc[i] = 1.0 / big
-                    share = min(share, a[PI:].max(initial=0.0) / big)
+        if not M:
+            return Q, P, np.zeros((0, N)), np.zeros(0), np.zeros(0)
+        J = np.asarray(self._J(t, x, p), float).reshape(M, N)
+        b = self._vec(self._b(t, x, p), M)
+        s = np.concatenate(
+            [
+                G @ self._vec(self._phin(t, x, p), MNH),
+                G1 @ self._vec(self._psid(t, x, p), MH) + G2 @ self._vec(self._psi(t, x, p), MH),
+            ]
+        )
+        return Q, P, J, b, s
+
+    def _paper(self, Q, P, J, b, s, PI, x, out) -> dict:
+        """(20)–(44), (110) numerically for J = [J1 J2] with J1 its first PI columns."""
+        N, M = self.dims["N"], self.dims["M"]
+        J1, J2 = J[:, :PI], J[:, PI:]
+        out.update(J1=J1, J2=J2, b=b, s=s)
+        if J2.shape[0] != J2.shape[1]:  # no partition, or redundant equations: no J2⁻¹
+            out["rcond_J2"] = 0.0
+            return out
+        # the compiled kernel's row scaling for the condition estimate (kernel_terms.row_degrees)
+        unorm = max(1.0, np.abs(np.asarray(x)[N:]).max(initial=0.0))
+        deg = np.array(self.terms.row_degree, float)
+        sc = unorm ** -(np.maximum(deg, 1.0) - 1.0)
+        share = 1.0
+        for i in np.flatnonzero(deg == 0):  # not polynomial in u: scale-free
+            a = np.nan_to_num(np.abs(J[i]), nan=0.0, posinf=np.inf)
+            big = a.max(initial=0.0)
+            if 0.0 < big < np.inf:
+                sc[i] = 1.0 / big
+                share = min(share, a[PI:].max(initial=0.0) / big)
+        with warnings.catch_warnings():  # an exactly singular J2 is reported by its estimate (0)
+            warnings.simplefilter("ignore", sla.LinAlgWarning)
             lu = sla.lu_factor(sc[:, None] * J2, check_finite=False) if np.all(np.isfinite(J2)) else None
-            rc_j2 = min(pivot_rcond(lu[0]), share) if lu is not None else 0.0
-            out.update(J1=J1, J2=J2, b=b, s=s, rcond_J2=rc_j2)
-            if rc_j2 == 0.0:
-                return out
-            A = -sla.lu_solve(lu, sc[:, None] * J1)  # (20)
-            B_hat = sla.lu_solve(lu, sc * (-b + s))  # (20), (108), (113)
-            A1 = np.hstack([-A, np.eye(M)])  # (22)
-            A2 = np.hstack([np.eye(PI), A.T])  # (40)
-            T = np.vstack([A1, A2 @ Q])  # (44)
-            V = np.concatenate([B_hat, A2 @ P])  # (110)
-            out.update(A=A, B_hat=B_hat, A1=A1, A2=A2, T=T, V_hat=V)
-        else:
-            out.update(T=Q, V_hat=P, rcond_J2=1.0)
+        rc_j2 = min(pivot_rcond(lu[0]), share) if lu is not None else 0.0
+        out["rcond_J2"] = rc_j2
+        if rc_j2 == 0.0:
+            return out
+        A = -sla.lu_solve(lu, sc[:, None] * J1)  # (20)
+        B_hat = sla.lu_solve(lu, sc * (-b + s))  # (20), (108), (113)
+        A1 = np.hstack([-A, np.eye(M)])  # (22)
+        A2 = np.hstack([np.eye(PI), A.T])  # (40)
+        T = np.vstack([A1, A2 @ Q])  # (44)
+        V = np.concatenate([B_hat, A2 @ P])  # (110)
+        out.update(A=A, B_hat=B_hat, A1=A1, A2=A2, T=T, V_hat=V)
         return out
 
-    def rhs(self, t, x, p, G=None, G1=None, G2=None, rcond_min: float = 0.0) -> np.ndarray:
-        """ẋ = [C u + D; T⁻¹ V̂]; raises :class:`SingularMatrix` below ``rcond_min``."""
-        x = np.asarray(x, float)
-        N = self.dims["N"]
-        mats = self.matrices(t, x, p, G, G1, G2)
-        if mats["rcond_J2"] <= rcond_min or "T" not in mats:
-            raise SingularMatrix("J2", mats["rcond_J2"], t)
+    def matrices(self, t, x, p, G=None, G1=None, G2=None) -> dict:
+        """J1, J2, A, B̂, A1, A2, T, V̂ evaluated numerically (for inspection and tests)."""
+        Q, P, J, b, s = self._terms(t, x, p, G, G1, G2)
+        out = {"Q": Q, "P": P}
+        if self.dims["M"]:
+            return self._paper(Q, P, J, b, s, self.dims["PI"], x, out)
+        out.update(T=Q, V_hat=P, rcond_J2=1.0)
+        return out
+
+    def _solve_T(self, mats, t, rcond_min):
         T, V = mats["T"], mats["V_hat"]
         if not np.all(np.isfinite(T)):
             raise SingularMatrix("T", 0.0, t)
@@ -109,11 +354,174 @@ class ReferenceKernel:
         rc_t = pivot_rcond(lu[0])
         if rc_t <= rcond_min:
             raise SingularMatrix("T", rc_t, t)
-        udot_perm = sla.lu_solve(lu, V)  # (111)
+        return sla.lu_solve(lu, V)  # (111)
+
+    def _xdot(self, t, x, p, udot_perm):
+        N = self.dims["N"]
         xdot = np.empty(2 * N)
         xdot[:N] = self._vec(self._qdot(t, x, p), N)
         xdot[N + self.perm] = udot_perm
         return xdot
+
+    def rhs(
+        self,
+        t,
+        x,
+        p,
+        G=None,
+        G1=None,
+        G2=None,
+        rcond_min: float = 0.0,
+        solve: str = "paper",
+        rank_tol: float = RANK_TOL,
+        consistency_tol: float = CONSISTENCY_TOL,
+        rcond_robust: float = RCOND_ROBUST,
+    ) -> np.ndarray:
+        """ẋ = [C u + D; u̇].
+
+        ``solve="paper"``: u̇ = T⁻¹V̂ with the declared partition; raises
+        :class:`SingularMatrix` below ``rcond_min``.  ``solve="robust"``: :func:`robust_solve`
+        (no partition needed; raises :class:`ConstraintsInconsistent` when the dependent
+        equations miss by more than ``consistency_tol``, :class:`SingularMatrix` "Q" when Q is
+        not positive definite).  ``solve="auto"``: the paper's path while J2's estimate is
+        above ``rcond_robust``; below, the partition is re-picked by pivoting on J
+        (:func:`partition_by_pivoting`) and, where no partition is well-conditioned (J has
+        lost rank, or the equations are redundant), the robust solve; each change is
+        appended to :attr:`switches`."""
+        x = np.asarray(x, float)
+        if solve == "paper":
+            mats = self.matrices(t, x, p, G, G1, G2)
+            if mats["rcond_J2"] <= rcond_min or "T" not in mats:
+                raise SingularMatrix("J2", mats["rcond_J2"], t)
+            return self._xdot(t, x, p, self._solve_T(mats, t, rcond_min))
+        Q, P, J, b, s = self._terms(t, x, p, G, G1, G2)
+        if solve == "robust":
+            return self._xdot(t, x, p, self._robust(t, Q, P, J, -b + s, rank_tol, consistency_tol))
+        if solve != "auto":
+            raise ValueError(f"solve={solve!r}; allowed: paper | robust | auto")
+        M, PI = self.dims["M"], self.dims["PI"]
+        threshold = max(rcond_robust, rcond_min)
+        if not M:
+            return self._xdot(t, x, p, self._solve_T({"T": Q, "V_hat": P}, t, rcond_min))
+        order = self._order if self._order is not None else list(range(J.shape[1]))
+        n_ind = J.shape[1] - M
+        if len(order) == J.shape[1] and n_ind >= 0 and (self._order is not None or PI == n_ind):
+            mats = self._paper(Q[np.ix_(order, order)], P[order], J[:, order], b, s, n_ind, x, {})
+            if mats["rcond_J2"] > threshold:
+                self._note(t, "paper", order[n_ind:])
+                u = np.empty(J.shape[1])
+                u[order] = self._solve_T(mats, t, rcond_min)
+                return self._xdot(t, x, p, u)
+        dep, rows, rank = partition_by_pivoting(J, rank_tol)
+        if rank == M:  # J has full rank: a better partition (Wehage & Haug)
+            order = [j for j in range(J.shape[1]) if j not in dep] + sorted(dep)
+            mats = self._paper(Q[np.ix_(order, order)], P[order], J[:, order], b, s, n_ind, x, {})
+            if mats["rcond_J2"] > threshold:
+                self._order = order
+                self._note(t, "paper", order[n_ind:])
+                u = np.empty(J.shape[1])
+                u[order] = self._solve_T(mats, t, rcond_min)
+                return self._xdot(t, x, p, u)
+        self._note(t, "robust", [])
+        return self._xdot(t, x, p, self._robust(t, Q, P, J, -b + s, rank_tol, consistency_tol))
+
+    def _robust(self, t, Q, P, J, c, rank_tol, consistency_tol):
+        try:
+            sol = robust_solve(Q, P, J, c, rank_tol)
+        except SingularMatrix as e:
+            raise SingularMatrix(e.matrix, e.rcond, t) from None
+        self.last = sol
+        if sol.residual > consistency_tol:
+            names = self.terms.derivation.model.constraint_names
+            raise ConstraintsInconsistent(t, sol.rank, sol.m, [names[i] for i in sol.dependent], sol.residual)
+        return sol.udot
+
+    def _note(self, t, how, dep_perm):
+        names = [str(self.terms.derivation.u_perm[i]) for i in dep_perm]
+        key = (how, tuple(names))
+        if key != self._mode:
+            if self._mode is not None:
+                self.switches.append({"t": float(t), "solve": how, "u_dependent": names})
+            self._mode = key
+
+    def reset(self) -> None:
+        """Forget the partition picked and the switches of a previous run (``solve="auto"``)."""
+        self._order, self._mode, self.switches, self.last = None, None, [], None
+
+    def constraint_report(self, t, x, p, tol: float = DECLARATION_RANK_TOL) -> dict:
+        """The constraints' rank at a state and a partition picked there (Wehage & Haug).
+
+        ``rank`` of J = ∂[φ; ψ̇]/∂u, ``independent_speeds`` = n − rank, ``redundant``: the
+        equations dependent on the others there (names), ``u_dependent``/``u_independent``:
+        the speeds picked by complete pivoting on J, ``q_dependent``: the coordinates picked
+        by complete pivoting on ∂ψ/∂q (the holonomic rows), ``rcond``: the smallest pivot of
+        the equilibrated QR (how far from losing rank)."""
+        x = np.asarray(x, float)
+        md = self.terms.derivation.model
+        Q, P, J, b, s = self._terms(t, x, p)
+        u_names = [str(v) for v in self.terms.derivation.u_perm]
+        names = list(md.constraint_names)
+        sol = robust_solve(Q, P, J, -b + s, tol)
+        dep, _, _ = partition_by_pivoting(J, tol)
+        out = {
+            "rank": sol.rank,
+            "m": sol.m,
+            "independent_speeds": len(u_names) - sol.rank,
+            "redundant": [names[i] for i in sol.dependent],
+            "u_dependent": [u_names[j] for j in sorted(dep)],
+            "u_independent": [u_names[j] for j in range(len(u_names)) if j not in dep],
+            "rcond": sol.rcond,
+        }
+        MH = self.dims["MH"]
+        if MH:
+            psi_q = np.asarray(self._psi_q(t, x, p), float).reshape(MH, self.dims["N"])
+            qdep, _, _ = partition_by_pivoting(psi_q, tol)
+            q_names = [str(v) for v in md.q]
+            out["q_dependent"] = [q_names[j] for j in sorted(qdep)]
+        else:
+            out["q_dependent"] = []
+        return out
+
+    def _model_order(self, Q, J):
+        """Q and J with the speeds in the model's order (the kernels use [u_I, u_D])."""
+        n = self.dims["N"]
+        Qm = np.empty((n, n))
+        Qm[np.ix_(self.perm, self.perm)] = Q
+        Jm = np.empty_like(J)
+        Jm[:, self.perm] = J
+        return Qm, Jm
+
+    def project(self, t, x, p, iterations: int = 4, tol: float = 1e-14, rank_tol: float = RANK_TOL) -> np.ndarray:
+        """The state moved onto the constraints, in the mass metric (Yoon et al. 1994 style):
+        positions by Newton steps δq = −W⁻¹ψ_qᵀ(ψ_q W⁻¹ψ_qᵀ)⁺ψ, then the speeds by
+        δu = −Q⁻¹Jᵀ(J Q⁻¹Jᵀ)⁺[φ; ψ̇] (Newton, for constraints nonlinear in u) — every
+        pseudo-inverse through :func:`robust_solve` (rank-robust: redundant equations and a
+        singular position need nothing else).  W = Q when q̇ = u (C = I), else the identity."""
+        d = self.dims
+        N, MH, M = d["N"], d["MH"], d["M"]
+        x = np.array(x, float, copy=True)
+        if not M:
+            return x
+        zero = np.zeros(N)
+        for _ in range(iterations if MH else 0):
+            psi = self._vec(self._psi(t, x, p), MH)
+            if np.abs(psi).max(initial=0.0) <= tol:
+                break
+            psi_q = np.asarray(self._psi_q(t, x, p), float).reshape(MH, N)
+            if self._C_is_I:
+                Q, _, J, _, _ = self._terms(t, x, p)
+                W = self._model_order(Q, J)[0]
+            else:
+                W = np.eye(N)
+            x[:N] += robust_solve(W, zero, psi_q, -psi, rank_tol).udot
+        for _ in range(iterations):
+            r = np.concatenate([self._vec(self._phin(t, x, p), d["MNH"]), self._vec(self._psid(t, x, p), MH)])
+            if np.abs(r).max(initial=0.0) <= tol:
+                break
+            Q, _, J, _, _ = self._terms(t, x, p)
+            Qm, Jm = self._model_order(Q, J)
+            x[N:] += robust_solve(Qm, zero, Jm, -r, rank_tol).udot
+        return x
 
     def energy(self, t, x, p) -> float:
         return float(self._energy(t, x, p))
@@ -135,12 +543,24 @@ class ReferenceKernel:
 
 
 def integrate_reference(
-    kernel: ReferenceKernel, x0, p, dt: float, nsteps: int, tableau, G=None, G1=None, G2=None
+    kernel: ReferenceKernel,
+    x0,
+    p,
+    dt: float,
+    nsteps: int,
+    tableau,
+    G=None,
+    G1=None,
+    G2=None,
+    project: bool = False,
+    **options,
 ) -> tuple[np.ndarray, np.ndarray]:
     """A plain-Python fixed-step Runge–Kutta run with the reference right-hand side.
 
     The same tableau data as the compiled loop; used by the tests to check that compiled
-    and reference trajectories agree.  Returns (t, x) with one row per step.
+    and reference trajectories agree.  ``options`` go to :meth:`ReferenceKernel.rhs`
+    (``solve="robust"`` ...); ``project=True`` moves each step's state onto the
+    constraints (:meth:`ReferenceKernel.project`).  Returns (t, x) with one row per step.
     """
     A, b, c = tableau.A, tableau.b, tableau.c
     x = np.array(x0, float)
@@ -150,8 +570,10 @@ def integrate_reference(
         K: list = []
         for i in range(len(c)):
             xi = x + dt * sum((A[i, j] * K[j] for j in range(i)), np.zeros_like(x))
-            K.append(kernel.rhs(t + c[i] * dt, xi, p, G, G1, G2))
+            K.append(kernel.rhs(t + c[i] * dt, xi, p, G, G1, G2, **options))
         x = x + dt * sum(bi * ki for bi, ki in zip(b, K, strict=True))
+        if project:
+            x = kernel.project((k + 1) * dt, x, p)
         ts.append((k + 1) * dt)
         xs.append(x.copy())
     return np.array(ts), np.array(xs)
