@@ -101,12 +101,13 @@ def backward_solve_transposed(L: np.ndarray, B: np.ndarray) -> np.ndarray:
     return X
 
 
-def qr_column_pivoting(A: np.ndarray, tol: float):
+def qr_column_pivoting(A: np.ndarray, tol: float, max_rank: int | None = None):
     """Householder QR with column pivoting, A Π = Z R, stopped at the numerical rank.
 
     At step k the remaining column of largest norm (recomputed exactly; the first one on a
     tie) becomes column k; the step stops when that norm is at most ``tol`` times the first
-    pivot's.  Returns (H, beta, piv, rank): H holds R on and above its diagonal (rows
+    pivot's, or after ``max_rank`` steps.  Returns (H, beta, piv, rank): H holds R on and
+    above its diagonal (rows
     ``< rank``) and the Householder vectors below it (LAPACK's layout, v_k[0] = 1 implied by
     storing v_k scaled), beta the reflector coefficients (H_k = I − beta_k v_k v_kᵀ), piv
     the column order (the first ``rank`` are the independent ones)."""
@@ -116,7 +117,7 @@ def qr_column_pivoting(A: np.ndarray, tol: float):
     beta = np.zeros(m)
     first = 0.0
     rank = 0
-    for k in range(min(n, m)):
+    for k in range(min(n, m) if max_rank is None else min(n, m, max_rank)):
         norms = np.einsum("ij,ij->j", H[k:, k:], H[k:, k:])
         j = k + int(np.argmax(norms))
         nk = float(np.sqrt(norms[j - k]))
@@ -173,7 +174,7 @@ class RobustSolution:
         return float(self.pivots.min()) if self.pivots.size else 1.0
 
 
-def robust_solve(Q, P, J, c, tol: float = RANK_TOL) -> RobustSolution:
+def robust_solve(Q, P, J, c, tol: float = RANK_TOL, max_rank: int | None = None) -> RobustSolution:
     """Gauss's principle in the mass metric: u̇ = argmin (u̇ − a)ᵀQ(u̇ − a) s.t. J u̇ = c, a = Q⁻¹P.
 
     1. Q = L Lᵀ (Cholesky; Q not positive definite → :class:`SingularMatrix` "Q");
@@ -181,7 +182,10 @@ def robust_solve(Q, P, J, c, tol: float = RANK_TOL) -> RobustSolution:
     3. the columns of K (constraint normals in the mass metric) with norm ≤ tol·max are
        vanishing (dropped); the others are scaled to unit norm (row equilibration of J);
     4. Householder QR with column pivoting of the scaled K: K̃ Π = Z R, rank r where the
-       pivot falls to ``tol``;
+       pivot falls to ``tol`` — and at most ``max_rank``, the number of independent equations
+       of the model (n − p): off the constraint manifold redundant equations are only
+       nearly dependent, and near a singular position that "nearly" can exceed any
+       threshold — the rank must then come from the model, not from the pivots;
     5. e = D(c − Kᵀâ) permuted; R11ᵀ y = e[:r]; the dropped equations' residual is
        e[r:] − R12ᵀ y (and e of the vanishing ones);
     6. w = â + Z_r y, u̇ = L⁻ᵀ w; λ from R11 λ̃ = y (zero on the dropped equations).
@@ -208,7 +212,7 @@ def robust_solve(Q, P, J, c, tol: float = RANK_TOL) -> RobustSolution:
     scale = max(np.abs(c).max(initial=0.0), np.abs(K.T @ a_hat).max(initial=0.0), 1e-300)
     Ks = K[:, keep] / norms[keep]
     es = e_all[keep] / norms[keep]
-    H, beta, piv, r = qr_column_pivoting(Ks, tol)
+    H, beta, piv, r = qr_column_pivoting(Ks, tol, max_rank)
     ep = es[piv]
     R11 = np.triu(H[:r, :r])
     y = forward_solve(R11.T, ep[:r])
@@ -275,6 +279,7 @@ class ReferenceKernel:
         self._psi_q = lam(psi_q)
         self._C_is_I = d.model.C == sp.eye(d.model.n)
         self.perm = np.array(kt.perm)
+        self.max_rank: int | None = None
         self.reset()
 
     @staticmethod
@@ -427,7 +432,9 @@ class ReferenceKernel:
 
     def _robust(self, t, Q, P, J, c, rank_tol, consistency_tol):
         try:
-            sol = robust_solve(Q, P, J, c, rank_tol)
+            if self.max_rank is None:
+                self.max_rank = robust_solve(Q, P, J, c, DECLARATION_RANK_TOL).rank
+            sol = robust_solve(Q, P, J, c, rank_tol, self.max_rank)
         except SingularMatrix as e:
             raise SingularMatrix(e.matrix, e.rcond, t) from None
         self.last = sol
@@ -445,8 +452,17 @@ class ReferenceKernel:
             self._mode = key
 
     def reset(self) -> None:
-        """Forget the partition picked and the switches of a previous run (``solve="auto"``)."""
+        """Forget the partition picked, the rank found and the switches of a previous run."""
         self._order, self._mode, self.switches, self.last = None, None, [], None
+        self.max_rank = self._declared_rank
+
+    @property
+    def _declared_rank(self) -> int | None:
+        """n − p when the model declares its independent speeds (redundant or not), else None
+        (the rank is then taken at the first robust solve, from the equilibrated QR with
+        :data:`DECLARATION_RANK_TOL`: the default state, in a run)."""
+        p = len(self.terms.derivation.model.u_independent)
+        return self.dims["N"] - p if p else None
 
     def constraint_report(self, t, x, p, tol: float = DECLARATION_RANK_TOL) -> dict:
         """The constraints' rank at a state and a partition picked there (Wehage & Haug).
@@ -513,14 +529,14 @@ class ReferenceKernel:
                 W = self._model_order(Q, J)[0]
             else:
                 W = np.eye(N)
-            x[:N] += robust_solve(W, zero, psi_q, -psi, rank_tol).udot
+            x[:N] += robust_solve(W, zero, psi_q, -psi, rank_tol, self.max_rank if not d["MNH"] else None).udot
         for _ in range(iterations):
             r = np.concatenate([self._vec(self._phin(t, x, p), d["MNH"]), self._vec(self._psid(t, x, p), MH)])
             if np.abs(r).max(initial=0.0) <= tol:
                 break
             Q, _, J, _, _ = self._terms(t, x, p)
             Qm, Jm = self._model_order(Q, J)
-            x[N:] += robust_solve(Qm, zero, Jm, -r, rank_tol).udot
+            x[N:] += robust_solve(Qm, zero, Jm, -r, rank_tol, self.max_rank).udot
         return x
 
     def energy(self, t, x, p) -> float:
