@@ -161,7 +161,7 @@ class RobustSolution:
     conditioning of the constraint normals in the mass metric) and the relative residual
     of the dropped equations."""
 
-    __slots__ = ("udot", "lam", "rank", "independent", "dependent", "pivots", "residual", "m")
+    __slots__ = ("dependent", "independent", "lam", "m", "pivots", "rank", "residual", "udot")
 
     def __init__(self, udot, lam, rank, independent, dependent, pivots, residual, m):
         self.udot, self.lam, self.rank = udot, lam, rank
@@ -196,7 +196,7 @@ def robust_solve(Q, P, J, c, tol: float = RANK_TOL, max_rank: int | None = None)
     P = np.asarray(P, float)
     J = np.asarray(J, float).reshape(-1, Q.shape[0])
     c = np.asarray(c, float)
-    n, m = Q.shape[0], J.shape[0]
+    m = J.shape[0]
     L = cholesky_lower(Q)
     if L is None:
         raise SingularMatrix("Q", 0.0, float("nan"))
@@ -217,10 +217,13 @@ def robust_solve(Q, P, J, c, tol: float = RANK_TOL, max_rank: int | None = None)
     R11 = np.triu(H[:r, :r])
     y = forward_solve(R11.T, ep[:r])
     res_dep = ep[r:] - H[:r, r:].T @ y  # residual of the dependent equations (scaled rows)
-    residual = max(
-        float(np.abs(res_dep * norms[keep][piv[r:]]).max(initial=0.0)),
-        float(np.abs(e_all[vanishing]).max(initial=0.0)),
-    ) / scale
+    residual = (
+        max(
+            float(np.abs(res_dep * norms[keep][piv[r:]]).max(initial=0.0)),
+            float(np.abs(e_all[vanishing]).max(initial=0.0)),
+        )
+        / scale
+    )
     w = a_hat + _apply_Z(H, beta, r, y)
     udot = backward_solve_transposed(L, w)
     lam_t = backward_solve_transposed(R11.T, y) if r else np.zeros(0)  # R11 λ̃ = y
@@ -257,6 +260,27 @@ def partition_by_pivoting(J: np.ndarray, tol: float = RANK_TOL) -> tuple[list[in
     return dep_cols, ind_rows, len(dep_cols)
 
 
+def partition_rcond(J: np.ndarray, n_ind: int) -> float:
+    """How far J2 (the columns after the first ``n_ind``) is from singular, scale-free: the
+    smallest pivot of J2's LU after every row of J = [J1 J2] is divided by its largest entry
+    (1 for a J2 that is the whole row, → 0 as J2's share of a row vanishes or its rows become
+    dependent); 0 where a whole row of J vanishes (shorter than :data:`RANK_TOL` times the
+    longest: the rank is lost whatever the partition, as the N-four-bar's closure rows at
+    its horizontal position).  ``solve="auto"`` leaves a partition below :data:`RCOND_ROBUST`."""
+    J = np.asarray(J, float)
+    if not np.all(np.isfinite(J)):
+        return 0.0
+    rn = np.abs(J).max(axis=1, initial=0.0)
+    if np.any(rn <= RANK_TOL * rn.max(initial=0.0)) or not rn.size:  # a vanishing row: rank lost
+        return 0.0
+    J2 = J[:, n_ind:] / rn[:, None]
+    if J2.shape[0] != J2.shape[1]:
+        return 0.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sla.LinAlgWarning)
+        lu, _ = sla.lu_factor(J2, check_finite=False)
+    return float(np.abs(np.diag(lu)).min(initial=1.0))
+
 
 class ReferenceKernel:
     """Lambdified terms and the paper's solve, in numpy (and the rank-robust one)."""
@@ -277,7 +301,7 @@ class ReferenceKernel:
         d = derivation
         psi_q = d.psi.jacobian(d.q) if d.m_h else sp.zeros(0, d.model.n)
         self._psi_q = lam(psi_q)
-        self._C_is_I = d.model.C == sp.eye(d.model.n)
+        self._C_is_I = sp.eye(d.model.n) == d.model.C
         self.perm = np.array(kt.perm)
         self.max_rank: int | None = None
         self.reset()
@@ -405,30 +429,33 @@ class ReferenceKernel:
         if solve != "auto":
             raise ValueError(f"solve={solve!r}; allowed: paper | robust | auto")
         M, PI = self.dims["M"], self.dims["PI"]
-        threshold = max(rcond_robust, rcond_min)
         if not M:
             return self._xdot(t, x, p, self._solve_T({"T": Q, "V_hat": P}, t, rcond_min))
-        order = self._order if self._order is not None else list(range(J.shape[1]))
-        n_ind = J.shape[1] - M
-        if len(order) == J.shape[1] and n_ind >= 0 and (self._order is not None or PI == n_ind):
-            mats = self._paper(Q[np.ix_(order, order)], P[order], J[:, order], b, s, n_ind, x, {})
-            if mats["rcond_J2"] > threshold:
-                self._note(t, "paper", order[n_ind:])
-                u = np.empty(J.shape[1])
-                u[order] = self._solve_T(mats, t, rcond_min)
-                return self._xdot(t, x, p, u)
-        dep, rows, rank = partition_by_pivoting(J, rank_tol)
-        if rank == M:  # J has full rank: a better partition (Wehage & Haug)
-            order = [j for j in range(J.shape[1]) if j not in dep] + sorted(dep)
-            mats = self._paper(Q[np.ix_(order, order)], P[order], J[:, order], b, s, n_ind, x, {})
-            if mats["rcond_J2"] > threshold:
+        n = J.shape[1]
+        n_ind = n - M
+        threshold = max(rcond_robust, rcond_min)
+        if self._order is None and n_ind == PI and n_ind > 0:
+            self._order = list(range(n))  # the declared partition, first
+        if self._order is not None and partition_rcond(J[:, self._order], n_ind) > threshold:
+            return self._paper_auto(t, x, p, Q, P, J, b, s, n_ind, rcond_min)
+        dep, _, rank = partition_by_pivoting(J, rank_tol)
+        if rank == M and n_ind >= 0:  # J has full rank: re-pick the partition (Wehage & Haug)
+            order = [j for j in range(n) if j not in dep] + sorted(dep)
+            if partition_rcond(J[:, order], n_ind) > threshold:
                 self._order = order
-                self._note(t, "paper", order[n_ind:])
-                u = np.empty(J.shape[1])
-                u[order] = self._solve_T(mats, t, rcond_min)
-                return self._xdot(t, x, p, u)
+                return self._paper_auto(t, x, p, Q, P, J, b, s, n_ind, rcond_min)
         self._note(t, "robust", [])
         return self._xdot(t, x, p, self._robust(t, Q, P, J, -b + s, rank_tol, consistency_tol))
+
+    def _paper_auto(self, t, x, p, Q, P, J, b, s, n_ind, rcond_min):
+        order = self._order
+        mats = self._paper(Q[np.ix_(order, order)], P[order], J[:, order], b, s, n_ind, x, {})
+        if "T" not in mats:
+            raise SingularMatrix("J2", mats["rcond_J2"], t)
+        self._note(t, "paper", order[n_ind:])
+        u = np.empty(J.shape[1])
+        u[order] = self._solve_T(mats, t, rcond_min)
+        return self._xdot(t, x, p, u)
 
     def _robust(self, t, Q, P, J, c, rank_tol, consistency_tol):
         try:

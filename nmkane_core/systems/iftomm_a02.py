@@ -69,7 +69,9 @@ def names(N: int) -> tuple[list[str], list[str]]:
     return q, ["d" + s for s in q]
 
 
-def model(N: int = 2, name: str = "default", partition: bool = True, via: str = "bodies"):
+def model(
+    N: int = 2, name: str = "default", partition: bool = True, via: str = "bodies", coordinates: str = "absolute"
+):
     """The N-four-bar as a :class:`MechanicalModel`.
 
     ``via="bodies"``: Q and P built from the rods' sparse Jacobians
@@ -77,11 +79,17 @@ def model(N: int = 2, name: str = "default", partition: bool = True, via: str = 
     ``via="mechanics"``: the same rods through sympy.physics.mechanics' KanesMethod
     (:meth:`MechanicalModel.from_mechanics`; about N² work, minutes at N = 40) — the tests
     check that both give the same model.  ``partition=False`` leaves u_independent and
-    q_dependent out (the library chooses)."""
+    q_dependent out (the library chooses).  ``coordinates="relative"``: the OpenSim model's
+    tree instead — pin angles along the chain crank 0, coupler 1, crank 1, coupler 2, … and
+    the closures at the cranks' ground pivots A_1..A_N; there the horizontal position makes
+    closure rows *dependent* (not vanishing), and every expression involves the whole chain
+    before it (about N² terms: for small N)."""
     if N < 1:
         raise ValueError(f"N-four-bar: N = {N}; at least one window")
     if via == "mechanics":
         return _model_mechanics(N, name, partition)
+    if coordinates == "relative":
+        return _model_relative(N, name, partition)
     import sympy as sp
 
     from ..symbolic.model import MechanicalModel, plain_symbols
@@ -138,6 +146,66 @@ def model(N: int = 2, name: str = "default", partition: bool = True, via: str = 
         outputs=_outputs(th[0], u[0], L),
         description=f"{N} parallelogram windows: {2 * N + 1} rods, {2 * N} loop-closure equations",
     )
+
+
+def _model_relative(N: int, name: str, partition: bool):
+    import sympy as sp
+
+    from ..symbolic.model import MechanicalModel, plain_symbols
+    from .iftomm_common import Body, rigid_bodies_QP
+
+    n = 2 * N + 1
+    q = plain_symbols([f"r{k}" for k in range(n)])
+    u = plain_symbols([f"dr{k}" for k in range(n)])
+    L, m, g = sp.symbols("L m g", positive=True)
+    inertia = sp.diag(0, 0, m * L**2 / 12)
+    bodies, closures = [], {}
+    x, y = sp.S.Zero, sp.S.Zero  # where the next rod is pinned (A_0 first, then the tips B_k)
+    angle, rate = sp.S.Zero, sp.S.Zero
+    for k in range(n):
+        angle, rate = angle + q[k], rate + u[k]
+        c, s_ = sp.cos(angle), sp.sin(angle)
+        bodies.append(
+            Body((x + L / 2 * c, y + L / 2 * s_, 0), m, omega=(0, 0, rate), inertia=inertia, force=(0, -m * g, 0))
+        )
+        if k % 2 == 1 or k == 0:  # crank 0 and the couplers: the next rod is pinned at their end
+            x, y = x + L * c, y + L * s_
+        else:  # crank k/2 hangs from the tip B_{k/2} to its ground pivot, and the next coupler
+            closures[f"pivot{k // 2}_x"] = x + L * c - (k // 2) * L  # is pinned at that tip
+            closures[f"pivot{k // 2}_y"] = y + L * s_
+    Q, P, T = rigid_bodies_QP(bodies, q, u)
+    V = sum(m * g * b.r[1] for b in bodies)
+    return MechanicalModel(
+        name=name,
+        q=q,
+        u=u,
+        params=(L, m, g),
+        C=sp.eye(n),
+        D=sp.zeros(n, 1),
+        Q=Q,
+        P=P,
+        holonomic=closures,
+        u_independent=(u[0],) if partition else (),
+        q_dependent=tuple(q[1:]) if partition else (),
+        energy=T + V,
+        outputs=_outputs(q[0], u[0], L),
+        description=f"{N} windows in the OpenSim tree's relative pin angles",
+    )
+
+
+def relative_state(N: int = 2, theta0: float = math.pi / 2, vx_B0: float = 1.0, L: float = 1.0) -> dict[str, float]:
+    """:func:`initial_state` in the relative coordinates of ``coordinates="relative"``: crank
+    0 at θ0, each coupler horizontal, each further crank pointing from its tip to its pivot
+    (absolute angle θ0 + π), every crank turning at the same rate."""
+    w = -vx_B0 / (L * math.sin(theta0))
+    state = {}
+    absolute = [theta0 if k == 0 else (0.0 if k % 2 else theta0 + math.pi) for k in range(2 * N + 1)]
+    rates = [w if k % 2 == 0 else 0.0 for k in range(2 * N + 1)]
+    prev_a, prev_w = 0.0, 0.0
+    for k in range(2 * N + 1):
+        state[f"r{k}"], state[f"dr{k}"] = absolute[k] - prev_a, rates[k] - prev_w
+        prev_a, prev_w = absolute[k], rates[k]
+    return state
 
 
 def _outputs(th0, w0, L):
@@ -288,7 +356,10 @@ def _visuals(N: int):
         L = sp.Symbol("L", positive=True)
         tip = [(k * L + L * sp.cos(th[k]), 0, L * sp.sin(th[k])) for k in range(N + 1)]
         cranks = [((k * L, 0, 0), tip[k]) for k in range(N + 1)]
-        couplers = [(tip[k - 1], (tip[k - 1][0] + L * sp.cos(ph[k - 1]), 0, tip[k - 1][2] + L * sp.sin(ph[k - 1]))) for k in range(1, N + 1)]
+        couplers = [
+            (tip[k - 1], (tip[k - 1][0] + L * sp.cos(ph[k - 1]), 0, tip[k - 1][2] + L * sp.sin(ph[k - 1])))
+            for k in range(1, N + 1)
+        ]
         return Visuals(
             shapes=(
                 segments("ground_line", [((-0.3 * L, 0, 0), ((N + 0.3) * L, 0, 0))], color=(80, 80, 80), thickness=2),

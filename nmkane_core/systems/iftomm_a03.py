@@ -140,7 +140,7 @@ def model(name: str = "default"):
     M[5, 5] = m6 * (zf - fa) ** 2 + i6
     M[6, 5] = M[5, 6] = m6 * ((zf - fa) ** 2 - uu * (zf - fa) * sp.sin(Om)) + i6
     M[6, 6] = m6 * ((zf - fa) ** 2 - 2 * uu * (zf - fa) * sp.sin(Om) + uu**2) + m7 * (ua**2 + ub**2) + i6 + i7
-    u1, u2, u3, u4, u5, u6, u7 = u
+    u1, u2, _, u4, u5, u6, u7 = u
     xd = sd * sp.cos(ga) + sc * sp.sin(ga) + xb
     yd = sd * sp.sin(ga) - sc * sp.cos(ga) + yb
     Ls = sp.sqrt((xd - xc) ** 2 + (yd - yc) ** 2)
@@ -186,7 +186,7 @@ def model(name: str = "default"):
 
 
 def initial_state() -> dict[str, float]:
-    state = {n: v for n, v in zip(NAMES, INITIAL, strict=True)}
+    state = dict(zip(NAMES, INITIAL, strict=True))
     state.update({"d" + n: 0.0 for n in NAMES})
     return state
 
@@ -197,7 +197,7 @@ def _visuals():
     from ..declare.visuals import Visuals, segments, sphere, trace
     from ..symbolic.model import plain_symbols
 
-    be, Th, ga, Ph, de, Om, ep = plain_symbols(NAMES)
+    be, Th, ga, _, de, _, ep = plain_symbols(NAMES)
     P = {k: sp.Symbol(k, real=True) for k in VALUES}
     rr, d, ss, e, zt, zf, uu = P["rr"], P["d"], P["ss"], P["e"], P["zt"], P["zf"], P["u"]
     xa, ya, xb, yb, xc, yc = P["xa"], P["ya"], P["xb"], P["yb"], P["xc"], P["yc"]

@@ -42,7 +42,7 @@ from __future__ import annotations
 
 import math
 
-from ..declare.system import Parameter, System
+from ..declare.system import Parameter
 
 #: OpenSim 3.2 CPU time for A04 over 10 s (RehabEngGroup/MBSbenchmarksInOpenSim,
 #: help/benchmarks/A04_BricardsMechanism.rst: "required 0.258 seconds", Intel i5-4570)
@@ -70,9 +70,12 @@ JOINT_AXES = ("y", "z", "x", "y", "z")
 ROD_DIRECTIONS = ((1, 0, 0), (0, -1, 0), (0, 0, 1), (-1, 0, 0), (0, 1, 0))
 
 
-def bricard_model(name: str = "default", partition: bool = True):
+def bricard_model(name: str = "default", partition: bool = True, redundant: bool = True):
     """Bricard's mechanism: 5 joint angles, the J6 closure with its 5 equations (rank 4),
-    through sympy.physics.mechanics (KanesMethod on the open chain J1..J5)."""
+    through sympy.physics.mechanics (KanesMethod on the open chain J1..J5).
+
+    ``redundant=False`` leaves out ``J6_axis_y`` (the equation the equilibrated QR finds
+    dependent at the start): the classic non-redundant declaration, for comparison."""
     import sympy as sp
     from sympy.physics import mechanics as me
 
@@ -110,6 +113,8 @@ def bricard_model(name: str = "default", partition: bool = True):
         "J6_axis_y": x_axis[1],
         "J6_axis_z": x_axis[2],
     }
+    if not redundant:
+        del closures["J6_axis_y"]
     energy = sum(b.kinetic_energy(N) for b in bodies) + sum(m * g * G.pos_from(O).dot(N.y) for G, _ in loads)
     p3 = joints[2].pos_from(O).to_matrix(N)
     t = me.dynamicsymbols._t

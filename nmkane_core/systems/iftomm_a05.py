@@ -88,7 +88,11 @@ def model(name: str = "default"):
         tip = A.locatenew(f"B{b}", Lr * dvec)
         tip.v2pt_theory(A, N, Rf)
         rod = me.RigidBody(
-            f"rod{b}", Gr, Rf, m_bar, (me.inertia(Rf, m_bar * 2 * w * w / 12, *(2 * [m_bar * (Lr**2 + w * w) / 12])), Gr)
+            f"rod{b}",
+            Gr,
+            Rf,
+            m_bar,
+            (me.inertia(Rf, m_bar * 2 * w * w / 12, *(2 * [m_bar * (Lr**2 + w * w) / 12])), Gr),
         )
         ball = me.Particle(f"ball{b}", tip, mb)
         E = Gsl.locatenew(f"E{b}", sign * ls / 2 * S.x)
@@ -126,7 +130,16 @@ def model(name: str = "default"):
 
 
 def initial_state() -> dict[str, float]:
-    return {"phi": 0.0, "s": 0.5, "b1": math.pi / 6, "b2": math.pi / 6, "dphi": 2 * math.pi, "ds": 0.0, "db1": 0.0, "db2": 0.0}
+    return {
+        "phi": 0.0,
+        "s": 0.5,
+        "b1": math.pi / 6,
+        "b2": math.pi / 6,
+        "dphi": 2 * math.pi,
+        "ds": 0.0,
+        "db1": 0.0,
+        "db2": 0.0,
+    }
 
 
 def _visuals():

@@ -48,7 +48,8 @@ def rigid_bodies_QP(bodies: Sequence[Body], q: Sequence, u: Sequence):
     velocities ω_j the columns of W with ω = W u (from Ṙ Rᵀ = [ω]×).  Kane's equations
     Σ_bodies (v_G,jᵀ (F − m a_G) + ω_jᵀ (M − I ω̇ − ω × I ω)) = 0 give
     Q = Σ m J_Gᵀ J_G + Wᵀ I_w W and P = Σ J_Gᵀ (F − m J̇_G u) + Wᵀ (M − I_w Ẇ u − ω × I_w ω),
-    with I_w = R I Rᵀ (computed in body axes, where I is constant).  Entries are accumulated over each body's few nonzero columns."""
+    with I_w = R I Rᵀ (computed in body axes, where I is constant).  Entries are accumulated
+    over each body's few nonzero columns."""
     import sympy as sp
 
     q, u = list(q), list(u)
