@@ -341,12 +341,15 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--t-final", type=float, default=2.0)
     ap.add_argument("--dt", type=float, default=1e-3)
-    ap.add_argument("--cost", action="store_true")
+    ap.add_argument("--cost", action="store_true", help="also time one solve at n = 81 (with --t-final 0: only that)")
     ap.add_argument("--only", default="")
     ap.add_argument("--sweep", action="store_true", help="only the solves near the singular position")
     args = ap.parse_args()
     if args.sweep:
         sweep()
+        return
+    if args.cost and args.t_final == 0:
+        cost()
         return
     nsteps = round(args.t_final / args.dt)
     p = np.array([1.0, 1.0, 9.81])
