@@ -56,6 +56,40 @@ def run(ref, x0, p, dt, T, m, solve="auto", project=True):
     return t, xs, float(np.abs(E - E[0]).max()), viol, wall, len(ref.switches)
 
 
+def adaptive_run(ref, x0, p, T, m, rtol=1e-10, atol=1e-12, h0=1e-3, solve="auto", project=True):
+    """Kutta–Merson with its embedded error estimate, the compiled loop's controller
+    (weighted RMS error with atol + rtol·max|x|, h ← h·clamp(0.9 err^(−1/4), 0.2, 5)), the
+    projection after each accepted step."""
+    tab = KUTTA_MERSON
+    A, b, c, E_ = tab.A, tab.b, tab.c, tab.E
+    G1, G2 = -20 * np.eye(m), -100 * np.eye(m)
+    ref.reset()
+    t, h, x = 0.0, h0, np.array(x0, float)
+    ts, xs, rejected = [0.0], [x.copy()], 0
+    t0 = time.perf_counter()
+    while t < T:
+        h = min(h, T - t)
+        K = []
+        for i in range(len(c)):
+            xi = x + h * sum((A[i, j] * K[j] for j in range(i)), np.zeros_like(x))
+            K.append(ref.rhs(t + c[i] * h, xi, p, None, G1, G2, solve=solve))
+        xn = x + h * sum(bi * ki for bi, ki in zip(b, K, strict=True))
+        sc = atol + rtol * np.maximum(np.abs(x), np.abs(xn))
+        err = float(np.sqrt(np.mean((h * sum(ei * ki for ei, ki in zip(E_, K, strict=True)) / sc) ** 2)))
+        if err <= 1.0:
+            t += h
+            x = ref.project(t, xn, p) if project else xn
+            ts.append(t)
+            xs.append(x.copy())
+        else:
+            rejected += 1
+        h *= min(5.0, max(0.2, 0.9 * err**-0.25)) if err > 0 else 5.0
+    wall = time.perf_counter() - t0
+    ts, xs = np.array(ts), np.array(xs)
+    En = np.array([ref.energy(ti, xi, p) for ti, xi in zip(ts, xs, strict=True)])
+    return ts, xs, float(np.abs(En - En[0]).max()), wall, rejected, len(ref.switches)
+
+
 def exact_errors(t, xs, inertia, K, L=1.0):
     n = xs.shape[1] // 2
     th, w = pendulum(t, xs[0, 0], xs[0, n], inertia, K)
@@ -77,6 +111,7 @@ def main():
     ap.add_argument("--dt", type=float, nargs="+", default=[1e-3])
     ap.add_argument("--case", nargs="+", default=["a02", "parallelogram", "bricard"])
     ap.add_argument("--no-projection", action="store_true")
+    ap.add_argument("--adaptive", action="store_true", help="A02 with adaptive Kutta–Merson (rtol 1e-10, atol 1e-12)")
     args = ap.parse_args()
     T, project = args.t_final, not args.no_projection
     print(f"Kutta–Merson, {T} s, Γ1 = −20, Γ2 = −100, solve=auto, projection={project}")
@@ -93,6 +128,19 @@ def main():
                 f"A02 N=2 dt={dt:g}: B0 position {pos:.2e} m, velocity {vel:.2e} m/s, |ΔE| {dE:.2e} J, "
                 f"|ψ| {viol:.2e}, {cr} horizontal crossings, {sw} solve changes, {wall:.0f} s"
             )
+    if args.adaptive:
+        md = iftomm_a02.model(2)
+        ref = ReferenceKernel(derive(md))
+        st = iftomm_a02.initial_state(2)
+        x0 = np.array([st[str(v)] for v in md.q + md.u])
+        inertia, K = iftomm_a02.pendulum_constants(2)
+        t, xs, dE, wall, rej, sw = adaptive_run(ref, x0, np.array([1.0, 1.0, 9.81]), T, 4, project=project)
+        pos, vel, cr = exact_errors(t, xs, inertia, K)
+        print(
+            f"A02 N=2 adaptive Kutta–Merson: {len(t) - 1} steps ({rej} rejected), B0 position {pos:.2e} m, "
+            f"velocity {vel:.2e} m/s, |ΔE| {dE:.2e} J, {cr} crossings, {sw} solve changes, {wall:.0f} s"
+        )
+        return
     if "parallelogram" in args.case:
         md = iftomm_a04.parallelogram_model(redundant=True)
         ref = ReferenceKernel(derive(md))

@@ -191,6 +191,19 @@ def initial_state() -> dict[str, float]:
     return state
 
 
+def acceptance(t, energy, final_angles=None) -> dict[str, float]:
+    """The benchmark's quantities: the energy balance ΔU = T + V − E0 − τ(β − β0) (the
+    model's reported energy is T + V − τβ: its largest drift is max |ΔU|, J) and, given the
+    seven angles at t = 0.03 s, their largest difference from the test set's solution."""
+    import numpy as np
+
+    energy = np.asarray(energy, float)
+    out = {"energy_balance": float(np.abs(energy - energy[0]).max())}
+    if final_angles is not None:
+        out["angles_at_0.03"] = float(np.abs(np.asarray(final_angles, float) - np.array(REFERENCE_003)).max())
+    return out
+
+
 def _visuals():
     import sympy as sp
 

@@ -142,6 +142,26 @@ def initial_state() -> dict[str, float]:
     }
 
 
+def acceptance(t, x, kernel, p) -> dict[str, float]:
+    """The benchmark's quantity and its checks from a trajectory (rows of [q, u]): the
+    slider's height s (its range, m), the drift of the axial angular momentum relative to its
+    value, the largest energy increase between rows (J; ≤ 0 up to round-off: the dampers only
+    dissipate) and the springs' largest stretch (m); ``kernel`` a
+    :class:`~nmkane_core.symbolic.reference.ReferenceKernel` of :func:`model`."""
+    import numpy as np
+
+    x = np.asarray(x, float)
+    out = np.array([kernel.outputs(ti, xi, p) for ti, xi in zip(t, x, strict=True)])  # Hz, stretch1, stretch2
+    E = np.array([kernel.energy(ti, xi, p) for ti, xi in zip(t, x, strict=True)])
+    return {
+        "s_min": float(x[:, 1].min()),
+        "s_max": float(x[:, 1].max()),
+        "Hz_drift": float(np.abs(out[:, 0] - out[0, 0]).max() / abs(out[0, 0])),
+        "energy_increase": float(np.diff(E).max(initial=0.0)),
+        "stretch": float(np.abs(out[:, 1:]).max()),
+    }
+
+
 def _visuals():
     import sympy as sp
 

@@ -226,3 +226,33 @@ def test_iftomm_declarations_carry_their_published_parameters():
     assert iftomm_a03.VALUES["c0"][0] == 4530.0 and iftomm_a03.VALUES["mom"][0] == 0.033
     assert iftomm_a04.PARAMETERS["a"].default == 0.1
     assert (iftomm_a02.OPENSIM_CPU_S, iftomm_a03.OPENSIM_CPU_S, iftomm_a04.OPENSIM_CPU_S) == (0.455, 0.384, 0.258)
+
+
+# ------------------------------------------------------------------------------- the scenes
+@pytest.mark.parametrize("name", ["iftomm-a01", "iftomm-a03", "iftomm-a05"])
+def test_catalogue_benchmarks_have_scenes_that_compile(name):
+    from nmkane_core.declare.visuals import compile_visuals
+
+    system = get_system(name)
+    assert system.what_to_try and system.title.startswith("IFToMM")
+    cv = compile_visuals(system)
+    x = system.default_initial
+    params = {p.name: p.default for p in system.parameters}
+    poses = cv.poses({k: np.array([v]) for k, v in x.items()}, params)
+    assert poses and all(np.all(np.isfinite(v)) for v in poses)
+    assert np.all(np.isfinite(cv.sizes(params)))
+
+
+@pytest.mark.parametrize("build", [lambda: iftomm_a02.iftomm_a02(2), iftomm_a04.iftomm_a04])
+def test_reference_path_benchmarks_declare_scenes_of_their_names(build):
+    """A02 and A04 are declared as Systems (with what to try and a scene) outside the
+    catalogue: their scenes name only state values and parameters."""
+    system = build()
+    assert system.what_to_try
+    md = system.model()
+    vis = system.visuals()
+    names = {str(s) for s in (*md.q, *md.u, *md.params)}
+    for shape in vis.shapes:
+        for pt in shape.points:
+            for e in pt:
+                assert {str(s) for s in getattr(e, "free_symbols", set())} <= names
