@@ -343,6 +343,29 @@ class ReferenceKernel:
             x[N:] += robust_solve(Qm, zero, Jm, -r, rank_tol, self.max_rank).udot
         return x
 
+    def tangent(self, t, x, p, dx, rank_tol: float = RANK_TOL) -> np.ndarray:
+        """``dx`` (a change of the state, e.g. an integrator's error estimate) without its
+        components along the constraint normals, in the mass metric: the part the post-step
+        projection does not remove.  Near a singular position the error estimate is
+        dominated by those components (the equations amplify the branch's asymmetry); an
+        adaptive step control that sees them shrinks the step onto the singular point, as the
+        compiled adaptive run of A02 does (docs/closed-loops.md)."""
+        d = self.dims
+        N, MH, M = d["N"], d["MH"], d["M"]
+        dx = np.array(dx, float, copy=True)
+        if not M:
+            return dx
+        Q, _, J, _, _ = self._terms(t, x, p)
+        Qm, Jm = self._model_order(Q, J)
+        zero = np.zeros(N)
+        if MH:
+            psi_q = np.asarray(self._psi_q(t, x, p), float).reshape(MH, N)
+            W = Qm if self._C_is_I else np.eye(N)
+            cap = self.max_rank if not d["MNH"] else None
+            dx[:N] += robust_solve(W, zero, psi_q, -psi_q @ dx[:N], rank_tol, cap).udot
+        dx[N:] += robust_solve(Qm, zero, Jm, -Jm @ dx[N:], rank_tol, self.max_rank).udot
+        return dx
+
     def energy(self, t, x, p) -> float:
         return float(self._energy(t, x, p))
 
@@ -397,3 +420,53 @@ def integrate_reference(
         ts.append((k + 1) * dt)
         xs.append(x.copy())
     return np.array(ts), np.array(xs)
+
+
+def integrate_reference_adaptive(
+    kernel: ReferenceKernel,
+    x0,
+    p,
+    t_final: float,
+    tableau,
+    G=None,
+    G1=None,
+    G2=None,
+    rtol: float = 1e-10,
+    atol: float = 1e-12,
+    h0: float = 1e-3,
+    project: bool = True,
+    tangent: bool = True,
+    **options,
+) -> tuple[np.ndarray, np.ndarray, int]:
+    """An embedded Runge–Kutta run with the compiled adaptive loop's step control (weighted
+    RMS error with atol + rtol·max(|x|, |x_new|), h ← h·clamp(0.9·err^(−1/(q+1)), 0.2, 5)),
+    the projection after each accepted step (``project``) and, with ``tangent``, the error
+    estimate without its components along the constraint normals
+    (:meth:`ReferenceKernel.tangent`, as Simbody projects its error estimate): near a
+    singular position those components are the branch's amplified asymmetry, which the
+    projection removes anyway and which would otherwise drive the step onto the singular
+    point.  Returns (t, x, rejected steps)."""
+    A, b, c, E = tableau.A, tableau.b, tableau.c, tableau.E
+    exponent = 1.0 / (tableau.error_order + 1)
+    t, h, x = 0.0, h0, np.array(x0, float)
+    ts, xs, rejected = [0.0], [x.copy()], 0
+    while t < t_final:
+        h = min(h, t_final - t)
+        K: list = []
+        for i in range(len(c)):
+            xi = x + h * sum((A[i, j] * K[j] for j in range(i)), np.zeros_like(x))
+            K.append(kernel.rhs(t + c[i] * h, xi, p, G, G1, G2, **options))
+        xn = x + h * sum(bi * ki for bi, ki in zip(b, K, strict=True))
+        delta = h * sum(ei * ki for ei, ki in zip(E, K, strict=True))
+        if tangent:
+            delta = kernel.tangent(t + h, xn, p, delta)
+        err = float(np.sqrt(np.mean((delta / (atol + rtol * np.maximum(np.abs(x), np.abs(xn)))) ** 2)))
+        if err <= 1.0:
+            t = t_final if t_final - t - h <= 1e-12 * t_final else t + h
+            x = kernel.project(t, xn, p) if project else xn
+            ts.append(t)
+            xs.append(x.copy())
+        else:
+            rejected += 1
+        h *= min(5.0, max(0.2, 0.9 * err**-exponent)) if err > 0 else 5.0
+    return np.array(ts), np.array(xs), rejected
