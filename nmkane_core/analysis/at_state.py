@@ -20,8 +20,8 @@ import numpy as np
 from ..declare.system import System
 from ..errors import InconsistentStateError, InputError
 from ..kernel.built import built
-from ..run.initial import CHECK_TOL, complete_state
 from ..run.forces import point_forces_at
+from ..run.initial import CHECK_TOL, complete_state
 from ..run.registry import get_system
 
 __all__ = ["Accelerations", "accelerations", "linearize", "Linearization"]
@@ -139,8 +139,8 @@ def accelerations(
     InconsistentStateError
         When the state violates the constraints.
     """
-    system, variant, module, info, p, x = _setup(system, state, params, variant)
-    _check_consistent(system, module, info, x, p, CHECK_TOL)
+    sys_, variant, module, info, p, x = _setup(system, state, params, variant)
+    _check_consistent(sys_, module, info, x, p, CHECK_TOL)
     gains = _zero_gains(info)
     xdot, _, _ = module.rhs(t, x, p, *gains)
     if not np.all(np.isfinite(xdot)):
@@ -154,8 +154,8 @@ def accelerations(
         O = np.empty((1, len(info.outputs)))
         module.outputs_rows(np.array([float(t)]), x[None, :], p, O)
         full.update({name: float(v) for name, v in zip(info.outputs, O[0], strict=True)})
-    values = system.resolve_params(params or {})
-    at_points = point_forces_at(system, variant, t, full, values, lam, fc, xdot)
+    values = sys_.resolve_params(params or {})
+    at_points = point_forces_at(sys_, variant, t, full, values, lam, fc, xdot)
     du = {name: float(v) for name, v in zip(info.u, xdot[info.n :], strict=True)}
     return Accelerations(du, fc, lam, at_points)
 

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
+from ..errors import InputError
 from ..integrate.methods import INTEGRATORS
 from ..integrate.projection import PRESETS
 from ..kernel.built import built
 from ..kernel.forces import compile_forces
-from ..errors import InputError
 from ..schema import LIMITS
 from .initial import default_state
 from .registry import get_system, system_names

@@ -111,8 +111,8 @@ def _switched_rows(plan, run, out, x, home: CompiledForces, comps: dict) -> list
             for i in range(rows.size):
                 J = module.state_terms(float(tr[i]), xr[i], p)[0]
                 lam[i] = np.linalg.lstsq(J.T, F[i], rcond=None)[0]
-            gains = _gains_for(plan, info)
-            xdot = rates_rows(module, p, *gains, tr, xr) if other.rates else None
+            G, G1, G2 = _gains_for(plan, info)
+            xdot = rates_rows(module, p, G, G1, G2, tr, xr) if other.rates else None
             states = {k: v[rows] for k, v in run.state.items()}
             lam_d = {k: lam[:, i] for i, k in enumerate(info.constraint_names)}
             sub = _evaluate(other, info, states, plan.params, tr, lam_d, fc, xdot)
