@@ -24,13 +24,13 @@ Two routes give the force at a point, and each declared force says which it take
     For constraints written on the velocity of the point P where the force acts —
     φ_i(v_P) = 0, e.g. v_P · e_i = 0 for a contact that cannot slip along e_i — the force on
     the body at P is  R = Σ_i λ_i ∂φ_i/∂v_P  (its generalized force R · ∂v_P/∂u is then
-    Σ_i λ_i ∂φ_i/∂u = Jᵀλ = F_c, the Appell–Chetaev form of the constraint force).
+    Σ_i λ_i ∂φ_i/∂u = Jᵀλ = F_c, Chetaev's form of the constraint force).
     :func:`constraint_force` writes that sum.  A constraint nonlinear in the speeds gives a
     gradient that depends on the velocity (|v_o|² = a²φ̇² gives 2 v_o).
 ``"newton"``
     A force that the chosen coordinates make non-contributing — a rolling disk's normal
-    force when the height of its centre is built into the coordinates, the rear tyre's
-    normal force of a bicycle — never enters F_c, and no λ belongs to it.  Newton's law on
+    force when the height of its centre is built into the coordinates, the normal force
+    under a wheel whose height the coordinates fix — never enters F_c, and no λ belongs to it.  Newton's law on
     the body (or on the whole system) gives it:  R = Σ m a_G − F_applied − (the other
     constraint forces), a_G an expression of q, u and u̇ (:func:`rate`).
 

@@ -106,9 +106,11 @@ class CompiledForces:
 
     def magnitudes(self, components: dict) -> dict[str, np.ndarray]:
         """Force name → |R| over the rows (the axes are orthonormal: the components' norm)."""
-        return {
-            f["name"]: np.sqrt(sum(np.asarray(components[c], float) ** 2 for c in f["columns"])) for f in self.forces
-        }
+        with np.errstate(over="ignore"):  # a diverged run's last rows: inf, reported as such
+            return {
+                f["name"]: np.sqrt(sum(np.asarray(components[c], float) ** 2 for c in f["columns"]))
+                for f in self.forces
+            }
 
 
 def declared_forces(system, variant: str):
@@ -153,56 +155,72 @@ def _plain(expr, names: set[str], where: str):
     return expr.xreplace({s: sp.Symbol(s.name, real=True) for s in expr.free_symbols if s.name in names})
 
 
-def _generate(decl: Forces, info, param_names) -> dict:
-    """The force table and numpy source of one variant's declaration (sympy)."""
-    import sympy as sp
-    from sympy.printing.numpy import NumPyPrinter
+_KINDS = {LAMBDA_PREFIX: "lam", FC_PREFIX: "fc", RATE_PREFIX: "r"}  # symbol prefix → the source dict
+_WHAT = {"lam": "constraint", "fc": "speed", "r": "coordinate or speed"}
 
-    state_names = tuple(info.q) + tuple(info.u) + tuple(info.outputs)
-    geo_names = set(state_names) | set(param_names) | {"t"}
-    allowed = dict.fromkeys(state_names, "s") | dict.fromkeys(param_names, "p") | {"t": "t"}
-    special = {LAMBDA_PREFIX: ("lam", info.constraint_names), FC_PREFIX: ("fc", info.u)}
-    special[RATE_PREFIX] = ("r", tuple(info.q) + tuple(info.u))
-    used: dict[str, set[str]] = {"lam": set(), "fc": set(), "r": set()}
 
-    def check(e, where, with_forces):
+class _Names:
+    """The names a declaration may use, and which of the run's λ, F_c and rates it does use."""
+
+    def __init__(self, info, param_names):
+        self.model = info.name or "model"
+        self.state = tuple(info.q) + tuple(info.u) + tuple(info.outputs)
+        self.plain = set(self.state) | set(param_names) | {"t"}
+        self.source = dict.fromkeys(self.state, "s") | dict.fromkeys(param_names, "p") | {"t": "t"}
+        self.valid = {"lam": info.constraint_names, "fc": info.u, "r": tuple(info.q) + tuple(info.u)}
+        self.used: dict[str, set[str]] = {"lam": set(), "fc": set(), "r": set()}
+
+    def special(self, name: str) -> tuple[str, str] | None:
+        """(kind, key) of a multiplier(), generalized() or rate() symbol's name, else None."""
+        for prefix, kind in _KINDS.items():
+            if name.startswith(prefix):
+                return kind, name[len(prefix) :]
+        return None
+
+    def checked(self, expr, where: str, with_forces: bool):
+        """``expr`` in plain symbols, every symbol a name it may use (else InputError naming ``where``)."""
+        e = _plain(expr, self.plain, where)
         for s in e.free_symbols:
-            if s.name in allowed:
+            if s.name in self.source:
                 continue
-            for prefix, (kind, valid) in special.items():
-                if s.name.startswith(prefix) and with_forces:
-                    key = s.name[len(prefix) :]
-                    if key not in valid:
-                        what = {"lam": "constraint", "fc": "speed", "r": "coordinate or speed"}[kind]
-                        raise InputError(where, key, f"a {what} of the {info.name or 'model'}: {', '.join(valid)}")
-                    used[kind].add(key)
-                    break
-            else:
-                raise InputError(
-                    where,
-                    s.name,
-                    "names of coordinates, speeds, outputs, parameters and t"
-                    + (", multiplier(), generalized(), rate()" if with_forces else ""),
-                    "unknown name",
-                )
+            special = self.special(s.name) if with_forces else None
+            if special is None:
+                extra = ", multiplier(), generalized(), rate()" if with_forces else ""
+                allowed = "names of coordinates, speeds, outputs, parameters and t" + extra
+                raise InputError(where, s.name, allowed, "unknown name")
+            kind, key = special
+            if key not in self.valid[kind]:
+                raise InputError(where, key, f"a {_WHAT[kind]} of the {self.model}: {', '.join(self.valid[kind])}")
+            self.used[kind].add(key)
         return e
 
-    comp_exprs, geo_exprs, table = [], [], []
+    def lookup(self, s) -> str:
+        """Where the generated source reads a symbol's value from."""
+        if s.name in self.source:
+            src = self.source[s.name]
+            return "t" if src == "t" else f"{src}[{s.name!r}]"
+        special = self.special(s.name)
+        assert special is not None, s
+        return f"{special[0]}[{special[1]!r}]"
+
+
+def _expressions(decl: Forces, names: _Names) -> tuple[list, list, list[dict]]:
+    """(component expressions, geometry expressions — each force's point, then its axes column
+    by column —, the force table) of a declaration, every symbol checked."""
+    import sympy as sp
+
+    comp, geo, table = [], [], []
     for f in decl.forces:
         where = f"forces.{f.name}"
         k = len(f.components)
-        comp_exprs += [
-            check(_plain(c, geo_names, f"{where}.components"), f"{where}.components", True) for c in f.components
-        ]
-        geo_exprs += [check(_plain(c, geo_names, f"{where}.at"), f"{where}.at", False) for c in f.at]
+        comp += [names.checked(c, f"{where}.components", True) for c in f.components]
+        geo += [names.checked(c, f"{where}.at", False) for c in f.at]
         axes = sp.eye(3)[:, :k] if f.frame is None else sp.Matrix(f.frame)
         if axes.shape == (3, 3) and k < 3:
             axes = axes[:, :k]
         if axes.shape != (3, k):
             raise InputError(f"{where}.frame", axes.shape, f"a 3×{k} matrix (one column per component)", "bad shape")
-        for j in range(k):  # column by column
-            col = [_plain(axes[i, j], geo_names, f"{where}.frame") for i in range(3)]
-            geo_exprs += [check(e, f"{where}.frame", False) for e in col]
+        geo += [names.checked(axes[i, j], f"{where}.frame", False) for j in range(k) for i in range(3)]
         table.append(
             {
                 "name": f.name,
@@ -213,6 +231,13 @@ def _generate(decl: Forces, info, param_names) -> dict:
                 "description": f.description,
             }
         )
+    return comp, geo, table
+
+
+def _source(comp: list, geo: list, names: _Names) -> str:
+    """numpy source of ``components(s, p, lam, fc, r, t)`` and ``geometry(s, p, t)``."""
+    import sympy as sp
+    from sympy.printing.numpy import NumPyPrinter
 
     idents: dict = {}
 
@@ -221,22 +246,12 @@ def _generate(decl: Forces, info, param_names) -> dict:
             idents[s] = f"a{len(idents)}_" + "".join(c if c.isascii() and c.isalnum() else "_" for c in s.name)
         return idents[s]
 
-    def source_of(s) -> str:
-        if s.name in allowed:
-            src = allowed[s.name]
-            return "t" if src == "t" else f"{src}[{s.name!r}]"
-        for prefix, (kind, _) in special.items():
-            if s.name.startswith(prefix):
-                return f"{kind}[{s.name[len(prefix) :]!r}]"
-        raise AssertionError(s)
-
     printer = NumPyPrinter({"fully_qualified_modules": True})
 
     def body(fn, args, exprs):
         syms = set().union(*(e.free_symbols for e in exprs)) if exprs else set()
         lines = [f"def {fn}({args}):"]
-        for s in sorted(syms, key=lambda s: s.name):
-            lines.append(f"    {ident(s)} = {source_of(s)}")
+        lines += [f"    {ident(s)} = {names.lookup(s)}" for s in sorted(syms, key=lambda s: s.name)]
         renamed = [e.xreplace({s: sp.Symbol(ident(s), real=True) for s in e.free_symbols}) for e in exprs]
         subs, reduced = sp.cse(renamed, symbols=sp.numbered_symbols("_c"))
         lines += [f"    {sym} = {printer.doprint(e)}" for sym, e in subs]
@@ -244,14 +259,21 @@ def _generate(decl: Forces, info, param_names) -> dict:
         return lines
 
     src = ["import functools", "import numpy", "", ""]
-    src += [*body("components", "s, p, lam, fc, r, t", comp_exprs), "", ""]
-    src += [*body("geometry", "s, p, t=0.0", geo_exprs), ""]
+    src += [*body("components", "s, p, lam, fc, r, t", comp), "", ""]
+    src += [*body("geometry", "s, p, t=0.0", geo), ""]
+    return "\n".join(src)
+
+
+def _generate(decl: Forces, info, param_names) -> dict:
+    """The force table and numpy source of one variant's declaration (sympy)."""
+    names = _Names(info, param_names)
+    comp, geo, table = _expressions(decl, names)
     return {
         "forces": table,
-        "source": "\n".join(src),
-        "multipliers": sorted(used["lam"]),
-        "generalized": sorted(used["fc"]),
-        "rates": sorted(used["r"]),
+        "source": _source(comp, geo, names),
+        "multipliers": sorted(names.used["lam"]),
+        "generalized": sorted(names.used["fc"]),
+        "rates": sorted(names.used["r"]),
         "scale": decl.scale,
         "show": bool(decl.show),
     }

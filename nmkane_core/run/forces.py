@@ -5,7 +5,10 @@
 the run already holds — the state, λ (``Run.multipliers``) and F_c (``Run.constraint_forces``)
 — and, for the forces whose route needs them (Newton's law: a mass centre's acceleration),
 the rates q̇, u̇ of each row: the run's own right-hand side at that row (with the run's
-gains, so the Baumgarte terms are in, as they are in F_c).  The result is
+gains, so the Baumgarte terms are in, as they are in F_c) — the loops' own ẋ of the row when
+the driver keeps it (``LoopOutput.XD``, rows × 2N: the first stage of the step from the row
+computes it), else the kernel's ``rhs_ws`` called row by row (about one right-hand side per
+output row: what these forces cost).  The result is
 ``Run.point_forces`` (``NAME.LABEL`` → array) and ``summary["max_abs_point_force"]`` (the
 largest |R| of each force).
 
@@ -73,7 +76,13 @@ def add_point_forces(plan, run, out) -> list[str]:
     b = built(plan.system)
     info = b.info(plan.variant)
     x = np.column_stack([run.state[k] for k in info.state_names])
-    xdot = rates_rows(b.module(plan.variant), plan.p, plan.G, plan.G1, plan.G2, run.t, x) if compiled.rates else None
+    xdot = None
+    if compiled.rates:
+        kept = getattr(out, "XD", None)  # ẋ of each row, when the loops keep it (they compute it: K[0])
+        if kept is not None and kept.shape == x.shape:
+            xdot = kept
+        else:
+            xdot = rates_rows(b.module(plan.variant), plan.p, plan.G, plan.G1, plan.G2, run.t, x)
     comps = _evaluate(compiled, info, run.state, plan.params, run.t, run.multipliers, run.constraint_forces, xdot)
     notes = _switched_rows(plan, run, out, x, compiled, comps)
     notes += _finite(run.t, comps)

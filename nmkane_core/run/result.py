@@ -32,7 +32,7 @@ class Run:
     #: F_c = Q u̇ − P by speed name (the generalized constraint force; the run's u̇, stabilization
     #: included), one value per output row; empty when the run was asked not to report it
     constraint_forces: dict[str, np.ndarray] = field(default_factory=dict)
-    #: λ by constraint name with F_c = Jᵀλ, J = ∂[φ; ψ̇]/∂u — the Appell–Chetaev multiplier of a
+    #: λ by constraint name with F_c = Jᵀλ, J = ∂[φ; ψ̇]/∂u — Chetaev's multiplier of a
     #: constraint nonlinear in the speeds.  λ depends on how a constraint is written (scale it by
     #: 2 and its λ halves), F_c does not; with redundant constraints λ is not unique (the basic
     #: solution, zero on the equations found dependent, is reported)
