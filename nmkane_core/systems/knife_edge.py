@@ -12,8 +12,10 @@ from ._planar import blade_model
 
 WHAT_TO_TRY = (
     "Set the turning rate u3 to zero: the skate runs straight. Any other value draws a circle of "
-    "radius u1/u3 — change u1 and u3 and watch the radius follow. The constraint force keeps the "
-    "blade from slipping but does no work: the energy drift stays at round-off."
+    "radius u1/u3 — change u1 and u3 and watch the radius follow. The blade force (the arrow at the "
+    "blade, blade.lateral) keeps the blade from slipping: it points to the circle's centre and is "
+    "exactly the centripetal force m v ω (1 × 1 × 0.5 = 0.5 N by default) — double u1 and it doubles. "
+    "It does no work: the energy drift stays at round-off."
 )
 
 
@@ -40,6 +42,14 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The blade force on the skate: the constraint u2 = v_P · B.y = 0 is written on the contact
+    point's velocity, so the force at P is λ ∂u2/∂v_P = λ B.y (the multiplier route)."""
+    from ._planar import blade_force
+
+    return blade_force("the skate, at its blade")
+
+
 def knife_edge() -> System:
     return System(
         name="knife-edge",
@@ -54,5 +64,6 @@ def knife_edge() -> System:
         default_t_final=20.0,
         description="A blade that cannot slip sideways: it runs on a circle of radius v/ω.",
         visuals=_visuals,
+        forces=_forces,
         what_to_try=WHAT_TO_TRY,
     )

@@ -20,7 +20,10 @@ WHAT_TO_TRY = (
     "Roll it upright (θ = 0) with spin φ̇ and a tiny lean rate θ̇: above the speed √(g r/3) "
     "(φ̇ > 1.81 rad/s for r = 0.3 m) it wobbles and stays up, below it falls over. Lean it and give "
     "it a yaw rate: it turns on a circle. The contact point never slips (its violation is round-off) "
-    "and no energy is lost."
+    "and no energy is lost. Watch the contact force: its friction (contact.lateral, the arrow's "
+    "sideways part) is what turns the coin — it points to the circle's centre — and the normal force "
+    "(contact.normal) is m g only when the coin rolls upright and straight; as it wobbles, the normal "
+    "force swings above and below m g."
 )
 
 
@@ -87,6 +90,43 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The ground's force on the coin at the contact point, in the heading frame A (x: rolling
+    direction, y: sideways, z: up).  Friction (longitudinal, lateral) by the multiplier route:
+    the rolling constraints are written on the contact point's velocity, v_P · N.x = v_P · N.y = 0,
+    so the horizontal force is λ_x N.x + λ_y N.y.  The normal force is non-contributing (the
+    centre's height r cos θ is built into the coordinates: no constraint, no λ), so it comes from
+    Newton's law on the coin: N = m (g + z̈_C), z̈_C = −r (u̇4 sin θ + u4² cos θ)."""
+    import sympy as sp
+
+    from ..declare.forces import Forces, PointForce, multiplier, rate
+    from ..symbolic.model import plain_symbols
+
+    x, y, psi, th, u4 = plain_symbols("x y psi theta u4")
+    m, r, g = sp.symbols("m r g", positive=True)
+    lx, ly = multiplier("roll_x"), multiplier("roll_y")
+    zdd = -r * (rate("u4") * sp.sin(th) + u4**2 * sp.cos(th))
+    return Forces(
+        forces=(
+            PointForce(
+                "contact",
+                at=(x, y, 0),
+                components=(
+                    lx * sp.cos(psi) + ly * sp.sin(psi),
+                    -lx * sp.sin(psi) + ly * sp.cos(psi),
+                    m * (g + zdd),
+                ),
+                frame=sp.Matrix([[sp.cos(psi), -sp.sin(psi), 0], [sp.sin(psi), sp.cos(psi), 0], [0, 0, 1]]),
+                labels=("longitudinal", "lateral", "normal"),
+                route="multipliers + newton",
+                on="the coin, at its contact point",
+                description="friction along and across the rolling direction (from the rolling constraints' λ) and "
+                "the normal force (Newton's law on the coin: non-contributing in these coordinates)",
+            ),
+        ),
+    )
+
+
 def rolling_disk() -> System:
     return System(
         name="rolling-disk",
@@ -102,5 +142,6 @@ def rolling_disk() -> System:
         default_t_final=10.0,
         description="A coin rolling without slipping: steady turning, wobbling, falling.",
         visuals=_visuals,
+        forces=_forces,
         what_to_try=WHAT_TO_TRY,
     )
