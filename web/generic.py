@@ -39,7 +39,7 @@ GAMMAS = ("gamma", "gamma1", "gamma2")
 
 
 def _rgb(hex_color: str) -> tuple[int, int, int]:
-    return tuple(int(hex_color[i : i + 2], 16) for i in (1, 3, 5))
+    return int(hex_color[1:3], 16), int(hex_color[3:5], 16), int(hex_color[5:7], 16)
 
 
 def _step(lo: float, hi: float, n: int = 200) -> float:
@@ -99,17 +99,37 @@ def compare_choices(core) -> tuple[str, ...]:
 
 
 def generic_controls(core, prefix: str) -> tuple[Control, ...]:
-    """The simulation controls of any system, from its declaration and its model's info."""
-    info = built(core).info(core.default_variant)
+    """The simulation controls of any system, from its declaration and its model's info:
+    the choosers, the Baumgarte gains its constraints need, the time step and final time,
+    the independent initial values and the plotted coordinate."""
     show = dict(getattr(core, "showcase", {}))
+    return (
+        *_choosers(core, prefix, show),
+        *_gains(core, prefix, show),
+        *_times(core, prefix, show),
+        *_initials(core, prefix),
+        Control(
+            f"{prefix}plot",
+            "Plotted coordinate",
+            "option.plot",
+            built(core).state_names[0],
+            kind="dropdown",
+            options=built(core).state_names,
+        ),
+    )
+
+
+def _choosers(core, prefix: str, show: dict) -> list[Control]:
+    """Variant (when there are several), compare, integrator and projection."""
     out = []
     if len(core.variants) > 1:
+        variant = show.get("variant", core.default_variant)
         out.append(
             Control(
                 f"{prefix}variant",
                 core.option.capitalize(),
                 "variant",
-                show.get("variant", core.default_variant),
+                variant,
                 kind="dropdown",
                 options=tuple(core.variants),
             )
@@ -134,52 +154,39 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
     out.append(
         Control(f"{prefix}projection", "Projection", "projection", "none", kind="dropdown", options=tuple(PRESETS))
     )
+    return out
+
+
+def _gains(core, prefix: str, show: dict) -> list[Control]:
+    """Γ when the system has nonholonomic constraints; Γ1, Γ2 when it has holonomic ones."""
+    info = built(core).info(core.default_variant)
+    out = []
     if info.nonholonomic:
         g = show.get("gamma", core.default_gamma)
         out.append(Control(f"{prefix}gamma", "Γ (nonholonomic)", "gamma", g, min=-50.0, max=10.0, step=0.5))
     if info.holonomic:
-        out.append(
-            Control(
-                f"{prefix}gamma1",
-                "Γ1 (holonomic) [1/s]",
-                "gamma1",
-                show.get("gamma1", core.default_gamma1),
-                min=-50.0,
-                max=10.0,
-                step=0.5,
-            )
-        )
-        out.append(
-            Control(
-                f"{prefix}gamma2",
-                "Γ2 (holonomic) [1/s²]",
-                "gamma2",
-                show.get("gamma2", core.default_gamma2),
-                min=-500.0,
-                max=50.0,
-                step=5.0,
-            )
-        )
+        g1, g2 = show.get("gamma1", core.default_gamma1), show.get("gamma2", core.default_gamma2)
+        out.append(Control(f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", g1, min=-50.0, max=10.0, step=0.5))
+        out.append(Control(f"{prefix}gamma2", "Γ2 (holonomic) [1/s²]", "gamma2", g2, min=-500.0, max=50.0, step=5.0))
+    return out
+
+
+def _times(core, prefix: str, show: dict) -> list[Control]:
+    """The step size (a log slider) and the final time."""
     log_dt = min(max(math.log10(show.get("dt", core.default_dt)), -4.0), math.log10(0.2))
-    out.append(log_dt_control(f"{prefix}log_dt", "log₁₀ Δt [s]", round(log_dt, 2)))
     tf = float(show.get("t_final", core.default_t_final))
-    out.append(
-        Control(
-            f"{prefix}t_final",
-            "Final time [s]",
-            "t_final",
-            tf,
-            min=min(1.0, tf),
-            max=max(5 * tf, 10.0),
-            step=_step(0, max(5 * tf, 10.0)),
-        )
-    )
+    hi = max(5 * tf, 10.0)
+    return [
+        log_dt_control(f"{prefix}log_dt", "log₁₀ Δt [s]", round(log_dt, 2)),
+        Control(f"{prefix}t_final", "Final time [s]", "t_final", tf, min=min(1.0, tf), max=hi, step=_step(0, hi)),
+    ]
+
+
+def _initials(core, prefix: str) -> list[Control]:
+    """The initial values the system declares sliders for (default: its independent ones)."""
     shown = getattr(core, "initial_controls", None) or dict.fromkeys(built(core).independent)
-    for name, declared in shown.items():
-        out.append(initial_control(name, float(default_state(core).get(name, 0.0)), prefix, declared))
-    names = built(core).state_names
-    out.append(Control(f"{prefix}plot", "Plotted coordinate", "option.plot", names[0], kind="dropdown", options=names))
-    return tuple(out)
+    state = default_state(core)
+    return [initial_control(name, float(state.get(name, 0.0)), prefix, declared) for name, declared in shown.items()]
 
 
 class GenericView:
@@ -219,8 +226,8 @@ class GenericView:
         self.plot_name = built(core).state_names[0]
         self.k = 0
         self.fit_pending = True
-        self.fixed_target = None  # the whole motion fits in view: the camera stays put
-        self.offset = None
+        self.fixed_target: np.ndarray | None = None  # the whole motion fits in view: the camera stays put
+        self.offset: np.ndarray | None = None
         self.shift = np.zeros(3)  # following: the camera looks at the centre plus this
 
     @property
@@ -339,8 +346,6 @@ class GenericView:
         d = self.declared
         if d.frame_poses:
             return np.mean([pos[min(self.k, len(pos) - 1)] for pos, _ in d.frame_poses.values()], axis=0)
-        if d.points and d.compiled is None:
-            return d.points[0][min(self.k, len(d.points[0]) - 1)]
         if d.rows:
             return d.rows[0][min(self.k, len(d.rows[0]) - 1), 0].astype(float)
         return np.zeros(3)
