@@ -78,7 +78,7 @@ class ControlPanel:
             return g.add_dropdown(c.label, options=c.options, initial_value=c.default)
         if c.kind == "checkbox":
             return g.add_checkbox(c.label, initial_value=c.default)
-        kw = {"marks": c.marks} if c.marks else {}
+        kw: dict[str, object] = {"marks": c.marks} if c.marks else {}
         if c.hint:
             kw["hint"] = c.hint
         return self.slider(c.label, min=c.min, max=c.max, step=c.step, initial_value=c.default, **kw)

@@ -67,10 +67,13 @@ class PlotPanel:
         end = max(traj.t_end, 1e-3)
         for key, curves in traj.plots.items():
             h = self.handles[(traj.kind, key)]
-            series = [uplot.Series(label="t [s]")]
-            for i, lab in enumerate(curves.labels):
-                series.append(uplot.Series(label=lab, width=2, **view.series_style(key, i, traj)))
-            series = tuple(series)
+            series = (
+                uplot.Series(label="t [s]"),
+                *(
+                    uplot.Series(label=lab, width=2, **view.series_style(key, i, traj))
+                    for i, lab in enumerate(curves.labels)
+                ),
+            )
             scales = {"x": uplot.Scale(time=False, auto=False, range=(0.0, end))}
             if tuple(h.series) != series:
                 h.series = series
@@ -106,7 +109,8 @@ def summary_table(traj) -> str:
 
 
 def status_text(traj, installs: int) -> str:
-    lines, groups = [], {}
+    lines: list[str] = []
+    groups: dict[tuple[str, str], list[str]] = {}
     for label, run in traj.runs.items():  # runs with the same outcome share a line
         groups.setdefault((run.summary["status"], run.summary["message"]), []).append(label)
     for (status, message), labels in groups.items():
@@ -135,7 +139,7 @@ class MatricesPanel:
 
     def __init__(self, gui, lock, alive: Callable[[], bool]):
         self.lock, self.alive = lock, alive
-        self.key = None
+        self.key: tuple[str, str] | None = None
         self.intro = gui.add_markdown("(computed in the background …)")
         blank = np.full((2, 2, 4), 255, np.uint8)
         self.images = {
@@ -156,6 +160,7 @@ class MatricesPanel:
             threading.Thread(target=self._fill, args=key, daemon=True, name="nmkane-matrices").start()
 
     def _fill(self, system: str, variant: str) -> None:
+        panel: mx.Panel | Exception
         try:
             panel = mx.panel(system, variant)
         except Exception as e:  # a teaching aid must never take the session down

@@ -61,7 +61,7 @@ class MechanismApp:
         self.closed = False
         self._installs = 0
         self._writing_time = False
-        self._shown_t = None
+        self._shown_t: float | None = None
         self.views: dict[str, GenericView] = {}
         self.choices = scene_choices()  # dropdown title -> system name
         first = next((t for t, n in self.choices.items() if n == scene), None) if scene else None
@@ -91,7 +91,8 @@ class MechanismApp:
             self.fit_view = gui.add_button("Fit view")
 
         self.sim_controls: dict[str, dict] = {}  # kind -> {Control: handle}
-        self.folders, self.resets = {}, {}
+        self.folders: dict[str, viser.GuiFolderHandle] = {}
+        self.resets: dict[str, viser.GuiButtonHandle] = {}
         view = GenericView(self.scene, self.choices[first])
         self.views[view.kind] = self.system_view = view  # the chosen system's view
         self._add_view_gui(view, visible=True)

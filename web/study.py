@@ -167,6 +167,23 @@ def _title(grid: StudyGrid) -> str:
     return f"{st['system']} · {st.get('integrator', '')} · horizon {st['t_final']:g} s"
 
 
+class _Sink:
+    """run_sweep's output for a study: rows kept in the grid, the progress bar moved; a
+    superseded study stops at its next batch."""
+
+    def __init__(self, panel: StudyPanel, grid: StudyGrid, gen: int, n: int):
+        self.panel, self.grid, self.gen, self.n = panel, grid, gen, n
+        self.done: set = set()  # nothing to resume
+
+    def write(self, rows) -> None:
+        panel = self.panel
+        panel._check(self.gen)
+        self.grid.rows.extend(rows)
+        with panel.app.lock:
+            panel._check(self.gen)
+            panel.progress.value = min(100.0, 100.0 * len(self.grid.rows) / self.n)
+
+
 class StudyPanel:
     """The panel's handles and its background study, for one session ``app`` (a
     :class:`web.session.MechanismApp`: its ``system_view``, ``sim_controls``, ``controls``,
@@ -255,28 +272,15 @@ class StudyPanel:
             raise _Stale
 
     def _run(self, grid: StudyGrid, gen: int) -> None:
+        """The study's thread: the sweep, then the map (or the failure) on the panel."""
+        from nmkane_core.sweep.output import columns
+        from nmkane_core.sweep.runner import constraint_columns
+
         spec = SweepSpec(axes=[Axis(grid.gain, grid.gains), Axis("dt", grid.dts)])
-        n = len(spec)
-        panel = self
-
-        class Sink:  # run_sweep's output: rows kept here; a superseded study stops at its next batch
-            def __init__(self):
-                self.done: set = set()
-
-            def write(self, rows):
-                panel._check(gen)
-                grid.rows.extend(rows)
-                with panel.app.lock:
-                    panel._check(gen)
-                    panel.progress.value = min(100.0, 100.0 * len(grid.rows) / n)
-
         try:
-            from nmkane_core.sweep.output import columns
-            from nmkane_core.sweep.runner import constraint_columns
-
             grid.columns = columns(spec.names, constraint_columns(grid.base, spec))
             with SerialExecutor(time_limit=TIME_LIMIT_S) as ex:
-                res = run_sweep(grid.base, spec, Sink(), executor=ex, progress=False)
+                res = run_sweep(grid.base, spec, _Sink(self, grid, gen, len(spec)), executor=ex, progress=False)
         except _Stale:
             return
         except Exception as e:  # a teaching aid never takes the session down
@@ -289,22 +293,25 @@ class StudyPanel:
         metric = self.metric.value
         img = render(grid, metric, grid.best(metric), _title(grid))  # drawn outside the session lock
         with self.app.lock:
-            if gen != self._gen or not self.app.alive():
-                return
-            self.grid = grid
-            counts = ", ".join(f"{v} {k}" for k, v in sorted(res.statuses.items()))
-            self.note.content = (
-                f"{res.ran} runs in {res.wall_s:.1f} s ({counts}); horizon {grid.base['t_final']:g} s, "
-                f"{grid.base.get('integrator', '')}. Grey: the run did not end ok."
-            )
-            self.progress.visible = False
-            self._quiet = True  # the cell dropdown's callback would draw the map again
-            try:
-                self._set_cells(grid.cells())
-            finally:
-                self._quiet = False
-            self.image.image = img
-            self.image.visible = True
+            if gen == self._gen and self.app.alive():
+                self._show(grid, res, img)
+
+    def _show(self, grid: StudyGrid, res, img: np.ndarray) -> None:
+        """A finished study on the panel: the note, the cells, the map."""
+        self.grid = grid
+        counts = ", ".join(f"{v} {k}" for k, v in sorted(res.statuses.items()))
+        self.note.content = (
+            f"{res.ran} runs in {res.wall_s:.1f} s ({counts}); horizon {grid.base['t_final']:g} s, "
+            f"{grid.base.get('integrator', '')}. Grey: the run did not end ok."
+        )
+        self.progress.visible = False
+        self._quiet = True  # the cell dropdown's callback would draw the map again
+        try:
+            self._set_cells(grid.cells())
+        finally:
+            self._quiet = False
+        self.image.image = img
+        self.image.visible = True
 
     def wait(self, timeout: float = 120.0) -> bool:
         """Wait for the running study (tests); True when none is left running."""
