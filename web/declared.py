@@ -223,6 +223,8 @@ class DeclaredScene:
         self.shown: int | None = None  # the output row the nodes show
         self.extent = 0.5  # a length of the system itself: its largest shape (m)
         self.bounds_: Bounds | None = None
+        self.tag_node: Any = None  # a label naming a ghost, when it rides on a moving part
+        self.tag_rows: np.ndarray | None = None
 
     @property
     def moving(self) -> list[Moving]:
@@ -308,6 +310,21 @@ class DeclaredScene:
         for m, rows, moves in zip(self.pen.moving, self.rows, self.moves, strict=True):
             if moves and (prev is None or not np.array_equal(rows[k], rows[prev])):
                 m.place(rows[k])
+        if self.tag_node is not None and self.tag_rows is not None:
+            self.tag_node.position = tuple(self.tag_rows[min(k, len(self.tag_rows) - 1)])
+
+    def tag(self, text: str) -> None:
+        """A label naming this scene (a ghost's run), riding above its first frame or above
+        its first moving part (call after :meth:`install`)."""
+        above = np.array([0.0, 0.0, 1.3 * self.extent + 0.1])
+        if self.frame_poses:
+            first = next(iter(self.frame_poses))
+            path = f"{self.prefix}/frames/{first}/tag"
+            self.scene.add_label(path, text, position=tuple(above), anchor="bottom-left")
+        elif self.rows:
+            self.tag_node = self.scene.add_label(f"{self.prefix}/world/tag", text, anchor="bottom-left")
+            self.tag_rows = self.rows[0][:, 0].astype(float) + above
+            self.shown = None
 
     def bounds_at(self, k: int) -> Bounds | None:
         """(lowest, highest) corner of the frame origins and moving points at output row k."""

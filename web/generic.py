@@ -30,7 +30,7 @@ from nmkane_core.run.registry import get_system
 
 from . import geometry as geo
 from . import plots as pl
-from .controls import INTEGRATORS, Control, log_dt_control
+from .controls import DT_RANGE, INTEGRATORS, Control, dt_control
 from .declared import DeclaredScene, fit_camera
 
 DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
@@ -47,42 +47,39 @@ def _step(lo: float, hi: float, n: int = 200) -> float:
 
 
 def parameter_control(p, prefix: str) -> Control:
-    """A slider for a core Parameter: linear over its range, or log10 when it spans decades."""
+    """A number for a core Parameter, typed and shown in its unit: a linear slider over its
+    range, or a log one when the range spans decades."""
     lo, hi, d = p.min, p.max, p.default
     if not math.isfinite(hi):
         hi = d + 4 * abs(d) if d else 1.0
     if not math.isfinite(lo):
         lo = d - 4 * abs(d) if d else -1.0
     label = f"{p.name} [{p.unit}]" if p.unit else p.name
+    hint = p.description or None
     if d > 0 and (lo > 0 or not p.min_inclusive):
         low = lo if lo > 0 else min(d, hi) / 100.0  # an open range (0, max]: two decades below
         if math.log10(hi / low) >= DECADES:
             a, b = math.log10(low), math.log10(hi)
             return Control(
                 f"{prefix}p_{p.name}",
-                f"log₁₀ {label}",
-                f"logparams.{p.name}",
-                round(math.log10(d), 6),
-                min=a,
-                max=b,
+                label,
+                f"params.{p.name}",
+                d,
+                min=low,
+                max=hi,
                 step=_step(a, b),
-                hint=f"{p.description} (log scale: {low:g} … {hi:g})",
+                log=True,
+                unit=p.unit,
+                hint=hint,
             )
         lo = max(lo, low)
     return Control(
-        f"{prefix}p_{p.name}",
-        label,
-        f"params.{p.name}",
-        d,
-        min=lo,
-        max=hi,
-        step=_step(lo, hi),
-        hint=p.description or None,
+        f"{prefix}p_{p.name}", label, f"params.{p.name}", d, min=lo, max=hi, step=_step(lo, hi), unit=p.unit, hint=hint
     )
 
 
 def initial_control(name: str, default: float, prefix: str, declared=None) -> Control:
-    """An initial value's slider: ``declared`` (min, max, label) from the System, else around the default."""
+    """An initial value's number: ``declared`` (min, max, label) from the System, else around the default."""
     span = max(3.0 * abs(default), 2.0)
     lo, hi, label = declared or (default - span, default + span, f"{name}(0)")
     return Control(f"{prefix}i_{name}", label, f"initial.{name}", default, min=lo, max=hi, step=_step(lo, hi))
@@ -163,22 +160,33 @@ def _gains(core, prefix: str, show: dict) -> list[Control]:
     out = []
     if info.nonholonomic:
         g = show.get("gamma", core.default_gamma)
-        out.append(Control(f"{prefix}gamma", "Γ (nonholonomic)", "gamma", g, min=-50.0, max=10.0, step=0.5))
+        out.append(
+            Control(f"{prefix}gamma", "Γ (nonholonomic) [1/s]", "gamma", g, min=-50.0, max=10.0, step=0.5, unit="1/s")
+        )
     if info.holonomic:
         g1, g2 = show.get("gamma1", core.default_gamma1), show.get("gamma2", core.default_gamma2)
-        out.append(Control(f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", g1, min=-50.0, max=10.0, step=0.5))
-        out.append(Control(f"{prefix}gamma2", "Γ2 (holonomic) [1/s²]", "gamma2", g2, min=-500.0, max=50.0, step=5.0))
+        out.append(
+            Control(f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", g1, min=-50.0, max=10.0, step=0.5, unit="1/s")
+        )
+        out.append(
+            Control(
+                f"{prefix}gamma2", "Γ2 (holonomic) [1/s²]", "gamma2", g2, min=-500.0, max=50.0, step=5.0, unit="1/s²"
+            )
+        )
     return out
 
 
 def _times(core, prefix: str, show: dict) -> list[Control]:
     """The step size (a log slider) and the final time."""
-    log_dt = min(max(math.log10(show.get("dt", core.default_dt)), -4.0), math.log10(0.2))
+    lo, hi_dt = DT_RANGE
+    dt = min(max(float(show.get("dt", core.default_dt)), lo), hi_dt)
     tf = float(show.get("t_final", core.default_t_final))
     hi = max(5 * tf, 10.0)
     return [
-        log_dt_control(f"{prefix}log_dt", "log₁₀ Δt [s]", round(log_dt, 2)),
-        Control(f"{prefix}t_final", "Final time [s]", "t_final", tf, min=min(1.0, tf), max=hi, step=_step(0, hi)),
+        dt_control(f"{prefix}dt", dt),
+        Control(
+            f"{prefix}t_final", "Final time [s]", "t_final", tf, min=min(1.0, tf), max=hi, step=_step(0, hi), unit="s"
+        ),
     ]
 
 
@@ -310,19 +318,31 @@ class GenericView:
         coord.styles = energy.styles
         return {"energy": energy, "violation": violation, "coord": coord}
 
+    def legend(self, traj) -> str:
+        """Which colour (and line style) is which run, in the panel (the scene names the ghosts too)."""
+        labels = list(traj.runs)
+        if len(labels) < 2:
+            return ""
+        parts = [f"**{pl.RUN_COLOR_NAMES[0]}**, solid: {labels[0]} (shown)"]
+        for j, lab in enumerate(labels[1:], start=1):
+            color = pl.RUN_COLOR_NAMES[j % len(pl.RUN_COLOR_NAMES)]
+            parts.append(f"**{color}**, {pl.DASH_NAMES[(j - 1) % len(pl.DASH_NAMES)]}: {lab} (ghost)")
+        return "Runs — " + " · ".join(parts)
+
     def series_style(self, key: str, i: int, traj) -> dict:
         styles = traj.plots[key].styles
         return styles[i] if i < len(styles) else {"stroke": pl.COLORS[i % len(pl.COLORS)]}
 
     # ---------------------------------------------------------------- scene
     def install(self, traj) -> None:
-        runs = list(traj.runs.values())
+        runs, labels = list(traj.runs.values()), list(traj.runs)
         self.declared.install(runs[0], traj.params)
         for j, run in enumerate(runs[1:], start=1):
             if len(self.ghosts) < j:
                 color = _rgb(pl.RUN_COLORS[j % len(pl.RUN_COLORS)])
                 self.ghosts.append(DeclaredScene(self.scene, self.core, ghost=color, index=j))
             self.ghosts[j - 1].install(run, traj.params)
+            self.ghosts[j - 1].tag(f"{pl.RUN_COLOR_NAMES[j % len(pl.RUN_COLOR_NAMES)]} ghost: {labels[j]}")
         for j, g in enumerate(self.ghosts, start=1):
             g.root.visible = j < len(runs)
         self._plan_camera(traj)

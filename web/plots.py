@@ -18,7 +18,9 @@ import numpy as np
 
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")  # one per constraint
 RUN_COLORS = ("#1f77b4", "#ff7f0e", "#9467bd", "#2ca02c")  # the shown run, then the compare runs (ghosts)
+RUN_COLOR_NAMES = ("blue", "orange", "purple", "green")  # as the legend and the scene name them
 DASHES = ((6.0, 4.0), (2.0, 3.0), (10.0, 3.0, 2.0, 3.0))  # compare runs: dashed, one pattern each
+DASH_NAMES = ("dashed", "dotted", "dash-dot")
 MAX_POINTS = 800  # per series after decimation (two per bucket: min and max)
 LOG_FLOOR = 1e-16  # |φ| below this is plotted as 1e-16 (round-off level)
 

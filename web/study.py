@@ -30,7 +30,7 @@ from nmkane_core.sweep.plot import metric_values
 from nmkane_core.sweep.runner import run_sweep
 from nmkane_core.sweep.spec import Axis, SweepSpec
 
-from .controls import LOG_DT_RANGE, dt_of, settings_from
+from .controls import DT_RANGE, dt_of, settings_from
 
 __all__ = ["METRICS", "StudyGrid", "StudyPanel", "study_axes", "study_grid"]
 
@@ -58,7 +58,7 @@ class StudyGrid:
     kind: str  # the page view's kind
     gain: str  # "gamma" | "gamma1" | "gamma2"
     gains: tuple[float, ...]
-    log_dts: tuple[float, ...]  # the Δt slider's values
+    log_dts: tuple[float, ...]  # log10 of the step sizes, half a decade apart
     dts: tuple[float, ...]  # dt_of(log_dts): the step sizes run
     base: dict  # the settings every run shares
     rows: list[dict] = field(default_factory=list)
@@ -99,16 +99,16 @@ class StudyGrid:
 
 
 def study_axes(controls, gain: str, log_dt_now: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """The gains (N_GAIN values from the gain slider's minimum to 0, on its step) and the Δt
-    slider values (N_DT, half a decade apart, centred on ``log_dt_now`` inside the slider's
-    range) of a study; ``controls`` are the page view's :class:`~web.controls.Control` rows."""
+    """The gains (N_GAIN values from the gain slider's minimum to 0, on its step) and log10
+    of the step sizes (N_DT, half a decade apart, centred on ``log_dt_now`` inside the Δt
+    slider's range) of a study; ``controls`` are the page view's :class:`~web.controls.Control` rows."""
     c = next((c for c in controls if c.field == gain), None)
     if c is None:
         raise ValueError(f"this system has no {gain} control")
     hi = min(c.max, 0.0)
     step = c.step or 1e-9
     gains = tuple(float(round(round(g / step) * step, 10)) for g in np.linspace(c.min, hi, N_GAIN))
-    lo_dt, hi_dt, _ = LOG_DT_RANGE
+    lo_dt, hi_dt = (math.log10(v) for v in DT_RANGE)
     half = 0.5 * (N_DT - 1) * 0.5
     centre = min(max(float(log_dt_now), lo_dt + half), hi_dt - half)
     log_dts = tuple(round(centre + 0.5 * (k - (N_DT - 1) / 2), 2) for k in range(N_DT))
@@ -119,8 +119,7 @@ def study_grid(kind: str, controls: dict, read, system, gain: str, horizon: floa
     """The study of a page view: ``controls`` maps Control → handle, ``read(handle)`` its value,
     ``system`` the core System; the base settings are the page's, over ``horizon`` seconds."""
     settings, _ = settings_from(system, controls, read)
-    log_dt_now = next((read(h) for c, h in controls.items() if c.field == "log_dt"), math.log10(settings["dt"]))
-    gains, log_dts = study_axes(tuple(controls), gain, log_dt_now)
+    gains, log_dts = study_axes(tuple(controls), gain, math.log10(settings["dt"]))
     dts = tuple(dt_of(v) for v in log_dts)
     t_final = min(float(settings["t_final"]), float(horizon))
     base = {**settings, "t_final": t_final, "every": max(1, round(t_final / min(dts) / ROWS_PER_RUN))}
@@ -204,7 +203,7 @@ class StudyPanel:
         )
         self.gain = gui.add_dropdown("Gain (x axis)", options=("Γ",), initial_value="Γ")
         self.metric = gui.add_dropdown("Colour", options=tuple(METRICS), initial_value=next(iter(METRICS)))
-        self.horizon = gui.add_number("Horizon [s]", initial_value=HORIZON_S, min=0.05, max=60.0, step=0.05)
+        self.horizon = app.controls.number("Horizon [s]", HORIZON_S, 0.05, 60.0, 0.05, unit="s", slider=False)
         self.compute_button = gui.add_button("Compute the map")
         self.progress = gui.add_progress_bar(0.0, visible=False)
         self.note = gui.add_markdown("")
@@ -248,13 +247,7 @@ class StudyPanel:
             self.note.content = "(this system has no Baumgarte gain to study)"
             return None
         view = app.system_view
-        try:
-            horizon = float(self.horizon.value)
-            if not (math.isfinite(horizon) and horizon > 0):
-                raise ValueError
-        except (TypeError, ValueError):
-            self.note.content = f"**input refused** — Horizon = {self.horizon.value!r}: a number > 0 s"
-            return None
+        horizon = float(self.horizon.value)  # the box refuses what is not a number in its range
         grid = study_grid(view.kind, app.sim_controls[view.kind], app.controls.value, view.core, gain, horizon)
         self._gen += 1
         gen = self._gen
@@ -370,8 +363,8 @@ class StudyPanel:
         app.runner.quiet = True
         try:
             handles[grid.gain].value = grid.gains[i]
-            if "log_dt" in handles:  # every view has one; a view without keeps its Δt
-                handles["log_dt"].value = grid.log_dts[j]
+            if "dt" in handles:  # every view has one; a view without keeps its Δt
+                handles["dt"].value = grid.dts[j]
         finally:
             app.runner.quiet = False
         app.request()
