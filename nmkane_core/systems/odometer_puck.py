@@ -20,6 +20,14 @@ WHAT_TO_TRY = (
     "constant. Speeds near zero make the constraint's gradient blow up — start with a good push."
 )
 
+INITIAL_CONTROLS = {  # the sliders of the initial values (ranges around the defaults)
+    "x": (-2.0, 4.0, "x [m] (puck, from the anchor)"),
+    "y": (-2.0, 2.0, "y [m] (puck, from the anchor)"),
+    "s": (-2.0, 2.0, "s (flywheel angle) [rad]"),
+    "u1": (-2.0, 2.0, "u1 = ẋ (puck's velocity along x) [m/s]"),
+    "u2": (-1.6, 3.2, "u2 = ẏ (puck's velocity along y) [m/s]"),
+}
+
 
 def _model():
     import sympy as sp
@@ -83,4 +91,5 @@ def odometer_puck() -> System:
         description="ṡ = |v|/ρ: a constraint nonlinear in the speeds that does no work.",
         visuals=_visuals,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

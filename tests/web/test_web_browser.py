@@ -70,8 +70,8 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
         "Γ2 (holonomic)",
         "Δt [s]",
         "Final time [s]",
-        "u1(0)",
-        "u2(0)",
+        "u1 = θ̇ (frame's turning rate) [rad/s]",
+        "u2 = φ̇ (wheel's spin) [rad/s]",
         "Physical parameters",
         "Reset to the defaults",
         "Energy drift ΔE(t)",
@@ -113,7 +113,7 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     plot = page.locator(".uplot").filter(has_text="Plotted coordinate").first
     before = _png(plot.screenshot())
     n = session._installs
-    box = input_of(page, "u1(0)")
+    box = input_of(page, "u1 = θ̇")
     box.fill("0.4")
     t0 = time.perf_counter()
     box.press("Enter")
