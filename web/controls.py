@@ -16,7 +16,8 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .numbers import Deadlines, NumberField
+from .expressions import parse
+from .numbers import Deadlines, ExpressionField, NumberField
 
 INTEGRATORS = ("kutta-merson", "rk4", "kutta-merson-adaptive", "rk45", "dop853", "radau")
 DT_RANGE = (1e-4, 0.2)  # s, the step size's slider (log scale)
@@ -79,7 +80,7 @@ class ControlPanel:
         self.deadlines = Deadlines()
         self.refusals: dict[int, str] = {}  # id(field) -> its refusal
         self.notes: dict[str, list[str]] = {}  # refusals that belong to no box
-        self.fields: list[NumberField] = []
+        self.fields: list[NumberField | ExpressionField] = []
         self._quiet: set[int] = set()  # handles being written by the app itself
 
     # ---------------------------------------------------------------- building
@@ -89,6 +90,19 @@ class ControlPanel:
             return g.add_dropdown(c.label, options=c.options, initial_value=c.default, hint=c.hint)
         if c.kind == "checkbox":
             return g.add_checkbox(c.label, initial_value=c.default, hint=c.hint)
+        if c.kind == "text":  # a plotted quantity: an expression of the names in options
+            names = c.options
+            f = ExpressionField(
+                g,
+                c.label,
+                str(c.default),
+                lambda text: parse(text, names),
+                hint=c.hint,
+                deadlines=self.deadlines,
+                report=self._report,
+            )
+            self.fields.append(f)
+            return f
         assert isinstance(c.default, (int, float))
         return self.number(
             c.label, float(c.default), c.min, c.max, c.step, log=c.log, digits=c.digits, unit=c.unit, hint=c.hint
@@ -102,11 +116,11 @@ class ControlPanel:
         return f
 
     # ---------------------------------------------------------------- refusals
-    def refuse(self, field: NumberField, text: str) -> None:
+    def refuse(self, field: NumberField | ExpressionField, text: str) -> None:
         """Show a refusal beside a field (a link's value, the core's check of a run)."""
         field._refuse(text)
 
-    def _report(self, field: NumberField, text: str | None) -> None:
+    def _report(self, field, text: str | None) -> None:
         with self.lock:
             if text is None:
                 self.refusals.pop(id(field), None)
@@ -135,14 +149,14 @@ class ControlPanel:
     # ---------------------------------------------------------------- values
     def on_change(self, handle, fn: Callable[[], None]) -> None:
         """Call ``fn()`` when the handle takes a new good value."""
-        if isinstance(handle, NumberField):
+        if isinstance(handle, (NumberField, ExpressionField)):
             handle.on_change(fn)
         else:
             handle.on_update(lambda _: None if id(handle) in self._quiet else fn())
 
     def set_quietly(self, handle, value) -> None:
         """Set a value without running the actions of its callbacks."""
-        if isinstance(handle, NumberField):
+        if isinstance(handle, (NumberField, ExpressionField)):
             handle.set_quietly(value)
             return
         self._quiet.add(id(handle))

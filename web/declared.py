@@ -45,6 +45,7 @@ class Moving:
     node: Any
     how: str
     slot: Slot | None  # into the pose outputs (None: the fallback point, the first coordinates)
+    body: bool = False  # a solid (a ball), not a line or a label: what the camera frames
 
     def place(self, pts: np.ndarray) -> None:
         """Put the node at these points (m, 3)."""
@@ -66,6 +67,7 @@ class Pen:
     traces: dict[str, tuple[Any, Slot]] = field(default_factory=dict)
     fixed_points: list[np.ndarray] = field(default_factory=list)  # vertices of fixed surfaces (for the bounds)
     extents: list[float] = field(default_factory=list)  # sizes of solid shapes (the camera's sense of scale)
+    halves: list[float] = field(default_factory=list)  # half sizes of the solids (what a body's view pads)
 
     def path(self, s: decl.Shape) -> str:
         parent = f"{self.prefix}/frames/{s.frame}" if s.frame else f"{self.prefix}/world"
@@ -89,11 +91,13 @@ class Pen:
 def _box(pen: Pen, s: decl.Box) -> None:
     size = tuple(float(abs(v)) for v in s.size)
     pen.extents += size
+    pen.halves.append(max(size) / 2)
     pen.scene.add_box(pen.path(s), color=pen.color(s), dimensions=size, position=tuple(s.offset), **pen.style(s))
 
 
 def _cylinder(pen: Pen, s: decl.Cylinder) -> None:
     pen.extents += [abs(s.radius), abs(s.length)]
+    pen.halves.append(max(abs(s.radius), abs(s.length) / 2))
     pen.scene.add_cylinder(
         pen.path(s),
         radius=abs(s.radius),
@@ -108,11 +112,12 @@ def _cylinder(pen: Pen, s: decl.Cylinder) -> None:
 
 def _sphere(pen: Pen, s: decl.Sphere) -> None:
     pen.extents.append(abs(s.radius))
+    pen.halves.append(abs(s.radius))
     node = pen.scene.add_icosphere(
         pen.path(s), radius=abs(s.radius), color=pen.color(s), position=tuple(s.offset), **pen.style(s)
     )
     if s.at is not None:
-        pen.moving.append(Moving(node, "point", s.at))
+        pen.moving.append(Moving(node, "point", s.at, body=True))
 
 
 def _rod(pen: Pen, s: decl.Rod) -> None:
@@ -222,6 +227,7 @@ class DeclaredScene:
         self.moves: list[bool] = []
         self.shown: int | None = None  # the output row the nodes show
         self.extent = 0.5  # a length of the system itself: its largest shape (m)
+        self.half = 0.25  # half the size of its largest solid (m)
         self.bounds_: Bounds | None = None
         self.tag_node: Any = None  # a label naming a ghost, when it rides on a moving part
         self.tag_rows: np.ndarray | None = None
@@ -246,6 +252,7 @@ class DeclaredScene:
             self.frames[name] = self.scene.add_frame(f"{self.prefix}/frames/{name}", show_axes=False)
         draw(self.pen, cv, cv.sizes(params))
         self.extent = max(self.pen.extents, default=0.5)
+        self.half = max(self.pen.halves, default=0.25)
 
     def _fallback(self) -> None:
         """A system without visuals: a ball at its first coordinates (with a ground and its trace)."""
@@ -253,7 +260,7 @@ class DeclaredScene:
         color = (200, 80, 40) if self.ghost is None else self.ghost
         kw = {} if self.ghost is None else {"opacity": GHOST_OPACITY}
         node = self.scene.add_icosphere(f"{pre}/world/point", radius=0.05, color=color, **kw)
-        pen.moving.append(Moving(node, "point", None))
+        pen.moving.append(Moving(node, "point", None, body=True))
         if self.ghost is None:
             _ground(pen, decl.Ground(name="ground"), width=40.0, infinite=False)
             pen.traces["trace"] = (pen.lines(f"{pre}/world/trace", (214, 48, 39), 2.0), Slot(0, (3,)))
@@ -279,13 +286,15 @@ class DeclaredScene:
             node.points = geo.segments(pts[geo.decimate(len(pts), 2000)])
             extremes.append(pts)
         extremes += self._install_moving(out)
-        extremes += self.pen.fixed_points
+        if not extremes:  # nothing moves: the fixed surfaces then
+            extremes += self.pen.fixed_points
         if extremes:
             self.bounds_ = (np.min([e.min(0) for e in extremes], axis=0), np.max([e.max(0) for e in extremes], axis=0))
 
     def _install_moving(self, out: list[np.ndarray]) -> list[np.ndarray]:
         """Each moving node's points over the run; one that does not move is placed once
-        (a ghost does not show it: the main scene does).  Returns their points (for the bounds)."""
+        (a ghost does not show it: the main scene does).  Returns the points of those that
+        move (for the bounds)."""
         self.rows, self.moves = [], []
         for m in self.pen.moving:
             slot = m.slot or Slot(0, (3,))
@@ -296,7 +305,7 @@ class DeclaredScene:
             if not moves:
                 m.place(pts[0])
                 m.node.visible = self.ghost is None
-        return [r.reshape(-1, 3) for r in self.rows]
+        return [r.reshape(-1, 3) for r, moves in zip(self.rows, self.moves, strict=True) if moves]
 
     def pose(self, k: int) -> None:
         """Put every node at output row k (nothing is sent when row k is already shown)."""
@@ -313,10 +322,11 @@ class DeclaredScene:
         if self.tag_node is not None and self.tag_rows is not None:
             self.tag_node.position = tuple(self.tag_rows[min(k, len(self.tag_rows) - 1)])
 
-    def tag(self, text: str) -> None:
+    def tag(self, text: str, row: int = 1, spacing: float = 0.1) -> None:
         """A label naming this scene (a ghost's run), riding above its first frame or above
-        its first moving part (call after :meth:`install`)."""
-        above = np.array([0.0, 0.0, 1.3 * self.extent + 0.1])
+        its first moving part (call after :meth:`install`); ghosts in one place put their
+        labels in rows (``row`` 1, 2, …, ``spacing`` apart) so that they do not overlap."""
+        above = np.array([0.0, 0.0, 1.3 * self.extent + 0.1 + spacing * (row - 1)])
         if self.frame_poses:
             first = next(iter(self.frame_poses))
             path = f"{self.prefix}/frames/{first}/tag"
@@ -334,8 +344,31 @@ class DeclaredScene:
             return None
         return np.min(pts, axis=0), np.max(pts, axis=0)
 
+    def bodies_at(self, k: int) -> Bounds | None:
+        """(lowest, highest) corner of the system's bodies at output row k: its frames' origins
+        and the balls near them (a part hanging far away, such as a load on a long thread, is
+        left out), padded by the system's own size.  What a following camera frames."""
+        frames = [pos[min(k, len(pos) - 1)] for pos, _ in self.frame_poses.values()]
+        balls = [
+            rows[min(k, len(rows) - 1), 0].astype(float)
+            for m, rows in zip(self.pen.moving, self.rows, strict=True)
+            if m.body
+        ]
+        pts = list(frames)
+        if frames:
+            lo, hi = np.min(frames, axis=0), np.max(frames, axis=0)
+            reach = 3.0 * self.extent
+            pts += [b for b in balls if np.all(b >= lo - reach) and np.all(b <= hi + reach)]
+        else:
+            pts += balls
+        if not pts:
+            return None
+        pad = 1.6 * self.half  # the bodies around their frames' origins, and some room around them
+        return np.min(pts, axis=0) - pad, np.max(pts, axis=0) + pad
+
     def bounds(self) -> Bounds | None:
-        """(lowest, highest) corner of everything that moves over the installed run."""
+        """(lowest, highest) corner of everything that moves over the installed run (the
+        paths travelled; fixed surfaces only when nothing moves)."""
         return self.bounds_
 
 
@@ -346,21 +379,3 @@ def strip_mesh(path: np.ndarray, width: float, axis: str) -> tuple[np.ndarray, n
     verts = np.vstack([path - d, path + d]).astype(np.float32)
     faces = [(i, i + 1, n + i) for i in range(n - 1)] + [(i + 1, n + i + 1, n + i) for i in range(n - 1)]
     return verts, np.array(faces, np.uint32)
-
-
-def fit_camera(bounds, fov: float = 1.309, panel_shift: float = 0.4, direction=None) -> tuple[np.ndarray, np.ndarray]:
-    """(look_at, position) framing a box: seen from ``direction`` (from the box to the camera;
-    default front-right and above), far enough for the box's bounding sphere (plus a margin)
-    to fit the vertical field of view ``fov`` (radians, viser's default 75°).  The control
-    panel covers the right of the page, so the box is moved left of the centre by
-    ``panel_shift`` of the half-height of the view at its distance."""
-    lo, hi = (np.asarray(b, float) for b in bounds)
-    centre = (lo + hi) / 2
-    radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.4)
-    direction = np.array([0.55, -0.75, 0.5] if direction is None else direction, float)
-    direction /= np.linalg.norm(direction)
-    dist = 1.05 * radius / np.sin(fov / 2)  # the bounding sphere inside the cone of view
-    right = np.cross(-direction, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    look_at = centre + right * panel_shift * dist * np.tan(fov / 2)
-    return look_at, look_at + direction * dist

@@ -1,7 +1,7 @@
 """Links that reopen a setup: the page's address carries the system and every control that
 differs from its default, with the run settings' own names (those of the REST API)::
 
-    /?system=rolling-disk&dt=0.002&t_final=7&params.r=0.25&initial.u4=0.5&gamma=-10&compare=linear
+    /?system=NAME&dt=0.002&t_final=7&params.r=0.25&initial.u4=0.5&gamma=-10&compare=linear
 
 :func:`link_pairs` writes them from the controls (numbers as they are typed, the variant
 under the system's option name — ``model`` or ``formulation`` —, ``compare`` with ``gamma0``
@@ -23,7 +23,7 @@ from .controls import Control
 from .numbers import fmt
 
 SYSTEM_KEYS = ("system", "scene")
-CHOOSER_KEYS = ("model", "formulation", "integrator", "projection", "compare", "plot")
+CHOOSER_KEYS = ("model", "formulation", "integrator", "projection", "compare", "plot", "plot_x")
 NUMBER_KEYS = ("dt", "t_final", "gamma", "gamma1", "gamma2")
 PREFIXES = ("params.", "initial.")
 OURS = (*SYSTEM_KEYS, *CHOOSER_KEYS, *NUMBER_KEYS)
@@ -93,7 +93,7 @@ def read_link(query: str, controls: tuple[Control, ...], option: str) -> Link:
             if key in OURS or key.startswith(PREFIXES):
                 out.refused.append(f"link: {key} is not a setting of this system (it has {', '.join(by_name)})")
             continue  # a parameter of viser's own (websocket, hideViserLogo, …)
-        if c.kind == "number":
+        if c.kind in ("number", "text"):  # read by the box itself, as if typed
             out.values[c] = value
             continue
         choice = next((o for o in c.options if value in (o, ALIASES.get(o))), None)

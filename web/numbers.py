@@ -344,3 +344,102 @@ class NumberField:
 
 def _html(s: str) -> str:
     return s.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
+
+
+class ExpressionField:
+    """A typed expression (a plotted quantity): applied like a number box (Enter, or a pause
+    in the typing), checked by ``check(text)`` (raises ValueError with the reason), refused
+    beside the box when it cannot be read.  ``value`` is the last good text."""
+
+    def __init__(
+        self,
+        gui,
+        label: str,
+        default: str,
+        check: Callable[[str], object],
+        *,
+        hint: str | None = None,
+        deadlines: Deadlines | None = None,
+        report: Callable[[Any, str | None], None] | None = None,
+    ):
+        self.label, self.default, self.check = label, default, check
+        self._value = default
+        self._deadlines, self._report = deadlines, report
+        self._callbacks: list[Callable[[], None]] = []
+        self._quiet = False
+        self.refused: str | None = None
+        self.text = gui.add_text(label, default, hint=hint)
+        self.message = gui.add_html("", visible=False)
+        self.text.on_update(self._typed)
+
+    @property
+    def value(self) -> str:
+        return self._value
+
+    @value.setter
+    def value(self, text: str) -> None:
+        self._quiet = True
+        try:
+            self.text.value = text
+        finally:
+            self._quiet = False
+        self.apply_text()
+
+    def on_change(self, fn: Callable[[], None]) -> None:
+        self._callbacks.append(fn)
+
+    def set_quietly(self, text: str) -> None:
+        self._value = text
+        self._quiet = True
+        try:
+            self.text.value = text
+        finally:
+            self._quiet = False
+        self._clear()
+
+    def _typed(self, event) -> None:
+        if self._quiet:
+            return
+        if getattr(event, "client", None) is None or self._deadlines is None:
+            self.apply_text()
+        else:
+            self._deadlines.schedule(self, PAUSE_S, self.apply_text)
+
+    def submit(self) -> None:
+        if self._deadlines is None:
+            self.apply_text()
+        elif self._deadlines.pending(self):
+            self._deadlines.schedule(self, SUBMIT_DELAY_S, self.apply_text)
+
+    def apply_text(self) -> None:
+        text = str(self.text.value).strip()
+        try:
+            self.check(text)
+        except ValueError as e:
+            self.refused = f"**input refused** — {self.label}: {e}; the plot keeps {self._value}"
+            self.message.content = f'<div class="nmk-msg">⚠ {_html(str(e))}; the plot keeps {_html(self._value)}</div>'
+            self.message.visible = True
+            if self._report is not None:
+                self._report(self, self.refused)
+            return
+        changed = text != self._value
+        self._value = text
+        self._clear()
+        if changed:
+            for fn in self._callbacks:
+                fn()
+
+    def _refuse(self, why: str) -> None:
+        self.refused = f"**input refused** — {self.label}: {why}"
+        self.message.content = f'<div class="nmk-msg">⚠ {_html(why)}</div>'
+        self.message.visible = True
+        if self._report is not None:
+            self._report(self, self.refused)
+
+    def _clear(self) -> None:
+        if self.refused is None:
+            return
+        self.refused = None
+        self.message.visible = False
+        if self._report is not None:
+            self._report(self, None)

@@ -55,11 +55,61 @@ else fallback();
 """
 
 
+_PLOTS = """
+if (window.__nmkPlots) return;
+window.__nmkPlots = true;
+let hovered = false;
+const zoomed = new Set();
+const tip = document.createElement('div');
+tip.className = 'nmk-tip';
+tip.style.cssText = 'position:fixed;pointer-events:none;z-index:10000;display:none;white-space:pre;' +
+  'background:rgba(255,255,255,0.96);border:1px solid #aaa;border-radius:4px;padding:3px 6px;' +
+  'font:11px/1.35 sans-serif;color:#222;box-shadow:0 1px 4px rgba(0,0,0,0.2)';
+document.body.appendChild(tip);
+const report = () => send({kind: 'plots', busy: hovered || zoomed.size > 0});
+const plotOf = (el) => (el && el.closest ? el.closest('.uplot') : null);
+document.addEventListener('mousemove', (e) => {
+  const over = e.target && e.target.closest ? e.target.closest('.u-over') : null;
+  const plot = plotOf(over);
+  if (!plot) {
+    if (hovered) { hovered = false; tip.style.display = 'none'; report(); }
+    return;
+  }
+  if (!hovered) { hovered = true; report(); }
+  requestAnimationFrame(() => {  // after uPlot has written the values under the cursor
+    const rows = Array.from(plot.querySelectorAll('.u-legend .u-series'));
+    const text = rows.filter((r) => !r.classList.contains('u-off')).map((r) => {
+      const l = r.querySelector('.u-label'), v = r.querySelector('.u-value');
+      return (l ? l.innerText : '') + ' = ' + (v ? v.innerText : '');
+    }).join('\n');
+    tip.textContent = text;
+    tip.style.display = text ? 'block' : 'none';
+    const w = tip.offsetWidth, h = tip.offsetHeight;
+    tip.style.left = Math.max(4, e.clientX - w - 14) + 'px';  // left of the cursor: the panel is at the right
+    tip.style.top = Math.min(window.innerHeight - h - 4, e.clientY + 12) + 'px';
+  });
+});
+document.addEventListener('mouseup', (e) => {
+  const plot = plotOf(e.target);
+  if (!plot) return;
+  setTimeout(() => {  // uPlot zooms on mouseup when a stretch was selected
+    const sel = plot.querySelector('.u-select');
+    if (sel && sel.offsetWidth > 2) { zoomed.add(plot); report(); }
+  }, 0);
+}, true);
+document.addEventListener('dblclick', (e) => {
+  const plot = plotOf(e.target);
+  if (plot && zoomed.delete(plot)) report();
+});
+"""
+
+
 class PageBridge:
     """Scripts for one browser's page, answered through a hidden text box.
 
     ``on_answer(dict)`` gets each answer: ``{"kind": "address", "search": "?…"}``,
-    ``{"kind": "written", "search": …}``, ``{"kind": "copied", "href": …, "ok": bool}``."""
+    ``{"kind": "written", "search": …}``, ``{"kind": "copied", "href": …, "ok": bool}``,
+    ``{"kind": "plots", "busy": bool}``."""
 
     def __init__(self, gui, client, on_answer: Callable[[dict], None]):
         self.client = client
@@ -99,6 +149,11 @@ class PageBridge:
 
     def copy_address(self) -> bool:
         return self.run(_COPY)
+
+    def help_plots(self) -> bool:
+        """Values under the cursor at the cursor (read from uPlot's live legend), and the
+        viewer's pointing and zooming reported: ``{"kind": "plots", "busy": bool}``."""
+        return self.run(_PLOTS)
 
 
 def _queue(client) -> Callable[[Any], None] | None:

@@ -25,7 +25,7 @@ from .controls import Control, ControlPanel, settings_from
 from .generic import GenericView, scene_choices
 from .keys import add_keys
 from .link import Link, LinkPanel, read_link, read_system
-from .numbers import HIDE_SLIDER_BOXES, NumberField
+from .numbers import HIDE_SLIDER_BOXES, ExpressionField, NumberField
 from .page import PageBridge
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
@@ -74,9 +74,10 @@ class MechanismApp:
         self.runner = Runner(self, simulate, sync=sync)
         self._build_gui(first)
         if self.client is not None:
-            self.client.camera.on_update(lambda cam: self.camera.on_report(self.system_view, cam))
+            self.client.camera.on_update(lambda cam: self.camera.on_report(cam))
         self._on_scene()
         self.link.start()  # the page says which link it was opened with; then its address follows the page
+        self.bridge.help_plots()
 
     # ---------------------------------------------------------------- GUI
     def _build_gui(self, first: str) -> None:
@@ -87,7 +88,7 @@ class MechanismApp:
         titles = tuple(self.choices)
         self.scene_choice = gui.add_dropdown("Scene", options=titles, initial_value=first)
         self.status = gui.add_markdown(self.run_status)
-        self.bridge = PageBridge(gui, self.client, lambda answer: self.link.on_answer(answer))
+        self.bridge = PageBridge(gui, self.client, self._on_page)
         self.link = LinkPanel(gui, self)
 
         with self._form("Playback"):
@@ -122,7 +123,7 @@ class MechanismApp:
         self.controls.on_change(self.time, self._on_time)
         self.view_reset.on_click(lambda _: self.reset_view())
         self.fit_view.on_click(lambda _: self.fit())
-        self.follow.on_update(lambda _: self._aim_camera(reset=True) if self.follow.value else None)
+        self.controls.on_change(self.follow, lambda: self._look(follow=bool(self.follow.value)))
         with self._form("Γ study", expand_by_default=False):  # web/study.py; follows the scene itself
             self.study = StudyPanel(gui, self)
 
@@ -228,15 +229,34 @@ class MechanismApp:
         self.play.label = "❚❚ Pause" if self.playing else "▶ Play"
 
     def fit(self) -> None:
-        """Frame the whole motion of the run (the path travelled) in the part of the view the
-        panel leaves free."""
+        """Frame the whole motion of the run (every path travelled) in the part of the view the
+        panel leaves free, and stop following (else the camera would leave that view)."""
         with self.lock:
-            self._aim_camera(reset=True)
+            self._look(follow=False)
 
     def reset_view(self) -> None:
-        """The camera preset of the current scene and target, seen at the current heading."""
+        """The system's first view: its bodies followed, or its whole motion when that is small."""
         with self.lock:
-            self._aim_camera(reset=True)
+            self._look(follow=None)
+
+    def _look(self, follow: bool | None) -> None:
+        """Frame the shown system, following it (True), fixed on its whole motion (False), or
+        as its first view does (None); the *Camera follows* box says which."""
+        view = self.system_view
+        traj = self.traj
+        if traj is None or traj.kind != view.kind:
+            return
+        plan = view.plan = view.camera_plan(self.camera.viewport())
+        if plan is None:
+            return
+        follow = plan.follows if follow is None else follow
+        if bool(self.follow.value) != follow:
+            self.controls.set_quietly(self.follow, follow)
+        if follow:
+            target = view.follow_target()
+            self.camera.place(target, target + plan.offset, following=True)
+        else:
+            self.camera.place(*plan.whole, following=False)
 
     def seek(self, t: float) -> None:
         """Show time t (the scrubber, or a test)."""
@@ -266,12 +286,11 @@ class MechanismApp:
             self.system_view = self._view_for(self.scene_choice.value)
         for kind, folder in self.folders.items():
             folder.visible = kind == self.kind
-        self.follow.visible = self.system_view.follows
         for v in self.views.values():
             v.root.visible = v is self.system_view
         self.plots.show_kind(self.kind)
         self.speed.value = self.system_view.speed
-        self._aim_camera(reset=True)
+        self._look(follow=None)
         self.request()
 
     # ---------------------------------------------------------------- simulation
@@ -288,6 +307,18 @@ class MechanismApp:
             self.controls.note("link", [])  # a link's refusals last until the next change
         self.runner.submit(self.snapshot())
         self.link.update()
+
+    # ---------------------------------------------------------------- the page
+    def _on_page(self, answer: dict) -> None:
+        """An answer of the page's scripts (:mod:`web.page`)."""
+        if answer.get("kind") == "plots":
+            busy = bool(answer.get("busy"))
+            with self.lock:
+                self.plots.busy = busy
+                if not busy and self.traj is not None:
+                    self.plots.mark(self.traj, self.t_now)
+        else:
+            self.link.on_answer(answer)
 
     # ---------------------------------------------------------------- links
     def link_values(self) -> dict:
@@ -306,7 +337,7 @@ class MechanismApp:
             link = read_link(query, tuple(self.sim_controls[self.kind]), self.system_view.core.option)
             handles = self.sim_controls[self.kind]
             for c, v in link.values.items():
-                if isinstance(handles[c], NumberField):
+                if isinstance(handles[c], (NumberField, ExpressionField)):
                     handles[c].text.value = str(v)  # read and checked as typed (at once: set from Python)
                 else:
                     handles[c].value = v
@@ -339,7 +370,7 @@ class MechanismApp:
                 if getattr(view, "fit_pending", False) and traj.kind == self.kind:
                     view.fit_pending = False  # first sight of this system: frame it
                     self.show_time(self.t_now)
-                    self._aim_camera(reset=True)
+                    self._look(follow=None)
                 self.time.set_range(0.0, max(traj.t_end, 0.01))
                 self._installs += 1
                 self.plots.write(traj, self.t_now)
@@ -363,9 +394,10 @@ class MechanismApp:
         traj = self.traj
         if traj is None:
             return
-        row = self.views[traj.kind].pose(traj, t_now)
-        if row is not None and self.follow.value and traj.kind == self.kind:
-            self._aim_camera(row=row)
+        view = self.views[traj.kind]
+        view.pose(traj, t_now)
+        if self.follow.value and traj.kind == self.kind:
+            self.camera.follow(view.follow_target())
 
     def _refresh(self, force: bool = False) -> None:
         """The slow-rate part of a frame: plot markers, scrubber, readouts."""
@@ -393,12 +425,6 @@ class MechanismApp:
                 self.show_time(self.t_now)
             if refresh:
                 self._refresh()
-
-    def _aim_camera(self, reset: bool = False, row: dict | None = None) -> None:
-        traj = self.traj
-        if row is None and traj is not None and traj.kind == self.kind:
-            row = traj.row(next(iter(traj.runs)), self.t_now)
-        self.camera.aim(self.system_view, "system", row, reset=reset)
 
     # ---------------------------------------------------------------- lifecycle
     def wait_idle(self, timeout: float = 30.0) -> bool:

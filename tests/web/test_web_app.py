@@ -296,7 +296,7 @@ def test_particle_shows_minimal_undamped_and_damped_solutions_as_ghosts(app):
     s = {lab: r.summary["max_abs_violation"]["surface"] for lab, r in app.traj.runs.items()}
     assert s["minimal"] == 0.0 and s["nonminimal"] < 1e-2 * s["nonminimal, Γ = 0"]
     labels = [x["label"] for x in app.plot_handles[(PT, "violation")].series[1:]]
-    assert labels == ["surface", "surface (minimal)", "surface (nonminimal, Γ = 0)"]
+    assert labels == ["surface — nonminimal", "surface — minimal, dashed", "surface — nonminimal, Γ = 0, dotted"]
 
 
 def test_background_worker_latest_wins_and_is_fast(server):
