@@ -70,14 +70,20 @@ def frame(bounds, direction=None, viewport: Viewport | None = None) -> tuple[np.
         right = np.array([1.0, 0.0, 0.0])
     right /= np.linalg.norm(right)
     up = np.cross(right, -d)
-    t = math.tan(vp.fov / 2) / MARGIN  # half the view's height at distance 1
-    t_w = t * vp.free_width / vp.height  # half the free width at distance 1
+    tan = math.tan(vp.fov / 2)  # half the view's height at distance 1
+    panel = PANEL_PX if vp.free_width > vp.width / 3 else 0.0
+    c = -(panel / 2) / (vp.height / 2) * tan  # the free part's middle, left of the view's axis (x/z)
+    t_w = (vp.free_width / 2) / (vp.height / 2) * tan / MARGIN  # half the free width (x/z)
+    t_h = tan / MARGIN
     corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * half
-    # a corner p (from the centre) is in view when |p·right| ≤ (dist − p·d) t_w and |p·up| ≤ (dist − p·d) t
-    dist = float(np.max(corners @ d + np.maximum(np.abs(corners @ right) / t_w, np.abs(corners @ up) / t)))
-    # the free part's middle is (panel / 2) px left of the canvas' middle: look that far to the right of the box
-    shift = (PANEL_PX / 2 if vp.free_width > vp.width / 3 else 0.0) / (vp.height / 2) * math.tan(vp.fov / 2) * dist
-    look_at = centre + right * shift
+    # the camera at distance dist along d from the box's centre, turned so that the centre is seen
+    # at x/z = c; a corner p (from the centre) at depth dist − p·d is in the free part when
+    # |p·right + c p·d| ≤ t_w (dist − p·d) and |p·up| ≤ t_h (dist − p·d)
+    along = corners @ d
+    need_x = np.abs(corners @ right + c * along) / t_w
+    need_y = np.abs(corners @ up) / t_h
+    dist = float(np.max(along + np.maximum(need_x, need_y)))
+    look_at = centre - right * c * dist  # the centre then sits at x/z = c
     return look_at, look_at + d * dist
 
 

@@ -81,7 +81,7 @@ document.addEventListener('mousemove', (e) => {
     const text = rows.filter((r) => !r.classList.contains('u-off')).map((r) => {
       const l = r.querySelector('.u-label'), v = r.querySelector('.u-value');
       return (l ? l.innerText : '') + ' = ' + (v ? v.innerText : '');
-    }).join('\n');
+    }).join('\\n');
     tip.textContent = text;
     tip.style.display = text ? 'block' : 'none';
     const w = tip.offsetWidth, h = tip.offsetHeight;
@@ -89,14 +89,20 @@ document.addEventListener('mousemove', (e) => {
     tip.style.top = Math.min(window.innerHeight - h - 4, e.clientY + 12) + 'px';
   });
 });
-document.addEventListener('mouseup', (e) => {
-  const plot = plotOf(e.target);
+let dragged = null;  // the plot a drag started on: uPlot zooms it on mouseup when a stretch was selected
+document.addEventListener('mousedown', (e) => { dragged = plotOf(e.target); }, true);
+document.addEventListener('mouseup', () => {
+  const plot = dragged;
+  dragged = null;
   if (!plot) return;
-  setTimeout(() => {  // uPlot zooms on mouseup when a stretch was selected
-    const sel = plot.querySelector('.u-select');
-    if (sel && sel.offsetWidth > 2) { zoomed.add(plot); report(); }
-  }, 0);
+  const sel = plot.querySelector('.u-select');  // read before uPlot clears it (this runs first: capture)
+  if (sel && sel.offsetWidth > 2) { zoomed.add(plot); report(); }
 }, true);
+setInterval(() => {  // a chart rebuilt (a new run, another system) has lost its zoom
+  let gone = false;
+  for (const p of zoomed) if (!p.isConnected) { zoomed.delete(p); gone = true; }
+  if (gone) report();
+}, 1000);
 document.addEventListener('dblclick', (e) => {
   const plot = plotOf(e.target);
   if (plot && zoomed.delete(plot)) report();

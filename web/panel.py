@@ -24,7 +24,7 @@ PHASE_REDRAW_S = 1.0  # a phase portrait's current point moves at most this ofte
 PLOT_HELP = (
     "Point at a plot for the values under the cursor; drag across it to zoom, double-click to zoom "
     "out. *Plot y* and *against x* take any expression of the run's quantities (t, the coordinates "
-    "and speeds, E, dE, phi_<constraint>), e.g. `u1*cos(theta)`; x other than t draws a phase portrait."
+    "and speeds, E, dE, `phi_NAME` of a constraint), e.g. `u1*cos(theta)`; x other than t draws a phase portrait."
 )
 
 

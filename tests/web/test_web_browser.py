@@ -76,7 +76,7 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
         "Reset to the defaults",
         "Energy drift ΔE(t)",
         "log₁₀ |constraint violation|",
-        "Plotted coordinate",
+        "Plotted quantity",
         "Derived matrices",
         "max |ΔE|",
     ):
@@ -110,7 +110,7 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     session.control("option.plot").value = "theta"
     assert session.wait_idle(30)
     time.sleep(0.6)
-    plot = page.locator(".uplot").filter(has_text="Plotted coordinate").first
+    plot = page.locator(".uplot").filter(has_text="Plotted quantity").first
     before = _png(plot.screenshot())
     n = session._installs
     box = input_of(page, "u1 = θ̇")
