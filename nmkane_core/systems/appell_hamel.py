@@ -35,6 +35,30 @@ PARAMETERS = {
     "z0": Parameter(30.0, -1e6, 1e6, "m", "height of P when φ = 0 (thread constraint (59))"),
 }
 
+WHAT_TO_TRY = (
+    "The load falls and pulls the thread: the wheel spins up (u2 = φ̇ grows) while the frame's turning "
+    "rate u1 = θ̇ dies away, and the load's path on the plane (the red trace, Fig. 7) straightens out. "
+    "Compare with (ghost) → linear: the same mechanism with the rolling constraints linear in the speeds "
+    "(101)–(102); on the constraint manifold both describe the same motion, and with the same step the "
+    "energy error ΔE of the nonlinear model grows less (Fig. 9). Set Γ below 0: the violations drop by "
+    "orders of magnitude. Set u2 = φ̇ to 0: the nonlinear model's J2 is singular where the wheel does not "
+    "roll, and the run switches to the linear model (the status line says when). "
+    "Both models give the same forces: the thread tension (thread.tension, m (g + z̈): below m g = 9.81 N "
+    "while the load speeds up) and the ground's force on the wheel (contact.longitudinal along the rolling "
+    "direction, contact.lateral across it: the sideways force that keeps the wheel from slipping and turns "
+    "the frame); their multipliers differ (the nonlinear model's rolling_speed multiplier is a force "
+    "divided by 2 a φ̇)."
+)
+
+INITIAL_CONTROLS = {  # the sliders of the independent initial values (ranges around the paper's)
+    "theta": (-2.0, 2.0, "θ (frame's heading) [rad]"),
+    "phi": (-2.0, 2.0, "φ (wheel's angle) [rad]"),
+    "x": (-2.0, 2.0, "x [m] (load P on the plane)"),
+    "y": (-2.0, 2.0, "y [m] (load P on the plane)"),
+    "u1": (-2.0, 4.0, "u1 = θ̇ (frame's turning rate) [rad/s]"),
+    "u2": (-2.0, 4.0, "u2 = φ̇ (wheel's spin) [rad/s]"),
+}
+
 COORDINATES = ("theta", "phi", "x", "y", "z")
 SPEEDS = ("u1", "u2", "u3", "u4", "u5")
 
@@ -206,17 +230,6 @@ def _visuals():
     )
 
 
-WHAT_TO_TRY = (
-    "Run both constraint models (model nonlinear and linear) and compare: the motion is the same, and "
-    "so are the forces — the thread tension (thread.tension, m (g + z̈): below m g = 9.81 N while the load "
-    "speeds up) and the ground's force on the wheel (contact.longitudinal along the rolling direction, "
-    "contact.lateral across it: the sideways force that keeps the wheel from slipping and turns the "
-    "frame). The multipliers differ — the nonlinear model's rolling_speed multiplier is not a force but "
-    "a force divided by 2 a φ̇ — yet both give the same contact force. Set Γ to 0 and use a large step: "
-    "the forces stay close while the constraints drift."
-)
-
-
 def _forces(variant: str):
     """The ground's horizontal force on the wheel at its contact point and the thread's pull on
     the load, both by the multiplier route.
@@ -304,8 +317,14 @@ def appell_hamel() -> System:
         default_dt=0.01,
         default_t_final=20.0,
         default_integrator="kutta-merson",
-        description="Frame, wheel and hanging load; constraints modeled nonlinear (NC) or linear (LC) in the speeds.",
+        description=(
+            "The paper's Example 1: a frame sliding on the plane carries a wheel W that rolls without "
+            "slipping and two pulleys; a thread from the wheel's drum over the pulleys holds a load P that "
+            "moves along the frame's bar. The rolling constraints are modeled nonlinear (NC, (57)–(58)) or "
+            "linear (LC, (101)–(102)) in the speeds."
+        ),
         visuals=_visuals,
         forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

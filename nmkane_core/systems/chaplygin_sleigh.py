@@ -22,6 +22,14 @@ WHAT_TO_TRY = (
     "a sideways push on the blade is what turns spin into forward speed."
 )
 
+INITIAL_CONTROLS = {  # the sliders of the initial values (ranges around the defaults)
+    "x": (-2.0, 2.0, "x [m] (blade's contact point)"),
+    "y": (-2.0, 2.0, "y [m] (blade's contact point)"),
+    "theta": (-2.0, 2.0, "θ (heading) [rad]"),
+    "u1": (-1.9, 2.1, "u1 (forward speed) [m/s]"),
+    "u3": (-4.0, 8.0, "u3 = θ̇ (spin) [rad/s]"),
+}
+
 
 def _model():
     return blade_model("default", with_offset=True)
@@ -75,4 +83,5 @@ def chaplygin_sleigh() -> System:
         visuals=_visuals,
         forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

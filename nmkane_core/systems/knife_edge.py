@@ -18,6 +18,14 @@ WHAT_TO_TRY = (
     "It does no work: the energy drift stays at round-off."
 )
 
+INITIAL_CONTROLS = {  # the sliders of the initial values (ranges around the defaults)
+    "x": (-2.0, 2.0, "x [m] (blade's contact point)"),
+    "y": (-2.0, 2.0, "y [m] (blade's contact point)"),
+    "theta": (-2.0, 2.0, "θ (heading) [rad]"),
+    "u1": (-2.0, 4.0, "u1 (forward speed) [m/s]"),
+    "u3": (-1.5, 2.5, "u3 = θ̇ (turning rate) [rad/s]"),
+}
+
 
 def _model():
     return blade_model("default", with_offset=False)
@@ -66,4 +74,5 @@ def knife_edge() -> System:
         visuals=_visuals,
         forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

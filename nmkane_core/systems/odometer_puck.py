@@ -23,6 +23,14 @@ WHAT_TO_TRY = (
     "between them, none is lost."
 )
 
+INITIAL_CONTROLS = {  # the sliders of the initial values (ranges around the defaults)
+    "x": (-2.0, 4.0, "x [m] (puck, from the anchor)"),
+    "y": (-2.0, 2.0, "y [m] (puck, from the anchor)"),
+    "s": (-2.0, 2.0, "s (flywheel angle) [rad]"),
+    "u1": (-2.0, 2.0, "u1 = ẋ (puck's velocity along x) [m/s]"),
+    "u2": (-1.6, 3.2, "u2 = ẏ (puck's velocity along y) [m/s]"),
+}
+
 
 def _model():
     import sympy as sp
@@ -115,4 +123,5 @@ def odometer_puck() -> System:
         visuals=_visuals,
         forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

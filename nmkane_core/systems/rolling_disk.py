@@ -14,17 +14,40 @@ upright rolling at speed v is stable for v² > g r / 3.
 
 from __future__ import annotations
 
+import math
+
 from ..declare.system import Parameter, System
 
+R0, G0 = 0.3, 9.81  # the default radius (m) and gravity (m/s²): the threshold below is computed from them
+
+
+def upright_threshold(r: float = R0, g: float = G0) -> float:
+    """The spin φ̇ above which upright rolling is stable: v² > g r / 3 with v = r φ̇."""
+    return math.sqrt(g / (3.0 * r))
+
+
 WHAT_TO_TRY = (
-    "Roll it upright (θ = 0) with spin φ̇ and a tiny lean rate θ̇: above the speed √(g r/3) "
-    "(φ̇ > 1.81 rad/s for r = 0.3 m) it wobbles and stays up, below it falls over. Lean it and give "
-    "it a yaw rate: it turns on a circle. The contact point never slips (its violation is round-off) "
-    "and no energy is lost. Watch the contact force: its friction (contact.lateral, the arrow's "
-    "sideways part) is what turns the coin — it points to the circle's centre — and the normal force "
-    "(contact.normal) is m g only when the coin rolls upright and straight; as it wobbles, the normal "
-    "force swings above and below m g."
+    "Roll it upright: lean θ = 0, yaw rate u3 = ψ̇ = 0, a tiny lean rate u4 = θ̇ (0.05) and the spin "
+    f"u5 = φ̇. Upright rolling is stable above the speed v = √(g r/3), i.e. φ̇ > √(g/(3r)) = "
+    f"{upright_threshold():.2f} rad/s for r = {R0:g} m: just above it the disk wobbles a little and stays "
+    "up; just below it the tiny lean grows into a large wobble. Lean it (θ) and give it a yaw rate u3: "
+    "it turns on a circle. The contact point never slips (its violation is round-off) and no energy is lost. "
+    "Watch the contact force: its friction (contact.lateral, the arrow's sideways part) is what turns "
+    "the coin — it points to the circle's centre — and the normal force (contact.normal) is m g only "
+    "when the coin rolls upright and straight; as it wobbles, it swings above and below m g."
 )
+
+# the sliders of the initial values, with what each one is (ranges around the defaults)
+INITIAL_CONTROLS = {
+    "x": (-2.0, 2.0, "x [m] (contact point)"),
+    "y": (-2.0, 2.0, "y [m] (contact point)"),
+    "psi": (-2.0, 2.0, "ψ (heading) [rad]"),
+    "theta": (-1.8, 2.2, "θ (lean) [rad]"),
+    "phi": (-2.0, 2.0, "φ (spin angle) [rad]"),
+    "u3": (-6.0, 3.0, "u3 = ψ̇ (yaw rate) [rad/s]"),
+    "u4": (-2.0, 2.0, "u4 = θ̇ (lean rate) [rad/s]"),
+    "u5": (-12.0, 24.0, "u5 = φ̇ (spin) [rad/s]"),
+}
 
 
 def _model():
@@ -134,8 +157,8 @@ def rolling_disk() -> System:
         variants=_model,
         parameters={
             "m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
-            "r": Parameter(0.3, 0.0, 3.0, "m", "radius"),
-            "g": Parameter(9.81, 0.0, 30.0, "m/s²", "gravitational acceleration", min_inclusive=True),
+            "r": Parameter(R0, 0.0, 3.0, "m", "radius"),
+            "g": Parameter(G0, 0.0, 30.0, "m/s²", "gravitational acceleration", min_inclusive=True),
         },
         default_initial={"x": 0.0, "y": 0.0, "psi": 0.0, "theta": 0.2, "phi": 0.0, "u3": -1.5, "u4": 0.0, "u5": 6.0},
         default_dt=0.005,
@@ -144,4 +167,5 @@ def rolling_disk() -> System:
         visuals=_visuals,
         forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

@@ -407,12 +407,12 @@ WEAVE_SPEED, CAPSIZE_SPEED = 4.29238253634111, 6.02426201538837
 
 #: the initial values offered as sliders (range, label)
 INITIAL_CONTROLS = {
-    "u6": (-40.0, 0.0, "rear wheel rate u6 = −speed/rR [rad/s] (−16.7: 5 m/s)"),
-    "q4": (-0.6, 0.6, "roll q4 [rad]"),
-    "q7": (-0.6, 0.6, "steer q7 [rad]"),
-    "u4": (-2.0, 2.0, "roll rate u4 [rad/s]"),
-    "u7": (-2.0, 2.0, "steer rate u7 [rad/s]"),
-    "q3": (-3.2, 3.2, "heading q3 [rad]"),
+    "u6": (-40.0, 0.0, "u6 = q̇6 (rear wheel rate = −speed/rR; −16.7: 5 m/s) [rad/s]"),
+    "q4": (-0.6, 0.6, "q4 (roll) [rad]"),
+    "q7": (-0.6, 0.6, "q7 (steer) [rad]"),
+    "u4": (-2.0, 2.0, "u4 = q̇4 (roll rate) [rad/s]"),
+    "u7": (-2.0, 2.0, "u7 = q̇7 (steer rate) [rad/s]"),
+    "q3": (-3.2, 3.2, "q3 (heading) [rad]"),
 }
 
 WHAT_TO_TRY = (
