@@ -61,8 +61,6 @@ def bicycle_sympy_forces(params: dict | None = None):
     import sympy as sp
     from sympy.physics import mechanics as me
 
-    from .whipple_bicycle import _geometry
-
     m = _mechanics()
     q, u = list(m["q"]), list(m["u"])
     t = me.dynamicsymbols._t
@@ -74,32 +72,7 @@ def bicycle_sympy_forces(params: dict | None = None):
     J = phi.jacobian(u)
     ud = [ui.diff(t) for ui in u]
     b = phi.diff(t).xreplace(qd).xreplace(dict.fromkeys(ud, 0))
-    # the same geometry, velocities set again (its own frames and points: nothing shared with _mechanics' objects)
-    _, _, par, fr, pt, (_, _, _, root) = _geometry()
-    P = dict(zip([s.name for s in par], par, strict=True))
-    A, B, C, D, E, F = (fr[k] for k in ("A", "B", "C", "D", "E", "F"))
-    NN = fr["N"]
-    A.set_ang_vel(NN, u[2] * NN.z)
-    B.set_ang_vel(A, u[3] * A.x)
-    C.set_ang_vel(B, u[4] * B.y)
-    D.set_ang_vel(C, u[5] * C.y)
-    E.set_ang_vel(C, u[6] * C.z)
-    F.set_ang_vel(E, u[7] * E.y)
-    pt["O"].set_vel(NN, 0)
-    pt["dn"].set_vel(NN, u[0] * NN.x + u[1] * NN.y)
-    pt["do"].v2pt_theory(pt["dn"], NN, B)
-    pt["ce"].v2pt_theory(pt["do"], NN, C)
-    pt["bo"].v2pt_theory(pt["do"], NN, C)
-    pt["fo"].v2pt_theory(pt["ce"], NN, E)
-    pt["ho"].v2pt_theory(pt["ce"], NN, E)
-    s = E.y.dot(A.z)
-    v_rear = pt["do"].vel(NN) + D.ang_vel_in(NN).cross(P["rR"] * B.z)
-    v_front = pt["fo"].vel(NN) + F.ang_vel_in(NN).cross(P["rF"] * (A.z - s * E.y) / root)
-    Jr = v_rear.to_matrix(NN).jacobian(u)
-    Jf = v_front.to_matrix(NN).jacobian(u)
-    masses = [(pt["do"], P["mR"]), (pt["bo"], P["mB"]), (pt["ho"], P["mH"]), (pt["fo"], P["mF"])]
-    rate = sum((mass * p.acc(NN).to_matrix(NN) for p, mass in masses), sp.zeros(3, 1)).xreplace(qd)
-    weight = sum(mass for _, mass in masses) * P["g"] * sp.Matrix([0, 0, 1])
+    par, Jr, Jf, rate, weight = _contact_kinematics(u, qd)
     values = {k: p.default for k, p in PARAMETERS.items()} | dict(params or {})
     sub = {sym: values[sym.name] for sym in m["par"]} | {sym: values[sym.name] for sym in par}
     udot = sp.symbols("ud1:9")
@@ -133,3 +106,39 @@ def bicycle_sympy_forces(params: dict | None = None):
         }
 
     return at
+
+
+def _contact_kinematics(u, qd):
+    """The bicycle's geometry with its velocities set again (its own frames and points: nothing
+    shared with ``_mechanics``' objects): the parameters, ∂v/∂u of the rear and front material
+    contact points, Σ m a_G and the weight (N components)."""
+    import sympy as sp
+
+    from .whipple_bicycle import _geometry
+
+    _, _, par, fr, pt, (_, _, _, root) = _geometry()
+    P = dict(zip([s.name for s in par], par, strict=True))
+    A, B, C, D, E, F = (fr[k] for k in ("A", "B", "C", "D", "E", "F"))
+    NN = fr["N"]
+    A.set_ang_vel(NN, u[2] * NN.z)
+    B.set_ang_vel(A, u[3] * A.x)
+    C.set_ang_vel(B, u[4] * B.y)
+    D.set_ang_vel(C, u[5] * C.y)
+    E.set_ang_vel(C, u[6] * C.z)
+    F.set_ang_vel(E, u[7] * E.y)
+    pt["O"].set_vel(NN, 0)
+    pt["dn"].set_vel(NN, u[0] * NN.x + u[1] * NN.y)
+    pt["do"].v2pt_theory(pt["dn"], NN, B)
+    pt["ce"].v2pt_theory(pt["do"], NN, C)
+    pt["bo"].v2pt_theory(pt["do"], NN, C)
+    pt["fo"].v2pt_theory(pt["ce"], NN, E)
+    pt["ho"].v2pt_theory(pt["ce"], NN, E)
+    s = E.y.dot(A.z)
+    v_rear = pt["do"].vel(NN) + D.ang_vel_in(NN).cross(P["rR"] * B.z)
+    v_front = pt["fo"].vel(NN) + F.ang_vel_in(NN).cross(P["rF"] * (A.z - s * E.y) / root)
+    Jr = v_rear.to_matrix(NN).jacobian(u)
+    Jf = v_front.to_matrix(NN).jacobian(u)
+    masses = [(pt["do"], P["mR"]), (pt["bo"], P["mB"]), (pt["ho"], P["mH"]), (pt["fo"], P["mF"])]
+    rate = sum((mass * p.acc(NN).to_matrix(NN) for p, mass in masses), sp.zeros(3, 1)).xreplace(qd)
+    weight = sum(mass for _, mass in masses) * P["g"] * sp.Matrix([0, 0, 1])
+    return par, Jr, Jf, rate, weight
