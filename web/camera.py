@@ -62,7 +62,11 @@ def frame(bounds, direction=None, viewport: Viewport | None = None) -> tuple[np.
     vp = viewport or Viewport()
     lo, hi = (np.asarray(b, float) for b in bounds)
     centre = (lo + hi) / 2
-    half = np.maximum((hi - lo) / 2, 0.15)  # a point or a flat box still gets a view
+    half = (hi - lo) / 2
+    largest = float(np.max(half))
+    # a flat box still gets depth (a tenth of its largest side: a 10 cm linkage is not framed as
+    # 30 cm), a point a view of 15 cm
+    half = np.maximum(half, 0.1 * largest if largest > 0 else 0.15)
     d = np.array(DIRECTION if direction is None else direction, float)
     d /= np.linalg.norm(d)
     right = np.cross(-d, [0.0, 0.0, 1.0])
