@@ -32,7 +32,8 @@ def run_suffix(j: int, label: str, many: bool) -> str:
     return f" — {label}" if j == 0 else f" — {label}, {pl.DASH_NAMES[(j - 1) % len(pl.DASH_NAMES)]}"
 
 
-def _on(main, r, v):
+def on_main(main, r, v):
+    """``v`` of run ``r`` on the main run's times."""
     return np.asarray(v, float) if r is main else np.interp(main.t, r.t, v)
 
 
@@ -42,7 +43,7 @@ def energy(runs: dict) -> pl.Curves:
     dEs = []
     for r in runs.values():
         e = np.zeros(len(r.t)) if r.energy is None else np.asarray(r.energy, float)
-        dEs.append(_on(main, r, e - e[0] if len(e) else e))
+        dEs.append(on_main(main, r, e - e[0] if len(e) else e))
     factor, unit = pl.readable(dEs, "J")
     names = [f"ΔE{run_suffix(j, lab, many)}" for j, lab in enumerate(labels)]
     out = pl.curves(main.t, [d / factor for d in dEs], names, y_label=f"ΔE = E − E(0) [{unit}]")
@@ -57,7 +58,7 @@ def violation(runs: dict) -> pl.Curves:
     ys, names, styles = [], [], []
     for j, (lab, r) in enumerate(runs.items()):
         for c, (name, v) in enumerate(r.violation.items()):
-            ys.append(pl.log10_abs(_on(main, r, v)))
+            ys.append(pl.log10_abs(on_main(main, r, v)))
             names.append(f"{name}{run_suffix(j, lab, many)}")
             styles.append(style(j, pl.COLORS[c % len(pl.COLORS)]))
     if not ys:
@@ -94,7 +95,7 @@ def quantity(runs: dict, y_text: str, x_text: str = "t") -> pl.Curves | Phase:
     names = [f"{y_text}{run_suffix(j, lab, many)}" for j, lab in enumerate(labels)]
     if x_text.strip() == "t":
         out = pl.curves(
-            main.t, [_on(main, r, y) for r, y in zip(runs.values(), ys, strict=True)], names, y_label=y_text
+            main.t, [on_main(main, r, y) for r, y in zip(runs.values(), ys, strict=True)], names, y_label=y_text
         )
         out.styles = styles
         return out

@@ -34,6 +34,8 @@ from . import plots as pl
 from .camera import CameraPlan, Viewport, frame
 from .controls import DT_RANGE, INTEGRATORS, Control, dt_control
 from .declared import DeclaredScene
+from .forces import TITLE as FORCES_TITLE
+from .forces import ForceArrows, force_curves
 
 DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
 FOLLOW_BEYOND_M = 4.0  # a whole motion within this radius is seen whole, not followed
@@ -234,6 +236,10 @@ class GenericView:
             ("coord", "Plotted quantity"),
         )
         self.declared = DeclaredScene(scene, core)
+        self.forces = ForceArrows(scene, core, self.declared.prefix)  # the declared forces' arrows
+        self.force_panel = None  # its checkbox and readout (the session adds them to the folder)
+        if self.forces.declared:
+            self.plots = (*self.plots[:2], ("forces", FORCES_TITLE), *self.plots[2:])
         self.ghosts: list[DeclaredScene] = []  # one per compare run, made on first use
         self.root = self.declared.root
         self.plot_y, self.plot_x = built(core).state_names[0], "t"  # the typed plotted quantity
@@ -283,6 +289,8 @@ class GenericView:
         """Plot data of one request's runs (:mod:`web.curves`): energy drift, violations, and
         the typed quantity against time or against another quantity (key ``phase``)."""
         out: dict = {"energy": cv.energy(runs), "violation": cv.violation(runs)}
+        if self.forces.declared:
+            out["forces"] = self._force_curves(runs)
         try:
             q = cv.quantity(runs, self.plot_y, self.plot_x)
         except ex.ExpressionError as e:  # a name the runs lack (the box checked the system's names)
@@ -290,6 +298,12 @@ class GenericView:
             q = pl.curves(main.t, [np.zeros(len(main.t))], [f"({e})"], y_label=self.plot_y)
         out["phase" if isinstance(q, cv.Phase) else "coord"] = q
         return out
+
+    def _force_curves(self, runs: dict) -> pl.Curves:
+        """|F| of each declared force (a flat line saying so when the runs' models declare none)."""
+        main = next(iter(runs.values()))
+        out = force_curves(self.core, runs, main.t, lambda r, v: cv.on_main(main, r, v))
+        return out or pl.curves(main.t, [np.zeros(len(main.t))], ["(no forces declared for this model)"])
 
     def legend(self, traj) -> str:
         """Which colour (and line style) is which run, in the panel (the scene names the ghosts too)."""
@@ -310,6 +324,7 @@ class GenericView:
     def install(self, traj) -> None:
         runs, labels = list(traj.runs.values()), list(traj.runs)
         self.declared.install(runs[0], traj.params)
+        self.forces.install(runs[0], traj.params, self.declared.extent)
         for j, run in enumerate(runs[1:], start=1):
             if len(self.ghosts) < j:
                 color = _rgb(pl.RUN_COLORS[j % len(pl.RUN_COLORS)])
@@ -325,12 +340,16 @@ class GenericView:
         labels = list(traj.runs)
         self.k = geo.index_at(traj.runs[labels[0]].t, t_now)
         self.declared.pose(self.k)
+        self.forces.pose(self.k)
         for g, lab in zip(self.ghosts, labels[1:], strict=False):
             g.pose(geo.index_at(traj.runs[lab].t, t_now))
         return traj.row(labels[0], t_now)
 
     def readouts(self, traj, t_now: float) -> None:
-        """Slow-rate labels in the scene (none)."""
+        """Slow-rate labels: the forces' magnitudes at their arrows and the readout in the panel."""
+        self.forces.readout(self.k)
+        if self.force_panel is not None:
+            self.force_panel.show(traj.main, t_now)
 
     def _centre(self) -> np.ndarray:
         """The mean of the frame origins (or the first moving part) at the shown row."""

@@ -22,6 +22,7 @@ from nmkane_core.run.simulate import simulate as core_simulate
 from . import stability
 from .camera import CameraRig
 from .controls import Control, ControlPanel, settings_from
+from .forces import ForcePanel
 from .generic import GenericView, scene_choices
 from .keys import add_keys
 from .link import Link, LinkPanel, read_link, read_system
@@ -145,6 +146,8 @@ class MechanismApp:
                 handles[c] = self.controls.add(c)
                 if c.field == "option.compare":
                     self.legends[view.kind] = gui.add_markdown("")  # which colour is which run
+            if view.forces.declared:
+                view.force_panel = ForcePanel(gui, view.forces)
             with gui.add_folder(view.params_folder, expand_by_default=False):
                 params = {c.attr: self.controls.add(c) for c in view.param_controls}
             self.resets[view.kind] = gui.add_button(view.reset_label)
