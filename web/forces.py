@@ -47,6 +47,23 @@ def nice_scale(largest: float, length: float) -> float:
     return 1.0 / (10 ** (e + 1))
 
 
+UNIT = np.array([[[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]]], np.float32)  # every arrow: local z, scaled
+HEAD = 0.2  # the head's share of an arrow's length
+
+
+def _place(node, tail: np.ndarray, vec: np.ndarray) -> None:
+    """An arrow node (the unit arrow along its z) from ``tail`` along ``vec``: its pose and its
+    length as the node's z scale (the page redraws a moved or scaled node at once; new points
+    of an arrow it may not)."""
+    length = float(np.linalg.norm(vec))
+    d = vec / length if length > 1e-12 else np.array([0.0, 0.0, 1.0])
+    q = np.array([1.0 + d[2], -d[1], d[0], 0.0])  # wxyz turning z onto d
+    n = float(np.linalg.norm(q))
+    node.wxyz = tuple(q / n) if n > 1e-9 else (0.0, 1.0, 0.0, 0.0)  # d = −z: half a turn about x
+    node.position = tuple(float(c) for c in tail)
+    node.scale = (1.0, 1.0, max(length, 1e-6))
+
+
 def _newtons(x: float) -> str:
     return f"{x:.3g} N" if abs(x) < 1e4 else f"{x:.3e} N"
 
@@ -96,7 +113,7 @@ class ForceArrows:
                 self.vectors[name] = np.clip(np.nan_to_num(vec), -BIG, BIG)
             largest = max(float(np.max(np.linalg.norm(v, axis=1), initial=0.0)) for v in self.vectors.values())
             self.scale = compiled.scale or nice_scale(largest, 1.2 * max(extent, 0.2))
-            self.width = 0.025 * max(extent, 0.2)
+            self.width = 0.04 * max(extent, 0.2)
             self._nodes()
         for name, node in self.arrows.items():
             node.visible = self.labels[name].visible = name in self.tails
@@ -114,15 +131,15 @@ class ForceArrows:
         for i, name in enumerate(self.names):
             if name in self.arrows:
                 node = self.arrows[name]
-                node.shaft_radius, node.head_radius, node.head_length = self.width, 2.2 * self.width, 5 * self.width
+                node.shaft_radius, node.head_radius = self.width, 2.2 * self.width
                 continue
             self.arrows[name] = sc.add_arrows(
                 f"{self.prefix}/{name}",
-                points=np.zeros((1, 2, 3), np.float32),
+                points=UNIT,
                 colors=COLORS[i % len(COLORS)],
                 shaft_radius=self.width,
                 head_radius=2.2 * self.width,
-                head_length=5 * self.width,
+                head_length=HEAD,
             )
             self.labels[name] = sc.add_label(f"{self.prefix}/{name}_label", name, anchor="bottom-left")
         if self.scale_label is None:
@@ -138,7 +155,7 @@ class ForceArrows:
             i = min(k, len(tail) - 1)
             p, v = tail[i], self.vectors[name][i]
             tip = p + self.scale * v
-            self.arrows[name].points = np.array([[p, tip]], np.float32)
+            _place(self.arrows[name], p, self.scale * v)
             self.labels[name].position = tuple(float(c) for c in tip)
             low = p if low is None else np.minimum(low, p)
         if low is not None and self.scale_label is not None:
@@ -177,7 +194,7 @@ def force_curves(core, runs: dict, t: np.ndarray, on_t) -> pl.Curves | None:
             styles.append(style)
     if not ys:
         return None
-    out = pl.curves(t, ys, labels)
+    out = pl.curves(t, ys, labels, y_label="|F| [N]")
     out.styles = styles
     return out
 

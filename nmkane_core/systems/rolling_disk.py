@@ -147,6 +147,7 @@ def _forces(variant: str):
                 "the normal force (Newton's law on the coin: non-contributing in these coordinates)",
             ),
         ),
+        scale=0.1,  # m per N: the 1 kg coin's m g is a 1 m arrow, out of the top of the 0.6 m coin
     )
 
 

@@ -68,9 +68,14 @@ def test_rolling_disk_draws_its_contact_force_at_scale_and_the_checkbox_hides_it
         k = view.k
         node = app.scene.get_handle_by_name(f"/sys/{app.kind}/forces/contact")
         assert node is arrows.arrows["contact"] and node.visible
-        tail, tip = np.asarray(node.points, float)[0]
+        tail = np.asarray(node.position, float)
+        length = node.scale[2] * np.linalg.norm(np.diff(np.asarray(node.points, float)[0], axis=0))
         comps = [run.point_forces[f"contact.{c}"][k] for c in ("longitudinal", "lateral", "normal")]
-        assert np.linalg.norm(tip - tail) == pytest.approx(np.linalg.norm(comps) * arrows.scale, rel=1e-5)
+        assert length == pytest.approx(np.linalg.norm(comps) * arrows.scale, rel=1e-5)
+        w, x, y, z = node.wxyz  # the arrow's z turned onto the force (normal up: mostly vertical)
+        along = np.array([2 * (x * z + w * y), 2 * (y * z - w * x), 1 - 2 * (x * x + y * y)])
+        vec = arrows.vectors["contact"][k]
+        np.testing.assert_allclose(along, vec / np.linalg.norm(vec), atol=1e-6)
         np.testing.assert_allclose(tail[:2], [run.state["x"][k], run.state["y"][k]], atol=1e-5)
         assert f"1 m = {1 / arrows.scale:g} N" in arrows.scale_label.text
         assert "**contact**" in view.force_panel.text.content and "1 m =" in view.force_panel.text.content
