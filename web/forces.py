@@ -24,6 +24,7 @@ import numpy as np
 from nmkane_core.kernel.forces import compile_forces
 
 from . import plots as pl
+from .curves import style
 
 COLORS = ((214, 39, 40), (31, 119, 180), (44, 160, 44), (148, 103, 189), (255, 127, 14))  # one per force
 BIG = 1e6
@@ -188,10 +189,7 @@ def force_curves(core, runs: dict, t: np.ndarray, on_t) -> pl.Curves | None:
         for name, mag in compiled.magnitudes(r.point_forces).items():
             ys.append(on_t(r, mag))
             labels.append(f"|{name}| ({lab})" if many and j else f"|{name}|")
-            style = {"stroke": pl.COLORS[names.index(name) % len(pl.COLORS)]}
-            if j:
-                style["dash"] = pl.DASHES[(j - 1) % len(pl.DASHES)]
-            styles.append(style)
+            styles.append(style(j, pl.COLORS[names.index(name) % len(pl.COLORS)]))
     if not ys:
         return None
     out = pl.curves(t, ys, labels, y_label="|F| [N]")

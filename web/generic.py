@@ -35,7 +35,7 @@ from .camera import CameraPlan, Viewport, frame
 from .controls import DT_RANGE, INTEGRATORS, Control, dt_control
 from .declared import DeclaredScene
 from .forces import TITLE as FORCES_TITLE
-from .forces import ForceArrows, force_curves
+from .forces import ForceArrows, ForcePanel, force_curves
 
 DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
 FOLLOW_BEYOND_M = 4.0  # a whole motion within this radius is seen whole, not followed
@@ -230,14 +230,14 @@ class GenericView:
         self.speed = float(getattr(core, "showcase", {}).get("speed", 1.0))
         self.controls = generic_controls(core, prefix)
         self._param_controls = tuple(parameter_control(p, prefix) for p in core.parameters)
-        self.plots = (
+        self.plots: tuple[tuple[str, str], ...] = (
             ("energy", "Energy drift ΔE(t)"),
             ("violation", "log₁₀ |constraint violation|"),
             ("coord", "Plotted quantity"),
         )
         self.declared = DeclaredScene(scene, core)
         self.forces = ForceArrows(scene, core, self.declared.prefix)  # the declared forces' arrows
-        self.force_panel = None  # its checkbox and readout (the session adds them to the folder)
+        self.force_panel: ForcePanel | None = None  # its checkbox and readout (the session adds them to the folder)
         if self.forces.declared:
             self.plots = (*self.plots[:2], ("forces", FORCES_TITLE), *self.plots[2:])
         self.ghosts: list[DeclaredScene] = []  # one per compare run, made on first use

@@ -97,9 +97,9 @@ class CompiledForces:
     def vectors(self, components: dict, states: dict, params: dict) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Force name → (points (n, 3), force vectors (n, 3)) in world coordinates: the axes
         times the components (``components`` as :meth:`components` returns them)."""
-        out = {}
+        out, geo = {}, self.geometry(states, params)
         for f in self.forces:
-            point, axes = self.geometry(states, params)[f["name"]]
+            point, axes = geo[f["name"]]
             c = np.stack([np.asarray(components[col], float) for col in f["columns"]], axis=1)
             out[f["name"]] = (point, np.einsum("nij,nj->ni", axes, c))
         return out
