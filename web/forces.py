@@ -24,7 +24,7 @@ import numpy as np
 from nmkane_core.kernel.forces import compile_forces
 
 from . import plots as pl
-from .curves import style
+from .curves import run_suffix, style
 
 COLORS = ((214, 39, 40), (31, 119, 180), (44, 160, 44), (148, 103, 189), (255, 127, 14))  # one per force
 BIG = 1e6
@@ -188,7 +188,7 @@ def force_curves(core, runs: dict, t: np.ndarray, on_t) -> pl.Curves | None:
             continue
         for name, mag in compiled.magnitudes(r.point_forces).items():
             ys.append(on_t(r, mag))
-            labels.append(f"|{name}| ({lab})" if many and j else f"|{name}|")
+            labels.append(f"|{name}|{run_suffix(j, lab, many)}")
             styles.append(style(j, pl.COLORS[names.index(name) % len(pl.COLORS)]))
     if not ys:
         return None
