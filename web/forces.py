@@ -8,11 +8,13 @@ the size of the system, rounded to 1, 2 or 5 × 10^k), with a label at its tip n
 force and its magnitude, and a scale label ("arrows: 1 m = 20 N").  The points and world
 vectors are computed once per run for every output row (the compiled geometry is
 vectorized, the components are the run's ``point_forces``); a frame then only picks a row.
+Each arrow is one unit arrow along its node's z, posed (position, wxyz) and stretched (z
+scale) per frame: the page redraws a moved node at once, an arrow given new points it may not.
 
 :func:`force_curves` is the plot's data (|R| of each force; compare runs dashed) and
 :func:`readout` the text at the time cursor.  The page shows them where the system declares
-forces; :attr:`ForceArrows.visible` is the "Show forces" switch, on by default where the
-declaration says so (``Forces.show``).
+forces; :attr:`ForceArrows.visible` is the "Show forces" switch (:class:`ForcePanel`, with the
+readout, in the system's folder), on by default where the declaration says so (``Forces.show``).
 """
 
 from __future__ import annotations
