@@ -505,7 +505,45 @@ def test_background_warm_up_serves_meanwhile_and_stops_with_the_service(tmp_path
     lines = []
     svc.warm_in_background(later[:2], lines.append).join(600)
     assert svc.warmed.is_set() and lines[-1].startswith("nmkane: projection loops ready in")
-    svc.stop()  # a stopped service warms nothing more
+    svc.stop()  # a stopped service warms nothing more, and says so
     lines.clear()
     svc.warm_in_background(later, lines.append).join(60)
-    assert svc.warmed.is_set() and lines == []
+    assert svc.warmed.is_set() and len(lines) == 1
+    assert lines[0].startswith(f"nmkane: projection loops stopped with the service after 0 of {len(later)} ")
+
+
+def test_a_warm_up_stopped_during_a_step_finishes_it_and_says_so(tmp_path, monkeypatch):
+    """A stop while a warm-up step compiles: the step is finished, the rest skipped, and a line
+    says so.  Before, this was said nowhere (``serve`` reports only a compilation it abandons),
+    and test_stop_during_background_compilation_on_an_empty_cache failed on a fast machine."""
+    import backend.service as service
+
+    compiling, finish = threading.Event(), threading.Event()
+
+    def slow_step(settings, **_):
+        compiling.set()
+        assert finish.wait(60)
+
+    monkeypatch.setattr(service, "simulate", slow_step)
+    svc = service.RunService(Settings(data_dir=tmp_path, warm_kernels=False))
+    svc.start()
+    lines = []
+    steps = [("first", {}), ("second", {}), ("third", {})]
+    thread = svc.warm_in_background(steps, lines.append)
+    assert compiling.wait(60)
+    stopper = threading.Thread(target=svc.stop)
+    stopper.start()
+    _wait_until(svc._stopping.is_set)
+    finish.set()
+    thread.join(60)
+    stopper.join(60)
+    assert svc.warmed.is_set() and len(lines) == 2, lines
+    assert lines[0].startswith("nmkane: projection loops [1/3] first: ")
+    assert lines[1].startswith("nmkane: projection loops stopped with the service after 1 of 3 ")
+
+
+def _wait_until(cond, timeout=60.0):
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline
+        time.sleep(0.01)
