@@ -112,13 +112,13 @@ def _report(line: str) -> None:
 
 
 async def _warm(svc: RunService) -> None:
-    """Load the kernels every request uses before the first is served; the projected loops
-    load in the background."""
+    """Load what a request naming only a system runs before the first is served; the other
+    loops load in the background."""
     _report("nmkane: preparing the kernels (the first start after install compiles them)")
     first, later = svc.warm_steps()
     await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm, _report, first)
     _report(
-        "nmkane: the service is ready; the loops with a post-step projection load in the "
-        "background (a first start after install compiles them, one to two minutes)"
+        "nmkane: the service is ready; the other variants, integrators and projections load in "
+        "the background (a first start after install compiles them, a few minutes)"
     )
     svc.warm_in_background(later, _report)

@@ -22,7 +22,7 @@ from nmkane_core.integrate.methods import ScipyMethod
 from nmkane_core.run.plan import Plan, check_budget, resolve
 from nmkane_core.run.registry import get_system, system_names
 from nmkane_core.run.result import Run
-from nmkane_core.run.simulate import kernel_for, simulate
+from nmkane_core.run.simulate import simulate
 from nmkane_core.schema import RunSettings
 
 from .config import Settings
@@ -59,6 +59,9 @@ def encode_document(run: Run, run_id: str, summary: dict | None = None) -> bytes
         "state": run.state,
         "energy": run.energy,
         "violation": run.violation,
+        "constraint_forces": run.constraint_forces,
+        "multipliers": run.multipliers,
+        "point_forces": run.point_forces,
         "summary": summary,
     }
     return orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)
@@ -170,25 +173,26 @@ class RunService:
     def warm_steps(self) -> tuple[list, list]:
         """The warm-up runs: ``(first, later)``, each a list of ``(label, settings)``.
 
-        ``first``: every system variant's unprojected loops (fixed step and adaptive) and the
-        scipy adapter — what nearly every request uses.  ``later``: the same loops with a
-        post-step projection, which numba compiles as another copy (about 17 s per variant
-        on a first start after install, so they are warmed after the service is ready)."""
-        first, later = [], []
+        ``first``: what a request that names only a system runs — each system's default
+        variant with its default integrator — loaded before the service answers.  ``later``:
+        everything else a request may ask for, loaded in the background while the service
+        answers (a request that needs a loop still compiling waits for it): the other
+        variants, the adaptive loops, the scipy adapter, and the loops with a post-step
+        projection (numba compiles each as another copy)."""
+        first: list[tuple[str, dict]] = []
+        later: list[tuple[str, dict]] = []
+        projected: list[tuple[str, dict]] = []
         for name in system_names():
             system = get_system(name)
             for variant in system.variants:
-                # generated now, every new kernel starts compiling its loop in a child process
-                # (nmkane_core.kernel.precompile) while the steps below run
-                kernel_for(system, variant)
                 base = {"system": name, system.option: variant, "t_final": 0.05}
                 adaptive = {**base, "integrator": "kutta-merson-adaptive"}
-                first.append((f"{name} {variant}, fixed step", base))
-                first.append((f"{name} {variant}, adaptive", adaptive))
-                later.append((f"{name} {variant}, fixed step, projected", {**base, "projection": "yoon"}))
-                later.append((f"{name} {variant}, adaptive, projected", {**adaptive, "projection": "yoon"}))
-        first.append(("scipy adapter", {"system": system_names()[0], "integrator": "rk45", "t_final": 0.05}))
-        return first, later
+                (first if variant == system.default_variant else later).append((f"{name} {variant}, default", base))
+                later.append((f"{name} {variant}, adaptive", adaptive))
+                projected.append((f"{name} {variant}, fixed step, projected", {**base, "projection": "yoon"}))
+                projected.append((f"{name} {variant}, adaptive, projected", {**adaptive, "projection": "yoon"}))
+        later.append(("scipy adapter", {"system": system_names()[0], "integrator": "rk45", "t_final": 0.05}))
+        return first, later + projected
 
     def warm(self, report=None, steps=None, title: str = "kernels") -> None:
         """Load (or compile once) the kernels and loops of ``steps`` (default: every one of
@@ -221,7 +225,7 @@ class RunService:
                 "on disk: later starts load it)"
             )
 
-    def warm_in_background(self, steps, report=None, title: str = "projection loops") -> threading.Thread:
+    def warm_in_background(self, steps, report=None, title: str = "the other loops") -> threading.Thread:
         """Warm ``steps`` in a daemon thread (requests are served meanwhile; one that needs a
         loop still compiling waits for it). :attr:`warmed` is set when it has finished."""
         self.warmed.clear()

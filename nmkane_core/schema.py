@@ -145,6 +145,12 @@ class RunSettings(BaseModel):
         description="reciprocal-condition estimate of J2 or T at which the "
         "run switches to an equivalent model (when the system declares one)",
     )
+    constraint_forces: bool = Field(
+        True,
+        description="report the constraint forces F_c = Q u̇ − P (by speed) and the multipliers λ "
+        "with F_c = Jᵀλ (by constraint) of every output row; false leaves them out (a few per cent "
+        "of a run's time)",
+    )
     project_initial: bool = Field(
         False,
         description="move a full initial state that violates the "
@@ -225,6 +231,14 @@ class RunSummary(BaseModel):
     max_abs_violation: dict[str, float]
     max_abs_energy_drift: float | None
     final_energy_drift: float | None
+    max_abs_multiplier: dict[str, float] = Field(
+        default_factory=dict, description="largest |λ| of each constraint over the output rows (empty: not asked for)"
+    )
+    max_abs_point_force: dict[str, float] = Field(
+        default_factory=dict,
+        description="largest magnitude |R| of each physical force the system declares at a point, over the output "
+        "rows (empty: none declared, or not asked for)",
+    )
     min_rcond: dict[str, float] = Field(
         default_factory=dict, description="smallest reciprocal condition estimate of J2 and T"
     )
@@ -246,4 +260,20 @@ class RunResult(BaseModel):
     state: dict[str, list[float]]
     energy: list[float] | None
     violation: dict[str, list[float]]
+    constraint_forces: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="the generalized constraint force F_c = Q u̇ − P of each speed (Kane's generalized forces of the "
+        "constraints, with the run's u̇: stabilization included), one value per output row",
+    )
+    multipliers: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="λ of each constraint with F_c = Jᵀλ, J = ∂[φ; ψ̇]/∂u (depends on how a constraint is "
+        "written; F_c does not), one value per output row",
+    )
+    point_forces: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="the physical forces the system declares at points (a contact force, a blade force, a thread "
+        "tension), by NAME.LABEL (e.g. contact.normal): each force's components along its declared axes, N, one value "
+        "per output row; which forces, where and by which route: GET /api/systems",
+    )
     summary: RunSummary

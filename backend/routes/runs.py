@@ -128,7 +128,9 @@ def list_runs(
 
 @router.get("/api/runs/{run_id}.csv", response_class=CSVResponse, responses=NOT_FOUND_CSV, operation_id="get_run_csv")
 def get_run_csv(store: Store, run_id: str = RUN_ID):
-    """The stored run as CSV: t, the state, energy, violation_<constraint> (one row per output step)."""
+    """The stored run as CSV: t, the state, energy, violation_<constraint>, force_<speed>,
+    multiplier_<constraint> and the declared forces at points, <force>.<component> (one row per
+    output step)."""
     doc = store.document(run_id)
     if doc is None:
         return _no_run(run_id)
@@ -181,6 +183,9 @@ def csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
     state = {k: _floats(v) for k, v in d["state"].items()}
     energy = None if d["energy"] is None else _floats(d["energy"])
     violation = {k: _floats(v) for k, v in d["violation"].items()}
+    forces = {k: _floats(v) for k, v in d.get("constraint_forces", {}).items()}
+    multipliers = {k: _floats(v) for k, v in d.get("multipliers", {}).items()}
+    at_points = {k: _floats(v) for k, v in d.get("point_forces", {}).items()}
     del d
     for start in range(0, max(t.size, 1), rows_per_chunk):
         part = slice(start, start + rows_per_chunk)
@@ -192,6 +197,9 @@ def csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
             energy=None if energy is None else energy[part],
             violation={k: v[part] for k, v in violation.items()},
             summary={},
+            constraint_forces={k: v[part] for k, v in forces.items()},
+            multipliers={k: v[part] for k, v in multipliers.items()},
+            point_forces={k: v[part] for k, v in at_points.items()},
         ).to_csv()
         yield text if start == 0 else text.split("\n", 1)[1]
 

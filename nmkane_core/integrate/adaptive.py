@@ -12,7 +12,7 @@ import numpy as np
 
 from ..kernel.constants import STATUS_BUDGET, STATUS_FAILED, STATUS_J2_SINGULAR, STATUS_OK, STATUS_T_SINGULAR
 from ..schema import LIMITS
-from .calls import Rows, Stopper, adaptive_args, initial_stats
+from .calls import Rows, Stopper, adaptive_args, forces_at, initial_stats, rows_for
 from .job import Job, LoopOutput
 from .switching import Switcher
 
@@ -25,39 +25,53 @@ ATTEMPTS_PER_CALL = 200_000
 class _Chunks:
     """The rows of a run, chunk by chunk (the first row: the initial state)."""
 
-    def __init__(self, job: Job, E0: float, V0: np.ndarray):
-        self.t, self.x = [np.zeros(1)], [job.x0[None, :].copy()]
-        self.E, self.V = [np.array([E0])], [V0[None, :].copy()]
+    def __init__(self, job: Job, first: Rows):
+        self.parts = [first]
+        self.sizes = [1]
         self.count = 1
 
     def add(self, rows: Rows, n: int) -> None:
-        self.t.append(rows.t[:n])
-        self.x.append(rows.x[:n])
-        self.E.append(rows.E[:n])
-        self.V.append(rows.V[:n])
+        self.parts.append(rows)
+        self.sizes.append(n)
         self.count += n
 
-    def arrays(self):
-        return tuple(np.concatenate(a) for a in (self.t, self.x, self.E, self.V))
+    def last_t(self) -> float:
+        return float(self.parts[-1].t[self.sizes[-1] - 1])
+
+    def rows(self) -> Rows:
+        """Every row in one :class:`Rows`."""
+        out = Rows(0, 0, 0)
+        for name in ("t", "x", "E", "V", "F", "L"):
+            setattr(
+                out, name, np.concatenate([getattr(r, name)[:n] for r, n in zip(self.parts, self.sizes, strict=True)])
+            )
+        return out
 
 
 def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
     """Integrate ``job`` with its embedded tableau, the step following rtol and atol."""
     stats, E0, V0 = initial_stats(job, job.module, job.p)
-    chunks = _Chunks(job, E0, V0)
+    first = rows_for(job, job.module, 1)
+    first.t[0], first.x[0], first.E[0], first.V[0] = 0.0, job.x0, E0, V0
+    if job.forces:
+        forces_at(job, job.module, job.p, 0.0, job.x0, first, 0)
+    chunks = _Chunks(job, first)
     x = job.x0.copy()
     t, h = 0.0, min(job.dt, job.t_final)
     accepted = attempts = 0
     status, stop = STATUS_OK, None
-    sw = Switcher(job)
+    sw = Switcher(job, stopper)
     while t < job.t_final:
         size = sw.SWITCHED_CHUNK if sw.switched else ROWS_PER_CALL
         budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ATTEMPTS_PER_CALL, LIMITS["max_steps"] - attempts))
-        rows = Rows(size, x.size, job.module.NV)
+        rows = rows_for(job, sw.module, size)
         args = adaptive_args(
             job, sw.p, x, rows, stats, t=t, h=h, max_steps=budget, accepted=accepted, rcond_min=sw.threshold
         )
-        status, t, h, nrow, accepted, att = sw.module.integrate_adaptive(*args)
+        status, t, h, nrow, accepted, att, pending = sw.module.integrate_adaptive(*args)
+        sw.h = h
+        if pending >= 0:  # the call's last row: no step of this call started from it
+            forces_at(job, sw.module, sw.p, float(rows.t[pending]), rows.x[pending], rows, pending)
         attempts += att
         chunks.add(rows, nrow)
         bar.update(t)
@@ -80,27 +94,32 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
             break
         stop = None
     _keep_last(job, chunks, t, x)
-    t_arr, x_arr, E_arr, V_arr = chunks.arrays()
-    sw.finish(chunks.count, t_arr, x_arr, E_arr, V_arr, stats)
+    out = chunks.rows()
+    sw.finish(chunks.count, out, stats)
     return LoopOutput(
         status=status,
         stop=stop,
-        t=t_arr,
-        x=x_arr,
-        E=E_arr,
-        V=V_arr,
+        t=out.t,
+        x=out.x,
+        E=out.E,
+        V=out.V,
+        F=out.F,
+        L=out.L[:, : job.module.M],
         stats=stats,
         steps=accepted,
         evals=attempts * job.method.stages,  # type: ignore[union-attr]
         t_end=t,
         switches=sw.switches,
+        unknown_multipliers=sw.unknown_multipliers,
     )
 
 
 def _keep_last(job: Job, chunks: _Chunks, t: float, x: np.ndarray) -> None:
     """Keep the last good state as a row even when thinning (``every``) skipped it."""
-    if np.concatenate(chunks.t)[-1] < t - 1e-12 * max(1.0, t):
-        rows = Rows(1, x.size, job.module.NV)
+    if chunks.last_t() < t - 1e-12 * max(1.0, t):
+        rows = rows_for(job, job.module, 1)
         rows.t[0], rows.x[0] = t, x
         job.module.diagnostics_rows(rows.t, rows.x, job.p, rows.E, rows.V)
+        if job.forces:
+            forces_at(job, job.module, job.p, t, x, rows, 0)
         chunks.add(rows, 1)

@@ -20,33 +20,64 @@ from ..kernel.interface import AdaptiveArgs, FixedArgs
 from .job import Job
 from .methods import ScipyMethod, Tableau
 
-__all__ = ["HMIN_REL", "Rows", "Stopper", "adaptive_args", "fixed_args", "initial_stats", "prepare"]
+__all__ = [
+    "HMIN_REL",
+    "Rows",
+    "forces_at",
+    "rows_for",
+    "Stopper",
+    "adaptive_args",
+    "conditioning",
+    "fixed_args",
+    "initial_stats",
+    "prepare",
+    "prime",
+]
 
 HMIN_REL = 1e-13  # adaptive runs fail below a step of HMIN_REL · max(1, t_final)
 
 
 class Rows:
-    """Output buffers of one loop call: times, states, energies and violations."""
+    """Output buffers of one loop call: times, states, energies, violations and, when they are
+    wanted, constraint forces and multipliers (else arrays of no rows: the loops skip them)."""
 
-    def __init__(self, size: int, n2: int, nv: int):
+    def __init__(self, size: int, n2: int, nv: int, forces: tuple[int, int] | None = None):
         self.t = np.empty(size)
         self.x = np.empty((size, n2))
         self.E = np.empty(size)
         self.V = np.empty((size, nv))
+        n, m = forces if forces is not None else (0, 0)
+        self.F = np.zeros((size if forces else 0, n))
+        self.L = np.zeros((size if forces else 0, m))
+
+
+def rows_for(job: Job, module, size: int) -> Rows:
+    """Output buffers of ``size`` rows for ``module``'s loop (forces when the job wants them;
+    room for the multipliers of any model the run may switch to)."""
+    m = max([job.module.M, *(a.module.M for a in job.alternatives)])
+    return Rows(size, job.x0.size, module.NV, (module.N, m) if job.forces else None)
 
 
 class Stopper:
-    """Why a run should stop between chunks of compiled work: cancelled, or past its time limit."""
+    """Why a run should stop between chunks of compiled work: cancelled, or past its time limit.
+
+    The limit bounds integration, not compilation: time spent loading a kernel's loop during
+    the run (a switch target's, on its first use) is excluded (:meth:`exclude`)."""
 
     def __init__(self, time_limit: float | None, cancel: Callable[[], bool] | None):
         self.start = time.perf_counter()
         self.time_limit = time_limit
         self.cancel = cancel
+        self.excluded = 0.0
+
+    def exclude(self, seconds: float) -> None:
+        self.excluded += seconds
 
     def reason(self) -> str | None:
         if self.cancel is not None and self.cancel():
             return "cancelled"
-        if self.time_limit is not None and time.perf_counter() - self.start > self.time_limit:
+        spent = time.perf_counter() - self.start - self.excluded
+        if self.time_limit is not None and spent > self.time_limit:
             return "timeout"
         return None
 
@@ -62,18 +93,23 @@ def fixed_args(
     k1: int,
     row: int,
     rcond_min: float,
+    pending: int = -1,
+    t0: float = 0.0,
+    steps: tuple[float, float, int] | None = None,
 ) -> FixedArgs:
-    """``integrate_fixed``'s arguments: steps k0 … k1−1 of the job's fixed-step run."""
+    """``integrate_fixed``'s arguments: steps k0 … k1−1 of the job's fixed-step run (or, with
+    ``steps = (dt, t_final, nsteps)`` from ``t0``, of another grid: a trial step)."""
     tab = job.method
     assert isinstance(tab, Tableau)
+    dt, t_final, nsteps = steps if steps is not None else (job.dt, job.t_final, fixed_steps(job))
     return FixedArgs(
         x=x,
-        t0=0.0,
-        dt=job.dt,
-        t_final=job.t_final,
+        t0=t0,
+        dt=dt,
+        t_final=t_final,
         k0=k0,
         k1=k1,
-        nsteps=fixed_steps(job),
+        nsteps=nsteps,
         every=job.every,
         p=p,
         G=job.G,
@@ -88,7 +124,10 @@ def fixed_args(
         out_x=rows.x,
         out_E=rows.E,
         out_V=rows.V,
+        out_F=rows.F,
+        out_L=rows.L,
         row=row,
+        pending=pending,
         stats=stats,
     )
 
@@ -105,6 +144,8 @@ def adaptive_args(
     max_steps: int,
     accepted: int,
     rcond_min: float,
+    pending: int = -1,
+    t_final: float | None = None,
 ) -> AdaptiveArgs:
     """``integrate_adaptive``'s arguments: from ``t`` with first step ``h``, at most ``max_steps``
     attempts and as many rows as ``rows`` holds."""
@@ -113,7 +154,7 @@ def adaptive_args(
     return AdaptiveArgs(
         x=x,
         t=t,
-        t_final=job.t_final,
+        t_final=job.t_final if t_final is None else t_final,
         h=h,
         rtol=job.rtol,
         atol=job.atol,
@@ -137,6 +178,9 @@ def adaptive_args(
         out_x=rows.x,
         out_E=rows.E,
         out_V=rows.V,
+        out_F=rows.F,
+        out_L=rows.L,
+        pending=pending,
         stats=stats,
     )
 
@@ -159,27 +203,77 @@ def initial_stats(job: Job, module, p: np.ndarray) -> tuple[np.ndarray, float, n
 
 
 def prepare(job: Job) -> None:
-    """Load — or, on a model's first use, compile — everything a run of ``job`` calls, so that
-    the run itself starts at once (``time_limit`` bounds integration, not compilation): the
-    chosen variant's loop and those of every alternative it may switch to."""
-    for module, p in [(job.module, job.p), *((a.module, a.p) for a in job.alternatives)]:
-        _prime(job, module, p)
+    """Load — or, on a model's first use, compile — what a run of ``job`` calls, so that the
+    run itself starts at once (``time_limit`` bounds integration, not compilation): the chosen
+    variant's loop and the helpers around it.  The loop of an alternative the run may switch
+    to is loaded when it is first needed (:func:`prime`; the run's clock stops meanwhile), so
+    a first run does not compile loops it does not use."""
+    prime(job, job.module, job.p)
+
+
+def prime(job: Job, module, p: np.ndarray) -> float:
+    """Call ``module``'s loop for ``job`` once with no work (and the helpers a driver calls
+    around it: the initial diagnostics, scipy's right-hand side); returns the seconds it took
+    (compiling, or loading compiled code, on first use)."""
+    t0 = time.perf_counter()
+    _prime(job, module, p)
+    return time.perf_counter() - t0
 
 
 def _prime(job: Job, module, p: np.ndarray) -> None:
-    """Call the run's compiled loop once with no work (and the helpers a driver calls around
-    it: initial diagnostics, the switcher's conditioning check, scipy's right-hand side)."""
     precompile.wait(module)  # a new kernel's loop may be compiling next door
     x = job.x0.copy()
     stats, _, _ = initial_stats(job, module, p)
     if isinstance(job.method, ScipyMethod):
         module.rhs_ws(0.0, x, p, job.G, job.G1, job.G2, np.empty((1, x.size)), 0, module.make_workspace())
         module.diagnostics(0.0, x, p, np.empty(module.NV))
+        if job.forces:
+            F, L = np.zeros((1, module.N)), np.zeros((1, module.M))
+            module.forces_rows(np.zeros(1), x[None, :], p, job.G, job.G1, job.G2, F, L)
         return
-    module.rhs(0.0, x, p, job.G, job.G1, job.G2)  # the switcher's conditioning check
-    rows = Rows(1, x.size, module.NV)
+    rows = rows_for(job, module, 1)
     if job.method.adaptive:
         args = adaptive_args(job, p, x, rows, stats, t=0.0, h=job.dt, max_steps=0, accepted=0, rcond_min=0.0)
         module.integrate_adaptive(*args)
     else:
         module.integrate_fixed(*fixed_args(job, p, x, rows, stats, k0=0, k1=0, row=0, rcond_min=0.0))
+
+
+def conditioning(job: Job, module, p: np.ndarray, t: float, x: np.ndarray, h: float) -> float:
+    """The smallest reciprocal-condition estimate of J2 and T over one trial step of size ``h``
+    from (t, x) with ``module``'s loop (on copies: nothing of the run changes).  The switcher
+    asks this of a model before it switches to it or back (no other compiled function needed)."""
+    rows = Rows(2, x.size, module.NV)
+    stats = np.zeros(STATS_VIOL + module.NV)
+    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    y = x.copy()
+    if job.method.adaptive:
+        module.integrate_adaptive(
+            *adaptive_args(job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0)
+        )
+    else:
+        args = fixed_args(job, p, y, rows, stats, k0=0, k1=1, row=0, rcond_min=0.0, t0=t, steps=(h, t + h, 1))
+        module.integrate_fixed(*args)
+    return float(min(stats[STATS_RCOND_J2], stats[STATS_RCOND_T]))
+
+
+def forces_at(job: Job, module, p: np.ndarray, t: float, x: np.ndarray, rows: Rows, row: int) -> None:
+    """The constraint forces of the state (t, x) into ``rows.F[row]``, ``rows.L[row]``: the first
+    stage of a trial step of ``module``'s loop (on copies: nothing of the run changes; no other
+    compiled function needed).  For a row no step of the run started from: its last."""
+    trial = rows_for(job, module, 2)
+    stats = np.zeros(STATS_VIOL + module.NV)
+    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    y = x.copy()
+    h = job.dt
+    if job.method.adaptive:
+        adaptive = adaptive_args(
+            job, p, y, trial, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, pending=0, t_final=t + h
+        )
+        module.integrate_adaptive(*adaptive)
+    else:
+        fixed = fixed_args(
+            job, p, y, trial, stats, k0=0, k1=1, row=1, rcond_min=0.0, pending=0, t0=t, steps=(h, t + h, 1)
+        )
+        module.integrate_fixed(*fixed)
+    rows.F[row], rows.L[row] = trial.F[0], trial.L[0]

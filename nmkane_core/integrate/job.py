@@ -48,6 +48,7 @@ class Job:
     rcond_switch: float  # ... below this: switch to an alternative, when there is one
     proj: np.ndarray | None  # the loops' projection options (ProjectionOptions.as_array), None: none
     alternatives: tuple[Alternative, ...] = ()
+    forces: bool = True  # report the constraint forces and multipliers of every output row
 
 
 @dataclass
@@ -60,9 +61,12 @@ class LoopOutput:
     x: np.ndarray
     E: np.ndarray
     V: np.ndarray
+    F: np.ndarray  # constraint forces F_c = Q u̇ − P of each row (model order); no columns: not asked for
+    L: np.ndarray  # multipliers λ of each row (F_c = Jᵀλ)
     stats: np.ndarray  # STATS_* layout (nmkane_core.kernel.constants)
     steps: int
     evals: int  # right-hand-side evaluations
     t_end: float
     switches: list[dict] = field(default_factory=list)
     fail_msg: str | None = None
+    unknown_multipliers: list[tuple[float, float]] = field(default_factory=list)  # switched rows (t from, to)

@@ -94,6 +94,10 @@ def run_scipy(job: Job, bar, stopper: Stopper) -> LoopOutput:
     t_arr, x_arr = np.array(ts), np.array(xs)
     E_arr, V_arr = np.empty(len(ts)), np.empty((len(ts), job.module.NV))
     job.module.diagnostics_rows(t_arr, x_arr, job.p, E_arr, V_arr)
+    n, m = (job.module.N, job.module.M) if job.forces else (0, 0)
+    F_arr, L_arr = np.zeros((len(ts) if job.forces else 0, n)), np.zeros((len(ts) if job.forces else 0, m))
+    if job.forces:  # the solver's steps are not the loops': one right-hand side per output row
+        job.module.forces_rows(t_arr, x_arr, job.p, job.G, job.G1, job.G2, F_arr, L_arr)
     return LoopOutput(
         status=status,
         stop=stop,
@@ -101,6 +105,8 @@ def run_scipy(job: Job, bar, stopper: Stopper) -> LoopOutput:
         x=x_arr,
         E=E_arr,
         V=V_arr,
+        F=F_arr,
+        L=L_arr,
         stats=stats,
         steps=count[0],
         evals=nfev,

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernel.constants import STATS_VIOL
+from .calls import Stopper, conditioning, prime
 from .job import Alternative, Job
 
 __all__ = ["Switcher"]
@@ -25,12 +26,16 @@ class Switcher:
     SWITCH_BACK = 10.0
     SWITCHED_CHUNK = 25  # steps per call while switched, to return promptly
 
-    def __init__(self, job: Job):
+    def __init__(self, job: Job, stopper: Stopper):
         self.job = job
+        self.stopper = stopper
+        self.h = job.dt  # the size of a conditioning check's trial step (the driver keeps it current)
+        self.primed = {id(job.module)}
         self.home = Alternative(job.variant, job.module, job.p)
         self.cur = self.home
         self.no_cure = False
         self.switches: list[dict] = []
+        self.unknown_multipliers: list[tuple[float, float]] = []  # (from t, to t) of switched rows
         self.segments: list[tuple[int, int]] = []  # output rows computed with another model
         self.seg_start = 0
 
@@ -56,8 +61,12 @@ class Switcher:
         return job.rcond_min
 
     def _rcond(self, model: Alternative, t, x) -> float:
-        _, rc0, rc1 = model.module.rhs(t, x, model.p, self.job.G, self.job.G1, self.job.G2)
-        return min(rc0, rc1)
+        """The model's condition over a trial step from (t, x); its loop is loaded on first use,
+        off the run's clock."""
+        if id(model.module) not in self.primed:
+            self.stopper.exclude(prime(self.job, model.module, model.p))
+            self.primed.add(id(model.module))
+        return conditioning(self.job, model.module, model.p, t, x, self.h)
 
     def leave(self, t, x, row) -> bool:
         """The chosen model is ill-conditioned at (t, x): switch if an equivalent one is not.
@@ -88,12 +97,20 @@ class Switcher:
             return True
         return False
 
-    def finish(self, row, t, x, E, V, stats):
-        """Report the chosen model's constraint values on rows computed with another."""
+    def finish(self, row, rows, stats) -> None:
+        """Report the chosen model's constraint values on rows computed with another (``rows``:
+        the driver's output, with ``t, x, E, V, F, L``).  The constraint forces F_c of those rows
+        are the other model's — the same physical forces —, but its multipliers belong to
+        other equations: the chosen model's are set to 0 there, and :attr:`unknown_multipliers`
+        says when."""
         if self.switched:
             self.segments.append((self.seg_start, row))
         for a, b in self.segments:
             if b > a:
-                self.home.module.diagnostics_rows(t[a:b], x[a:b], self.home.p, E[a:b], V[a:b])
-                seg = np.abs(V[a:b])
+                self.home.module.diagnostics_rows(rows.t[a:b], rows.x[a:b], self.home.p, rows.E[a:b], rows.V[a:b])
+                seg = np.abs(rows.V[a:b])
                 stats[STATS_VIOL:] = np.maximum(stats[STATS_VIOL:], np.where(np.isfinite(seg), seg, 0.0).max(axis=0))
+                first = max(a - 1, 0)  # that row's forces came with the other model's first step
+                if rows.L.shape[0]:
+                    rows.L[first:b] = 0.0
+                    self.unknown_multipliers.append((float(rows.t[first]), float(rows.t[b - 1])))

@@ -70,7 +70,10 @@ class FixedArgs(NamedTuple):
     out_x: Annotated[np.ndarray, MAT]
     out_E: Annotated[np.ndarray, VEC]
     out_V: Annotated[np.ndarray, MAT]
+    out_F: Annotated[np.ndarray, MAT]  # constraint forces F_c = Q u̇ − P of each row (model order); 0 rows: off
+    out_L: Annotated[np.ndarray, MAT]  # multipliers λ of each row (F_c = Jᵀλ)
     row: Annotated[int, INT]  # next free output row
+    pending: Annotated[int, INT]  # a row whose forces are still to come (the next step's first stage), or −1
     stats: Annotated[np.ndarray, VEC]  # running statistics (STATS_*), updated in place
 
 
@@ -104,6 +107,9 @@ class AdaptiveArgs(NamedTuple):
     out_x: Annotated[np.ndarray, MAT]
     out_E: Annotated[np.ndarray, VEC]
     out_V: Annotated[np.ndarray, MAT]
+    out_F: Annotated[np.ndarray, MAT]  # constraint forces of each row (model order); 0 rows: off
+    out_L: Annotated[np.ndarray, MAT]  # multipliers of each row
+    pending: Annotated[int, INT]  # a row whose forces are those of the starting state, or −1
     stats: Annotated[np.ndarray, VEC]
 
 
@@ -160,6 +166,10 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("ORC", "2", "(rcond J2, rcond T)"),
     ("OPSQ", "MH * N", "∂ψ/∂q (positions)"),
     ("OC", "N * N", "C (positions)"),
+    ("OFLAG", "1", "1.0: this evaluation's constraint forces are wanted (J2 is kept for them)"),
+    ("OJ2C", "M * M", "a copy of J2 made before its LU, for the multipliers"),
+    ("OFC", "N", "F_c = Q u̇ − P, the generalized constraint force, in the order [u_I, u_D]"),
+    ("OLAM", "M", "λ, the multipliers: F_c = Jᵀλ"),
 )
 
 #: the post-step projections' scratch array (``make_projection_scratch``); the projections take

@@ -46,7 +46,7 @@ def _import(folder: Path, key: str, source: str | None):
     """Import kernel ``key`` from ``folder``, writing ``source`` there first when given; a
     newly written kernel starts compiling its loop in a second process at once."""
     if source is not None and write_kernel(folder, key, source):
-        precompile.start(folder, key)
+        precompile.written(folder, key)  # a run resolved with it may compile its loop next door
     return import_kernel(folder, key)
 
 

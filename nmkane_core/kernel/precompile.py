@@ -1,14 +1,13 @@
 """Compile a new kernel's integrator loop in a second process, beside the first run.
 
-A first run after install spends most of its time in numba: the initial-state helpers
-(``state_terms``, ``diagnostics_rows``) and the fixed-step loop (``integrate_fixed`` with the
-right-hand side inside it), one after the other in one process because numba compiles
-under a global lock.  When :mod:`nmkane_core.kernel.codegen` writes a new kernel module it starts
-``python -m nmkane_core.kernel.precompile <folder> <key>``, which compiles the loop for the
-signature every unprojected fixed-step run uses, into numba's disk cache; meanwhile the
-first process compiles the helpers, and before its own first loop call it waits for the
-child and loads the result (:func:`wait`).  On a machine with two cores this takes about a
-fifth off the first run; with one core it costs nothing but a process start.
+A first run after install spends most of its time in numba, and numba compiles under a global
+lock: one thing at a time in one process.  When a run is resolved with a kernel this process
+has just generated (:mod:`nmkane_core.kernel.loader` records which), :func:`start` runs
+``python -m nmkane_core.kernel.precompile <folder> <key> <loop> <projected>``, which compiles
+the loop that run will call, for the signature it will call it with, into numba's disk cache;
+meanwhile the first process derives the other models it needs and checks the initial state,
+and before its own first loop call it waits for the child and loads the result (:func:`wait`).
+Only the loop a run uses is compiled ahead: the others compile on their first use.
 
 Set ``NMKANE_PRECOMPILE=0`` to turn it off.
 """
@@ -22,25 +21,33 @@ import sys
 import threading
 from pathlib import Path
 
-from .interface import fixed_loop_signature  # the one definition of the loop's arguments (FixedArgs)
+from .interface import LOOPS, fixed_loop_signature, loop_signature
 
 _CHILDREN: dict[str, subprocess.Popen] = {}
+_FRESH: dict[str, Path] = {}  # kernels this process wrote (never compiled yet): key -> folder
 _LOCK = threading.Lock()
 
 
-def start(folder: Path, key: str) -> None:
-    """Start compiling the loop of kernel ``key`` in a child process (no-op when disabled)."""
+def written(folder: Path, key: str) -> None:
+    """Record that this process has just written kernel ``key`` (its loops are not compiled)."""
+    with _LOCK:
+        _FRESH[key] = folder
+
+
+def start(module, loop: str = "integrate_fixed", projected: bool = False) -> None:
+    """Start compiling ``module``'s ``loop`` (with or without a projection) in a child process,
+    when this process has just written the module (no-op otherwise, and when disabled)."""
     if os.environ.get("NMKANE_PRECOMPILE", "1") == "0" or (os.cpu_count() or 1) < 2:
         return
+    key = module.__name__.removeprefix("nmkane_kernel_")
     with _LOCK:
-        if key in _CHILDREN:
+        folder = _FRESH.pop(key, None)
+        if folder is None or key in _CHILDREN:
             return
+        command = [sys.executable, "-m", "nmkane_core.kernel.precompile", str(folder), key, loop, str(int(projected))]
         with contextlib.suppress(OSError):  # no second process: compile in this one
             _CHILDREN[key] = subprocess.Popen(
-                [sys.executable, "-m", "nmkane_core.kernel.precompile", str(folder), key],
-                stdin=subprocess.DEVNULL,
-                stdout=subprocess.DEVNULL,
-                stderr=subprocess.DEVNULL,
+                command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
             )
 
 
@@ -60,9 +67,13 @@ def wait(module, timeout: float = 300.0) -> None:
 def main(argv=None) -> int:
     from .cache import import_kernel
 
-    folder, key = (argv or sys.argv[1:])[:2]
+    args = list(argv or sys.argv[1:])
+    folder, key = args[:2]
+    loop = args[2] if len(args) > 2 else "integrate_fixed"
+    projected = len(args) > 3 and args[3] == "1"
     module = import_kernel(Path(folder), key)
-    module.integrate_fixed.compile(fixed_loop_signature())
+    signature = loop_signature(LOOPS[loop], projected) if loop in LOOPS else fixed_loop_signature()
+    getattr(module, loop).compile(signature)
     return 0
 
 

@@ -28,6 +28,7 @@ from ..kernel.constants import (
 from ..schema import LIMITS, RunSummary
 from .endings import OVERFLOW, ending
 from .events import apply_events
+from .forces import add_point_forces
 from .plan import Plan
 from .result import Run
 
@@ -41,9 +42,11 @@ def finish(plan: Plan, out: LoopOutput, wall: float, kernel_load_s: float = 0.0)
     mod = built(plan.system).module(plan.variant)
     outputs = _outputs(plan, mod, out)
     out, outputs, overflow = _finite_rows(plan, out, outputs)
+    notes = _finite_forces(out) + _unknown_multipliers(out)
     status, message = _ending(plan, out, overflow)
     run = _arrays(plan, out, outputs)
     run.summary = _summary(plan, out, status, message, wall, kernel_load_s)
+    run.summary["warnings"] += notes + add_point_forces(plan, run, out)
     if plan.system.events is not None:
         apply_events(run, plan.system)  # cut at the first declared event (nmkane_core.run.events)
     run.summary = _validated(run.summary)
@@ -76,10 +79,37 @@ def _finite_rows(plan: Plan, out: LoopOutput, O: np.ndarray) -> tuple[LoopOutput
         x=out.x[:keep],
         E=out.E[:keep],
         V=out.V[:keep],
+        F=out.F[:keep],
+        L=out.L[:keep],
         t_end=float(out.t[keep - 1]),
     )
     _finite_stats(cut)
     return cut, O[:keep], True
+
+
+def _finite_forces(out: LoopOutput) -> list[str]:
+    """Rows whose constraint forces are not finite (a state where J2 is singular: the run's last,
+    say) get 0, and a warning says when."""
+    if not out.F.shape[1]:
+        return []
+    bad = ~(np.isfinite(out.F).all(axis=1) & np.isfinite(out.L).all(axis=1))
+    if not bad.any():
+        return []
+    out.F[bad], out.L[bad] = 0.0, 0.0
+    times = out.t[bad]
+    return [
+        f"constraint forces are not defined at {int(bad.sum())} output row(s) (t = {times[0]:.6g}"
+        + (f" … {times[-1]:.6g}" if times.size > 1 else "")
+        + " s: a singular constraint matrix); reported as 0 there"
+    ]
+
+
+def _unknown_multipliers(out: LoopOutput) -> list[str]:
+    return [
+        f"multipliers from t = {a:.6g} s to {b:.6g} s are reported as 0: the run went on with an "
+        "equivalent model there, whose equations are others (the constraint forces are the same)"
+        for a, b in out.unknown_multipliers
+    ]
 
 
 def _finite_stats(out: LoopOutput) -> None:
@@ -129,6 +159,8 @@ def _arrays(plan: Plan, out: LoopOutput, O: np.ndarray) -> Run:
         energy=out.E.copy() if md.has_energy else None,
         violation={k: out.V[:, i].copy() for i, k in enumerate(md.viol_names)},
         summary={},
+        constraint_forces={k: out.F[:, i].copy() for i, k in enumerate(md.u)} if out.F.shape[1] else {},
+        multipliers={k: out.L[:, i].copy() for i, k in enumerate(md.constraint_names)} if out.F.shape[1] else {},
     )
 
 
@@ -147,6 +179,11 @@ def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float
         "max_abs_energy_drift": float(stats[STATS_MAX_DRIFT]) if E is not None else None,
         "final_energy_drift": float(E[-1] - E[0]) if E is not None else None,
         "min_rcond": {"J2": float(stats[STATS_RCOND_J2]), "T": float(stats[STATS_RCOND_T])},
+        "max_abs_multiplier": (
+            {k: float(np.abs(out.L[:, i]).max(initial=0.0)) for i, k in enumerate(md.constraint_names)}
+            if out.F.shape[1]
+            else {}
+        ),
         "warnings": list(plan.warnings),
         "switches": out.switches,
         "initial_correction": dict(plan.initial_correction),

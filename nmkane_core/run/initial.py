@@ -322,7 +322,9 @@ def _check_consistent(system: System, variant: str, params, full: dict, checks: 
         if any(s not in full for s in info.state_names):
             continue
         xv = np.array([full[s] for s in info.state_names], float)
-        viol = module.state_terms(0.0, xv, b.param_vector(var, params))[4][: info.m]
+        E, V = np.empty(1), np.empty((1, module.NV))  # the run's own diagnostics: no other compile
+        module.diagnostics_rows(np.zeros(1), xv[None, :], b.param_vector(var, params), E, V)
+        viol = V[0, : info.m]
         bad = {name: float(val) for name, val in zip(info.constraint_names, viol, strict=True) if abs(val) > CHECK_TOL}
         if bad:
             failed[var] = ", ".join(f"{k} = {v:.3g}" for k, v in bad.items())

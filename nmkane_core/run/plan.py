@@ -21,6 +21,7 @@ from ..errors import InputError
 from ..integrate.job import Alternative, Job
 from ..integrate.methods import ScipyMethod, Tableau, get_integrator
 from ..integrate.projection import ProjectionOptions, projection_options
+from ..kernel import precompile
 from ..kernel.built import built
 from ..kernel.info import ModelInfo
 from ..schema import LIMITS, RunSettings
@@ -57,6 +58,7 @@ class Plan:
     settings: dict
     warnings: list[str] = field(default_factory=list)
     initial_correction: dict[str, float] = field(default_factory=dict)
+    forces: bool = True  # report constraint forces and multipliers
 
     @property
     def info(self) -> ModelInfo:
@@ -88,6 +90,7 @@ class Plan:
             rcond_switch=self.rcond_switch,
             proj=self.projection.as_array(self.info),
             alternatives=alternatives,
+            forces=self.forces,
         )
 
 
@@ -105,8 +108,9 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     info = b.info(variant)
     where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
     warnings: list[str] = []
-    G, G1, G2 = _gains(s, system, info, where, warnings)
     proj = _projection(s, method, info, where, warnings)
+    _compile_ahead(b.module(variant), method, proj)
+    G, G1, G2 = _gains(s, system, info, where, warnings)
     correction: dict[str, float] = {}
     x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial, correction=correction)
     p = b.param_vector(variant, params)
@@ -139,7 +143,16 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         settings=_resolved(s, system, variant, method, dt, t_final, params, full, proj),
         warnings=warnings,
         initial_correction=correction,
+        forces=s.constraint_forces,
     )
+
+
+def _compile_ahead(module, method, proj: ProjectionOptions) -> None:
+    """A kernel generated just now: compile the loop this run will call in a second process
+    while this one derives the other models it needs and checks the initial state."""
+    if isinstance(method, Tableau):
+        loop = "integrate_adaptive" if method.adaptive else "integrate_fixed"
+        precompile.start(module, loop, projected=proj.name != "none")
 
 
 def _variant(system: System, s: RunSettings) -> str:

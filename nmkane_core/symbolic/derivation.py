@@ -70,7 +70,9 @@ class Derivation:
         self.q = sp.Matrix(md.q)
         self.u = sp.Matrix(md.u)
         if md.m:
-            self.u_I = sp.Matrix(md.u_independent)
+            # column vectors even when empty (0×1): no u_independent declared, the partition is
+            # picked numerically (every speed counts as dependent here; docs/closed-loops.md)
+            self.u_I = sp.Matrix(md.u_independent) if md.u_independent else sp.zeros(0, 1)
             self.u_D = sp.Matrix(md.u_dependent)
         else:  # unconstrained (e.g. a minimal formulation): every speed is independent
             self.u_I = sp.Matrix(md.u)

@@ -82,14 +82,16 @@ class MechanicalModel:
     u_independent : tuple of sympy.Symbol, optional
         u_I of (16); the remaining speeds (in the order of ``u``) are u_D, solved from
         the constraints: choose them so that J2 = ∂[φ; ψ̇]/∂u_D is invertible along the
-        motion (runs report where it is not, status ``singular``).  Required when there
-        are constraints.
+        motion (runs report where it is not, status ``singular``).  Optional: left out
+        (with constraints), the partition is picked by pivoting on the constraint Jacobian.
+        More constraints than dependent speeds (n − p < m) declares redundant equations:
+        the number of independent speeds is then n − rank, checked numerically at the
+        default state (``docs/closed-loops.md``).
     energy : sympy.Expr, optional
         Optional total energy E(q, u, t), reported with its drift (diagnostics only).
     outputs : mapping of str to sympy.Expr, optional
-        Optional extra reported quantities, name → expression of q, u, t (e.g. the
-        minimal formulation of the sliding particle reports y and u2 that it does not
-        integrate).
+        Optional extra reported quantities, name → expression of q, u, t (e.g. a minimal
+        formulation reports the coordinates and speeds it does not integrate).
     monitors : mapping of str to sympy.Expr, optional
         Optional extra named quantities reported beside the constraint values, e.g. the
         surface equation for a minimal formulation that satisfies it by construction.
@@ -167,11 +169,16 @@ class MechanicalModel:
                 raise ValueError(f"model {self.name!r}: {label} has shape {mat.shape}, expected {shape}")
         m = self.m
         p = len(self.u_independent)
-        if m and p + m != n:
+        # p = 0: the library picks the partition; p + m > n: redundant equations (the rank,
+        # n − p, is checked numerically at the default state: see docs/closed-loops.md)
+        if m and p and (p >= n or p + m < n):
             raise ValueError(
-                f"model {self.name!r}: {m} constraints and {p} independent speeds do not add "
-                f"up to {n} speeds (u_I must have n - m entries)"
+                f"model {self.name!r}: {m} constraints and {p} independent speeds for {n} speeds: "
+                f"u_I must leave at least one dependent speed and at most m = {m} (n − p ≤ m; more "
+                "constraints than dependent speeds means redundant ones), or be left out"
             )
+        if len(set(self.u_independent)) != p:
+            raise ValueError(f"model {self.name!r}: u_independent names a speed twice")
         unknown = [s for s in self.u_independent if s not in self.u]
         if unknown:
             raise ValueError(f"model {self.name!r}: u_independent {unknown} are not speeds of the model")

@@ -67,7 +67,15 @@ def test_create_fetch_list_and_csv(client):
     text = client.get(f"/api/runs/{doc['id']}.csv")
     assert text.status_code == 200 and text.headers["content-type"].startswith("text/csv")
     rows = list(csv.reader(io.StringIO(text.text)))
-    assert rows[0] == ["t", *doc["state"], "energy", *(f"violation_{k}" for k in doc["violation"])]
+    forces = [*(f"force_{k}" for k in doc["constraint_forces"]), *(f"multiplier_{k}" for k in doc["multipliers"])]
+    assert rows[0] == [
+        "t",
+        *doc["state"],
+        "energy",
+        *(f"violation_{k}" for k in doc["violation"]),
+        *forces,
+        *doc["point_forces"],
+    ]
     assert len(rows) == 2002 and float(rows[-1][0]) == 20.0
     assert [float(v) for v in rows[1:][1000][1:3]] == [doc["state"]["theta"][1000], doc["state"]["phi"][1000]]
 
@@ -487,7 +495,7 @@ def test_kernel_warm_up_reports_each_step(tmp_path):
     steps = [ln for ln in lines if re.match(r"nmkane: kernels \[\d+/\d+\] ", ln)]
     assert len(steps) == len(lines) - 1 >= 17
     assert {
-        "appell-hamel nonlinear, fixed step",
+        "appell-hamel nonlinear, default",
         "sliding-particle minimal, adaptive",
         "scipy adapter",
         "appell-hamel linear, adaptive, projected",
@@ -501,15 +509,18 @@ def test_background_warm_up_serves_meanwhile_and_stops_with_the_service(tmp_path
     svc = RunService(Settings(data_dir=tmp_path, warm_kernels=False))
     svc.start()
     first, later = svc.warm_steps()
-    assert all("projection" in s for _, s in later) and not any("projection" in s for _, s in first)
+    # first: what a request naming only a system runs (one per system); later: all the rest
+    assert [s["system"] for _, s in first] == list(dict.fromkeys(s["system"] for _, s in first))
+    assert not any("projection" in s or "integrator" in s for _, s in first)
+    assert any("projection" in s for _, s in later) and any(s.get("integrator") for _, s in later)
     lines = []
     svc.warm_in_background(later[:2], lines.append).join(600)
-    assert svc.warmed.is_set() and lines[-1].startswith("nmkane: projection loops ready in")
+    assert svc.warmed.is_set() and lines[-1].startswith("nmkane: the other loops ready in")
     svc.stop()  # a stopped service warms nothing more, and says so
     lines.clear()
     svc.warm_in_background(later, lines.append).join(60)
     assert svc.warmed.is_set() and len(lines) == 1
-    assert lines[0].startswith(f"nmkane: projection loops stopped with the service after 0 of {len(later)} ")
+    assert lines[0].startswith(f"nmkane: the other loops stopped with the service after 0 of {len(later)} ")
 
 
 def test_a_warm_up_stopped_during_a_step_finishes_it_and_says_so(tmp_path, monkeypatch):
@@ -538,8 +549,8 @@ def test_a_warm_up_stopped_during_a_step_finishes_it_and_says_so(tmp_path, monke
     thread.join(60)
     stopper.join(60)
     assert svc.warmed.is_set() and len(lines) == 2, lines
-    assert lines[0].startswith("nmkane: projection loops [1/3] first: ")
-    assert lines[1].startswith("nmkane: projection loops stopped with the service after 1 of 3 ")
+    assert lines[0].startswith("nmkane: the other loops [1/3] first: ")
+    assert lines[1].startswith("nmkane: the other loops stopped with the service after 1 of 3 ")
 
 
 def _wait_until(cond, timeout=60.0):

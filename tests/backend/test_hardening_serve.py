@@ -12,8 +12,8 @@ from tests._helpers import ServerProcess
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-# one small system of one variant (the others unregistered): its unprojected loops compile before the service
-# is ready, its projected ones after, in the background; the stop comes right then
+# one small system of one variant (the others unregistered): its default loops compile before the service
+# is ready, the other loops after, in the background; the stop comes right then
 SERVE_ONE_SYSTEM = (
     "from nmkane_core.run.registry import system_names, unregister\n"
     "[unregister(n) for n in system_names() if n != 'knife-edge']\n"
@@ -21,7 +21,7 @@ SERVE_ONE_SYSTEM = (
     "serve(api_port=0, web=False)\n"
 )
 # what the server says it did with the background compilation (exactly one of them)
-OUTCOMES = ("projection loops ready", "compilation was abandoned", "projection loops stopped with the service")
+OUTCOMES = ("the other loops ready", "compilation was abandoned", "the other loops stopped with the service")
 
 
 @pytest.mark.slow  # compiles in a kernel cache of its own, empty on purpose

@@ -117,11 +117,16 @@ def make_workspace():
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
-    """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T."""
+    """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T.
+    With w[OFLAG] set, J2 is copied to w[OJ2C] before its LU (for :func:`_forces`)."""
     terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (kernel.inline.inline_marked)
     for i in range(N):
         K[row, i] = w[OQD + i]
     w[ORC] = 1.0
+    if M > 0 and w[OFLAG] != 0.0:
+        for i in range(M):
+            for j in range(M):
+                w[OJ2C + i * M + j] = w[OJ + i * N + PI + j]
     if M > 0:
         # R = [−J1 | −b + s], s = [Γφ; Γ1ψ̇ + Γ2ψ]   (105), (112)
         for i in range(M):
@@ -253,6 +258,9 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
             return STATUS_J2_SINGULAR
         if rc1 <= rcond_min:
             return STATUS_T_SINGULAR
+        if i == 0 and w[OFLAG] != 0.0:  # the step starts at a recorded state: its forces
+            _forces(w, K, 0)
+            w[OFLAG] = 0.0
     return STATUS_OK
 
 
@@ -288,11 +296,50 @@ def _record(t, x, p, viol, stats, nv):
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _forces(w, K, krow):
+    """The constraint forces of the state whose derivative is K[krow] (after ``rhs_ws`` with
+    w[OFLAG] set): F_c = Q u̇ − P into w[OFC] ([u_I, u_D] order) and the multipliers λ of
+    F_c = Jᵀλ into w[OLAM], from the dependent rows (F_c)_D = J2ᵀλ (exact: the independent
+    rows (F_c)_I = J1ᵀλ follow from A2 F_c = 0, the nonminimal equations).  u̇ is the run's
+    own, the Baumgarte terms included."""
+    for r in range(N):
+        acc = -w[OP + r]
+        for c in range(N):
+            acc += w[OQ + r * N + c] * K[krow, N + PERM[c]]
+        w[OFC + r] = acc
+    if M > 0:
+        for i in range(M):  # J2ᵀ, in place
+            for j in range(i + 1, M):
+                a = w[OJ2C + i * M + j]
+                w[OJ2C + i * M + j] = w[OJ2C + j * M + i]
+                w[OJ2C + j * M + i] = a
+        for a in range(M):
+            w[OLAM + a] = w[OFC + PI + a]
+        # runtime integers, not the module's constants: lu_solve_flat keeps one compiled copy
+        # (numba compiles one per literal value; the projections call it the same way)
+        zero = krow - krow
+        one, m = zero + 1, zero + M
+        lu_solve_flat(w, zero + OJ2C, m, zero + OLAM, one, m, one)
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _store_forces(w, row, out_F, out_L):
+    """The forces in w (from :func:`_forces`) as output row ``row`` (model order)."""
+    for r in range(N):
+        out_F[row, PERM[r]] = w[OFC + r]
+    for a in range(M):
+        out_L[row, a] = w[OLAM + a]
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
     """Steps k0 … k1−1 of a fixed-step run of ``nsteps`` steps; ``x`` is advanced in place.
 
-    Row r of the outputs holds the state after step r·every (and the final state).
-    Returns (status, steps done so far, next free row).
+    Row r of the outputs holds the state after step r·every (and the final state), and its
+    constraint forces (``out_F``, ``out_L``; none when they have no rows): those of a row come
+    with the first stage of the step that starts from it, so the row written by a call's last
+    step is returned as ``pending`` (−1: none) for the next call — or the driver — to fill.
+    Returns (status, steps done so far, next free row, pending row).
     """
     S = TC.shape[0]
     n2 = 2 * N
@@ -303,12 +350,17 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
     w = make_workspace()
     ps = make_projection_scratch()
     perm = PERM.copy()
+    forces = out_F.shape[0] > 0
     for k in range(k0, k1):
         t = t0 + k * dt
         h = dt if k < nsteps - 1 else t_final - t
+        w[OFLAG] = 1.0 if pending >= 0 else 0.0
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
         if code != STATUS_OK:
-            return code, k, row
+            return code, k, row, pending
+        if pending >= 0:
+            _store_forces(w, pending, out_F, out_L)
+            pending = -1
         for j in range(n2):
             xn[j] = x[j]
         for i in range(S):
@@ -320,14 +372,14 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
         for j in range(n2):
             total += abs(xn[j])
         if not math.isfinite(total):
-            return STATUS_DIVERGED, k, row
+            return STATUS_DIVERGED, k, row, pending
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
         if proj is not None:
             if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
-                return STATUS_PROJECTION_FAILED, k, row
+                return STATUS_PROJECTION_FAILED, k, row, pending
         E = _record(tn, xn, p, viol, stats, NV)
         if not math.isfinite(E):
-            return STATUS_DIVERGED, k, row
+            return STATUS_DIVERGED, k, row, pending
         for j in range(n2):
             x[j] = xn[j]
         if (k + 1) % every == 0 or k + 1 == nsteps:
@@ -337,8 +389,10 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
             out_E[row] = E
             for j in range(NV):
                 out_V[row, j] = viol[j]
+            if forces:
+                pending = row
             row += 1
-    return STATUS_OK, k1, row
+    return STATUS_OK, k1, row, pending
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -346,7 +400,10 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
     """Adaptive embedded-RK run from t until t_final, the output buffer is full, or
     ``max_steps`` attempts; error = h Σ TE_i K_i, step control with exponent ``err_exp``.
 
-    Returns (status, t, h, rows written, accepted steps, attempted steps).
+    Constraint forces of the rows as in ``integrate_fixed`` (``pending``: a row that receives
+    the forces of the starting state, or −1); the row written by the call's last accepted step
+    is returned as ``pending`` (−1: none) for the driver to fill.
+    Returns (status, t, h, rows written, accepted steps, attempted steps, pending row).
     """
     S = TC.shape[0]
     n2 = 2 * N
@@ -360,21 +417,26 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
     cap = out_t.shape[0]
     row = 0
     attempts = 0
+    forces = out_F.shape[0] > 0
     while t < t_final and row < cap:
         if attempts >= max_steps:
-            return STATUS_BUDGET, t, h, row, accepted, attempts
+            return STATUS_BUDGET, t, h, row, accepted, attempts, pending
         attempts += 1
         last = False
         if t + h >= t_final or (t_final - t - h) < STEP_LAST_REL * abs(t_final):
             h = t_final - t
             last = True
+        w[OFLAG] = 1.0 if pending >= 0 else 0.0
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
+        if pending >= 0 and w[OFLAG] == 0.0:  # the first stage came through: the row's forces
+            _store_forces(w, pending, out_F, out_L)
+            pending = -1
         # a stage that left the finite numbers (a trial step past a point where the model's
         # expressions are not defined: √ of a negative number, a zero denominator) is rejected
         # like an infinite error: the step shrinks, and the run fails only below hmin
         finite = code == STATUS_OK
         if code != STATUS_OK and code != STATUS_DIVERGED:
-            return code, t, h, row, accepted, attempts
+            return code, t, h, row, accepted, attempts, pending
         errsum = 0.0
         if finite:
             for j in range(n2):
@@ -395,10 +457,10 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
             tn = t_final if last else t + h
             if proj is not None:
                 if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
-                    return STATUS_PROJECTION_FAILED, t, h, row, accepted, attempts
+                    return STATUS_PROJECTION_FAILED, t, h, row, accepted, attempts, pending
             E = _record(tn, xn, p, viol, stats, NV)
             if not math.isfinite(E):
-                return STATUS_DIVERGED, t, h, row, accepted, attempts
+                return STATUS_DIVERGED, t, h, row, accepted, attempts, pending
             t = tn
             for j in range(n2):
                 x[j] = xn[j]
@@ -410,6 +472,8 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
                 out_E[row] = E
                 for j in range(NV):
                     out_V[row, j] = viol[j]
+                if forces:
+                    pending = row
                 row += 1
             if err == 0.0:
                 fac = STEP_FAC_MAX
@@ -419,5 +483,5 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
             fac = STEP_FAC_MIN if not math.isfinite(err) else max(STEP_FAC_MIN, STEP_SAFETY * err ** (-err_exp))
         h = min(h * fac, hmax)
         if h < hmin and t < t_final:  # non-finite trial steps down to hmin: the state cannot go on finite
-            return STATUS_DIVERGED if nonfinite else STATUS_FAILED, t, h, row, accepted, attempts
-    return STATUS_OK, t, h, row, accepted, attempts
+            return STATUS_DIVERGED if nonfinite else STATUS_FAILED, t, h, row, accepted, attempts, pending
+    return STATUS_OK, t, h, row, accepted, attempts, pending

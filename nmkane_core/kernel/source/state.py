@@ -61,3 +61,16 @@ def state_terms(t, x, p):
     viol = np.empty(NV)
     diagnostics(t, x, p, viol)
     return J, c, psi, psi_q, viol
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def forces_rows(ts, xs, p, G, G1, G2, F, L):
+    """Constraint forces (F_c = Q u̇ − P, model order) and multipliers of many states, for the
+    drivers whose steps are not the loops' (the scipy adapter): one right-hand side each."""
+    w = make_workspace()
+    K = np.empty((1, 2 * N))
+    for r in range(ts.shape[0]):
+        w[OFLAG] = 1.0
+        rhs_ws(ts[r], xs[r], p, G, G1, G2, K, 0, w)
+        _forces(w, K, 0)
+        _store_forces(w, r, F, L)

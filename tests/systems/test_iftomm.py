@@ -1,0 +1,284 @@
+"""The IFToMM multibody benchmarks A01–A05 against their acceptance conditions, and the
+closed-loop cases of docs/closed-loops.md (the N-four-bar through its singular position,
+redundant closure equations, a model without a partition).
+
+Which path each test uses: A01, A03 and A05 run today's compiled kernels (they are in the
+catalogue); A02 past its singular position, the redundant parallelogram and Bricard's
+mechanism (A04) run the numpy reference's rank-robust solve (``integrate_reference`` with
+``solve="auto"`` and the mass-metric projection) — marked ``reference path``: they move to
+``simulate`` once the compiled kernel has the solve (docs/closed-loops.md, "What the
+compiled kernel needs")."""
+
+import math
+
+import numpy as np
+import pytest
+
+from nmkane_core import get_system, simulate
+from nmkane_core.errors import SingularMatrix
+from nmkane_core.integrate.methods import KUTTA_MERSON
+from nmkane_core.kernel.built import built
+from nmkane_core.run.initial import default_state
+from nmkane_core.symbolic.derivation import derive
+from nmkane_core.symbolic.reference import (
+    ConstraintsInconsistent,
+    ReferenceKernel,
+    integrate_reference,
+    integrate_reference_adaptive,
+)
+from nmkane_core.systems import iftomm_a01, iftomm_a02, iftomm_a03, iftomm_a04, iftomm_a05
+
+
+def _x0(md, state):
+    return np.array([state[str(s)] for s in md.q + md.u], float)
+
+
+def _reference_run(ref, x0, p, dt, T, m, **kw):
+    ref.reset()
+    G1, G2 = -20 * np.eye(m), -100 * np.eye(m)
+    kw.setdefault("solve", "auto")
+    kw.setdefault("project", True)
+    t, xs = integrate_reference(ref, x0, p, dt, round(T / dt), KUTTA_MERSON, None, G1, G2, **kw)
+    E = np.array([ref.energy(ti, xi, p) for ti, xi in zip(t, xs, strict=True)])
+    return t, xs, E
+
+
+# ---------------------------------------------------------------------------------- A01
+def test_a01_declares_the_benchmarks_own_case():
+    s = get_system("iftomm-a01")
+    assert (s.default_t_final, s.default_dt, s.default_integrator) == (2000.0, 1e-3, "kutta-merson")
+    assert s.default_initial == {"x": 1.0, "y": 0.0, "u1": 0.0, "u2": 0.0}  # horizontal, at rest, x = +1 m
+    assert {p.name: p.default for p in s.parameters} == {"L": 1.0, "m": 1.0, "g": 9.81}
+
+
+@pytest.mark.parametrize("model", ["cartesian", "cartesian-y"])
+def test_a01_pendulum_follows_the_exact_motion(model):
+    """Compiled path: P1 within 1e-9 m of the elliptic-function solution over 10 s (the
+    benchmark asks 1e-3).  ``cartesian-y`` starts where its J2 = 2y is 0: the run switches to
+    the equivalent partition and back (listed in the summary)."""
+    r = simulate({"system": "iftomm-a01", "model": model, "t_final": 10.0}, progress=False)
+    assert r.summary["status"] == "ok", r.summary["message"]
+    assert iftomm_a01.acceptance(r.t, r.state["x"], r.state["y"])["P1_position"] < 1e-9
+    assert r.summary["max_abs_energy_drift"] < 1e-8
+    assert (len(r.summary["switches"]) > 0) == (model == "cartesian-y")
+
+
+# ---------------------------------------------------------------------------------- A02
+@pytest.fixture(scope="module")
+def a02():
+    md = iftomm_a02.model(2)
+    return md, ReferenceKernel(derive(md)), np.array([1.0, 1.0, 9.81])
+
+
+def test_a02_rods_model_equals_kanes_method():
+    import sympy as sp
+
+    a, b = iftomm_a02.model(2), iftomm_a02.model(2, via="mechanics")
+    assert sp.simplify(a.Q - b.Q) == sp.zeros(5, 5)
+    assert sp.simplify(a.P - b.P) == sp.zeros(5, 1)
+    assert sp.simplify(a.energy - b.energy) == 0
+    assert all(sp.simplify(a.holonomic[k] - b.holonomic[k]) == 0 for k in a.holonomic)
+
+
+def test_a02_without_partition_is_accepted_and_the_rank_drops_at_the_horizontal_position():
+    md = iftomm_a02.model(2, partition=False)
+    assert md.u_independent == () and md.m == 4
+    ref = ReferenceKernel(derive(md))
+    p = np.array([1.0, 1.0, 9.81])
+    rep = ref.constraint_report(0.0, _x0(md, iftomm_a02.initial_state(2, theta0=0.7)), p)
+    assert (rep["rank"], rep["independent_speeds"], rep["redundant"]) == (4, 1, [])
+    assert len(rep["u_dependent"]) == 4 and len(rep["q_dependent"]) == 4
+    flat = ref.constraint_report(0.0, _x0(md, {**iftomm_a02.initial_state(2), "th0": 0.0, "th1": 0.0, "th2": 0.0}), p)
+    assert (flat["rank"], flat["independent_speeds"]) == (2, 3)  # 1 → N + 1 degrees of freedom
+    assert sorted(flat["redundant"]) == ["close1_x", "close2_x"]
+
+
+def test_a02_paper_solve_stops_at_the_horizontal_position_the_robust_one_goes_on(a02):
+    md, ref, p = a02
+    inertia, K = iftomm_a02.pendulum_constants(2)
+    state = iftomm_a02.initial_state(2)
+    for th in (1e-3, 1e-7):  # near it both solves give the exact θ̈ = −K/I cos θ
+        x = _x0(md, {**state, "th0": th, "th1": th, "th2": th})
+        for solve in ("paper", "robust"):
+            assert ref.rhs(0.0, x, p, solve=solve)[5] == pytest.approx(-K / inertia * math.cos(th), rel=1e-12)
+    x = _x0(md, {**state, "th0": 0.0, "th1": 0.0, "th2": 0.0})
+    with pytest.raises(SingularMatrix):
+        ref.rhs(0.0, x, p)
+    xd = ref.rhs(0.0, x, p, solve="robust")  # exactly there: the vanishing rows dropped, a finite answer
+    assert np.all(np.isfinite(xd)) and ref.last.rank == 2
+
+
+@pytest.mark.parametrize("solve", ["robust", "auto"])
+def test_a02_crosses_the_singular_position_on_the_exact_motion(a02, solve):
+    """Reference path: the first horizontal passage (t ≈ 0.71 s) at Δt = 1e-3 with Kutta–Merson,
+    Γ1 = −20, Γ2 = −100 and the projection: B0 within 1e-6 of the exact parallelogram motion,
+    |ΔE| ≤ 1e-6 (scripts/closed_loops_validate.py runs the benchmark's 10 s).  ``auto`` keeps
+    the paper's path wherever its J2 is well-conditioned — here everywhere but within 1e-10
+    of the horizontal position, where the closure rows vanish (see test above)."""
+    md, ref, p = a02
+    t, xs, E = _reference_run(ref, _x0(md, iftomm_a02.initial_state(2)), p, 1e-3, 0.8, 4, solve=solve)
+    assert np.any(np.diff(np.sign(np.sin(xs[:, 0]))) != 0)  # it did cross
+    acc = iftomm_a02.acceptance(t, xs, 2, energy=E)
+    assert acc["B0_position"] < 1e-6 and acc["B0_velocity"] < 1e-6 and acc["energy_drift"] < 1e-6
+
+
+def test_a02_adaptive_step_passes_the_singular_position_with_the_tangent_error(a02):
+    """Reference path: adaptive Kutta–Merson (the run defaults rtol 1e-10, atol 1e-12) through
+    the first passage.  The compiled adaptive run stops ``singular`` at t = 0.714 s: its error
+    estimate sees the amplified asymmetry and shrinks the step onto the singular point.  With
+    the error estimate's components along the constraint normals removed (they are the
+    projection's business) the step stays large and the motion exact."""
+    md, ref, p = a02
+    ref.reset()
+    G1, G2 = -20 * np.eye(4), -100 * np.eye(4)
+    t, xs, rejected = integrate_reference_adaptive(
+        ref, _x0(md, iftomm_a02.initial_state(2)), p, 0.8, KUTTA_MERSON, None, G1, G2, solve="auto"
+    )
+    assert t[-1] == pytest.approx(0.8) and np.any(np.diff(np.sign(np.sin(xs[:, 0]))) != 0)
+    E = np.array([ref.energy(ti, xi, p) for ti, xi in zip(t, xs, strict=True)])
+    acc = iftomm_a02.acceptance(t, xs, 2, energy=E)
+    assert acc["B0_position"] < 1e-6 and acc["B0_velocity"] < 1e-6 and acc["energy_drift"] < 1e-6
+    assert len(t) < 400 and rejected < 10
+
+
+def test_a02_catalogue_entry_declares_the_benchmark_with_N_as_constructor_argument():
+    s = iftomm_a02.iftomm_a02(2)
+    assert s.name == "iftomm-a02" and s.default_t_final == 10.0 and s.default_dt == 1e-3
+    assert s.default_initial["dth0"] == -1.0 and s.default_initial["th1"] == math.pi / 2  # ẋ_B0 = 1 m/s
+    assert iftomm_a02.iftomm_a02(40).name == "iftomm-a02-n40"
+    assert len(iftomm_a02.names(40)[0]) == 81
+
+
+# -------------------------------------------------------------------- the redundant parallelogram
+@pytest.fixture(scope="module")
+def parallelogram():
+    md = iftomm_a04.parallelogram_model(redundant=True)
+    return md, ReferenceKernel(derive(md)), np.array([1.0, 1.0, 9.81])
+
+
+def test_redundant_parallelogram_is_declared_with_all_four_closure_equations(parallelogram):
+    md, ref, p = parallelogram
+    assert md.m == 4 and len(md.u_independent) == 1  # 4 + 1 > 4 speeds: redundant, accepted
+    rep = ref.constraint_report(0.0, _x0(md, iftomm_a04.parallelogram_state(theta0=1.0)), p)
+    assert (rep["rank"], rep["independent_speeds"], len(rep["redundant"])) == (3, 1, 1)
+
+
+def test_redundant_parallelogram_runs_on_its_exact_motion(parallelogram):
+    """Reference path: over the first horizontal passage, all four closure equations declared."""
+    md, ref, p = parallelogram
+    t, xs, E = _reference_run(ref, _x0(md, iftomm_a04.parallelogram_state()), p, 1e-3, 0.8, 4)
+    # the same pendulum as the N-four-bar with N = 2: I = 3 m L², K = 3.5 m g L
+    assert iftomm_a04.parallelogram_constants() == pytest.approx(iftomm_a02.pendulum_constants(2))
+    th, w = iftomm_a02.exact_motion(t, 2, xs[0, 0], xs[0, 4])
+    assert np.abs(np.cos(xs[:, 0]) - np.cos(th)).max() < 1e-6 and np.abs(xs[:, 4] - w).max() < 1e-6
+    assert np.abs(E - E[0]).max() < 1e-6
+
+
+def test_a_state_the_redundant_closures_cannot_come_from_ends_with_the_reason(parallelogram):
+    md, ref, p = parallelogram
+    x = _x0(md, iftomm_a04.parallelogram_state(theta0=1.0))
+    x[2] += 1e-3  # crank 2 off by 1 mrad: the four closures disagree
+    ref.reset()
+    with pytest.raises(ConstraintsInconsistent, match="inconsistent"):
+        ref.rhs(0.0, x, p, None, -20 * np.eye(4), -100 * np.eye(4), solve="robust")
+
+
+# ---------------------------------------------------------------------------------- A03
+def test_a03_energy_balance_and_the_test_set_reference_solution():
+    """Compiled path, the benchmark's own case: ΔU = T + V − E0 − τ(β − β0) stays at zero and the
+    seven angles at t = 0.03 s match the CWI/Bari test set's reference solution."""
+    r = simulate({"system": "iftomm-a03"}, progress=False)
+    assert r.summary["status"] == "ok", r.summary["message"]
+    assert r.t[-1] == pytest.approx(0.03)
+    assert r.summary["max_abs_energy_drift"] < 1e-8  # ΔU, J (E0 ≈ 1.44 J)
+    got = np.array([r.state[n][-1] for n in iftomm_a03.NAMES])
+    np.testing.assert_allclose(got, iftomm_a03.REFERENCE_003, rtol=1e-7, atol=1e-8)
+
+
+# ---------------------------------------------------------------------------------- A04
+@pytest.fixture(scope="module")
+def bricard():
+    red = iftomm_a04.bricard_model()
+    classic = iftomm_a04.bricard_model(redundant=False)
+    return red, ReferenceKernel(derive(red)), ReferenceKernel(derive(classic)), np.array([1.0, 1.0, 0.1, 9.81])
+
+
+def test_a04_bricard_has_five_closure_equations_of_rank_four(bricard):
+    _, ref, _, p = bricard
+    rep = ref.constraint_report(0.0, np.zeros(10), p)
+    assert (rep["m"], rep["rank"], rep["independent_speeds"]) == (5, 4, 1)
+    assert rep["redundant"] == ["J6_axis_y"]
+
+
+def test_a04_bricard_conserves_energy_and_moves_p3_as_the_non_redundant_declaration(bricard):
+    """Reference path: released from rest (OpenSim's start), 1 s at Δt = 1e-3: |ΔE| ≤ 1e-6 and
+    P3 as with the redundant equation left out (the paper's path with 4 equations)."""
+    _, ref, classic, p = bricard
+    t, xs, E = _reference_run(ref, np.zeros(10), p, 1e-3, 1.0, 5)
+    _, xc, _ = _reference_run(classic, np.zeros(10), p, 1e-3, 1.0, 4, solve="paper")
+    assert np.abs(E - E[0]).max() < 1e-6
+    P3 = np.array([ref.outputs(ti, xi, p) for ti, xi in zip(t, xs, strict=True)])
+    P3c = np.array([classic.outputs(ti, xi, p) for ti, xi in zip(t, xc, strict=True)])
+    assert np.abs(P3 - P3c).max() < 1e-8
+    assert np.ptp(P3[:, 1]) > 0.1  # it does move
+
+
+# ---------------------------------------------------------------------------------- A05
+def test_a05_flyball_governor_conserves_axial_momentum_and_only_dissipates():
+    """Compiled path, the benchmark's 10 s at Δt = 1e-4 (the damped spring modes decay at
+    8.1e3 s⁻¹: Kutta–Merson needs Δt < 4.4e-4): the angular momentum about the shaft is
+    conserved, the energy never grows, the stiff springs stay within 1 mm of their length."""
+    r = simulate({"system": "iftomm-a05"}, progress=False)
+    assert r.summary["status"] == "ok", r.summary["message"]
+    system = get_system("iftomm-a05")
+    md = built(system).model()
+    ref = ReferenceKernel(built(system).derivation())
+    p = np.array([system.parameter(str(s)).default for s in md.params])
+    x = np.column_stack([r.state[str(s)] for s in md.q + md.u])
+    out = np.array([ref.outputs(0.0, xi, p) for xi in x[::50]])  # Hz, stretch1, stretch2
+    assert np.abs(out[:, 0] - out[0, 0]).max() < 1e-9 * abs(out[0, 0])
+    assert np.all(np.diff(r.energy) <= 1e-9 * abs(r.energy[0]))
+    assert np.abs(out[:, 1:]).max() < 1e-3
+    assert r.state["s"].min() > 0.0 and r.state["s"].max() < 1.0  # the slider stays on the shaft
+
+
+def test_a05_step_above_the_stability_limit_is_not_ok():
+    r = simulate({"system": "iftomm-a05", "dt": 5e-4, "t_final": 1.0}, progress=False)
+    assert r.summary["status"] != "ok"
+
+
+def test_iftomm_declarations_carry_their_published_parameters():
+    assert iftomm_a05.PARAMETERS["k"].default == 8e5 and iftomm_a05.PARAMETERS["c"].default == 4e4
+    assert iftomm_a03.VALUES["c0"][0] == 4530.0 and iftomm_a03.VALUES["mom"][0] == 0.033
+    assert iftomm_a04.PARAMETERS["a"].default == 0.1
+    assert (iftomm_a02.OPENSIM_CPU_S, iftomm_a03.OPENSIM_CPU_S, iftomm_a04.OPENSIM_CPU_S) == (0.455, 0.384, 0.258)
+
+
+# ------------------------------------------------------------------------------- the scenes
+@pytest.mark.parametrize("name", ["iftomm-a01", "iftomm-a03", "iftomm-a05"])
+def test_catalogue_benchmarks_have_scenes_that_compile(name):
+    from nmkane_core.kernel.visuals import compile_visuals
+
+    system = get_system(name)
+    assert system.what_to_try and system.title.startswith("IFToMM")
+    cv = compile_visuals(system)
+    x = default_state(system)
+    params = {p.name: p.default for p in system.parameters}
+    poses = cv.poses({k: np.array([v]) for k, v in x.items()}, params)
+    assert poses and all(np.all(np.isfinite(v)) for v in poses)
+    assert np.all(np.isfinite(cv.sizes(params)))
+
+
+@pytest.mark.parametrize("build", [lambda: iftomm_a02.iftomm_a02(2), iftomm_a04.iftomm_a04])
+def test_reference_path_benchmarks_declare_scenes_of_their_names(build):
+    """A02 and A04 are declared as Systems (with what to try and a scene) outside the
+    catalogue: their scenes name only state values and parameters."""
+    system = build()
+    assert system.what_to_try
+    md = built(system).model()
+    vis = system.visuals()
+    names = {str(s) for s in (*md.q, *md.u, *md.params)}
+    for shape in vis.shapes:
+        for pt in shape.points:
+            for e in pt:
+                assert {str(s) for s in getattr(e, "free_symbols", set())} <= names
