@@ -76,6 +76,7 @@ def _registry_as_it_was():
 SESSION_GROUPS = {"quick_runs": "paper", "quick_report": "paper"}  # session fixtures made once, on one worker
 
 
+@pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups into the node ids
 def pytest_collection_modifyitems(config, items):
     """Under xdist (``--dist loadgroup``): the tests of a module stay on one worker (module-scoped
     fixtures and the user systems a module compiles are made once), so do the modules sharing an
