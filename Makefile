@@ -23,8 +23,11 @@ setup-dev: $(VENV)/.installed-dev
 serve: setup
 	$(BIN)/nmkane serve
 
+# two xdist workers (CI has two cores); tests/conftest.py warms the shared kernel cache once first and
+# groups tests (a module, a session fixture, the browser tests) onto one worker each: --dist loadgroup
+TEST_WORKERS ?= 2
 test: setup-dev
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup
 
 lint: setup-dev
 	$(BIN)/ruff check nmkane_core backend web tests scripts examples

@@ -200,8 +200,8 @@ class RunService:
 
         ``report(line)`` (optional) hears one line per step; a first start after install
         compiles them (measured on two cores: the first phase ≈ 40 s, the projected loops
-        ≈ 65 s more), later starts load from the cache.  Stops early (quietly) when the
-        service stops.
+        ≈ 65 s more), later starts load from the cache.  Stops early when the service stops,
+        after the step under way, and says so (``serve`` reports a compilation it abandons).
         """
         start = time.perf_counter()
         if steps is None:
@@ -209,6 +209,11 @@ class RunService:
             steps = first + later
         for i, (label, settings) in enumerate(steps, 1):
             if self._stopping.is_set():
+                if report is not None:
+                    report(
+                        f"nmkane: {title} stopped with the service after {i - 1} of {len(steps)} "
+                        "(the step under way was finished first; the next start compiles the rest)"
+                    )
                 return
             t0 = time.perf_counter()
             simulate(settings, progress=False)

@@ -56,9 +56,10 @@ BODY_MOVES = """() => {
 }"""
 
 
-def _ws_worker(port: int, n: int, seconds: float, ready, out) -> None:
-    """Child process: ``n`` viser clients for ``seconds``; sets ``ready`` once every one has
-    received frames (or failed), then puts their stats on ``out``."""
+def _ws_worker(port: int, n: int, seconds: float, ready, stop, out) -> None:
+    """Child process: ``n`` viser clients for at most ``seconds``, until ``stop`` is set (the
+    measured window is over); sets ``ready`` once every one has received frames (or failed),
+    then puts their stats on ``out``."""
     import viser
     from viser_client import ClientStats, run_client
 
@@ -72,7 +73,12 @@ def _ws_worker(port: int, n: int, seconds: float, ready, out) -> None:
         while not all(len(s.frames) >= 10 or s.error for s in stats) and time.monotonic() < stop_at:
             await asyncio.sleep(0.2)
         ready.set()
-        await asyncio.gather(*tasks)
+        clients = asyncio.gather(*tasks)
+        told = asyncio.ensure_future(asyncio.to_thread(stop.wait, max(0.0, stop_at - time.monotonic())))
+        await asyncio.wait([clients, told], return_when=asyncio.FIRST_COMPLETED)
+        for task in tasks:  # told to stop: the clients leave now (what they counted is kept)
+            task.cancel()
+        await asyncio.gather(clients, told, return_exceptions=True)
         return stats
 
     stats = asyncio.run(main())
@@ -156,9 +162,10 @@ def main(argv=None) -> int:
     ap.add_argument("--sessions", type=int, default=30, help="headless websocket clients (1..100)")
     ap.add_argument("--rest-clients", type=int, default=4, help="REST clients posting runs (0..32)")
     ap.add_argument("--browsers", type=int, default=2, help="headless Chromium pages (0..8)")
-    ap.add_argument("--seconds", type=float, default=60.0, help="the measured window (5..600 s)")
+    ap.add_argument("--seconds", type=float, default=60.0, help="the measured window (1..600 s)")
     ap.add_argument("--baseline-seconds", type=float, default=10.0, help="REST alone before the web load")
     ap.add_argument("--web-only-seconds", type=float, default=10.0, help="web load alone (CPU per session)")
+    ap.add_argument("--settle-seconds", type=float, default=2.0, help="after every client receives, before measuring")
     ap.add_argument("--warm-timeout", type=float, default=600.0, help="wait at most this for the web app's warm-up")
     ap.add_argument("--min-fps", type=float, default=20.0)
     ap.add_argument("--max-p99-ms", type=float, default=250.0)
@@ -167,11 +174,15 @@ def main(argv=None) -> int:
         1 <= args.sessions <= 100
         and 0 <= args.rest_clients <= 32
         and 0 <= args.browsers <= 8
-        and 5 <= args.seconds <= 600
+        and 1 <= args.seconds <= 600
+        and 0 <= args.settle_seconds <= 60
         and 0 <= args.baseline_seconds <= 120
         and 0 <= args.web_only_seconds <= 120
     ):
-        ap.error("bounds: 1 ≤ sessions ≤ 100, 0 ≤ rest-clients ≤ 32, 0 ≤ browsers ≤ 8, 5 ≤ seconds ≤ 600")
+        ap.error(
+            "bounds: 1 ≤ sessions ≤ 100, 0 ≤ rest-clients ≤ 32, 0 ≤ browsers ≤ 8, 1 ≤ seconds ≤ 600, "
+            "0 ≤ settle-seconds ≤ 60"
+        )
     tmp = tempfile.mkdtemp(prefix="nmkane-classroom-")
     proc, base, web_port = start_serve(os.path.join(tmp, "runs.sqlite3"), max_sessions=args.sessions + args.browsers)
     try:
@@ -198,13 +209,13 @@ def _measure(args, proc, base: str, web_port: int) -> int:
     out = ctx.Queue()
     settle_max = 120.0
     total = settle_max + args.web_only_seconds + args.seconds + 5
-    ready = ctx.Event()
-    ws = ctx.Process(target=_ws_worker, args=(web_port, args.sessions, total, ready, out), daemon=True)
+    ready, stop_ws = ctx.Event(), ctx.Event()
+    ws = ctx.Process(target=_ws_worker, args=(web_port, args.sessions, total, ready, stop_ws, out), daemon=True)
     t_start = time.monotonic()
     ws.start()
     ready.wait(settle_max)  # every client connected and receiving (its first run computed)
     print(f"web      {args.sessions} websocket clients receiving frames after {time.monotonic() - t_start:.1f} s")
-    time.sleep(2)
+    time.sleep(args.settle_seconds)
     t_web0, cpu_web0 = time.monotonic(), _cpu_split(proc.pid)
     time.sleep(args.web_only_seconds)
     t_web1, cpu_web1 = time.monotonic(), _cpu_split(proc.pid)
@@ -223,6 +234,7 @@ def _measure(args, proc, base: str, web_port: int) -> int:
         time.sleep(args.seconds)
     t1, cpu1 = time.monotonic(), _cpu_split(proc.pid)
     rss1 = rss_mib(proc.pid)
+    stop_ws.set()  # the window is over: the websocket clients leave (they used to stay until `total`)
 
     results = {}
     for _ in range(2 if br is not None else 1):

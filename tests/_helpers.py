@@ -1,13 +1,109 @@
-"""Helpers shared by the tests: free ports for subprocess services, optional dependencies."""
+"""Helpers shared by the tests: server processes on ports they pick themselves, optional dependencies."""
 
-import socket
+from __future__ import annotations
+
+import re
+import signal
+import subprocess
+import threading
+import time
+
+REST_URL = re.compile(r"nmkane REST API\s+http://[^/\s]+:(\d+)/api")
+WEB_URL = re.compile(r"nmkane 3D web app\s+http://[^/\s]+:(\d+)/")
 
 
-def free_port() -> int:
-    """A TCP port on 127.0.0.1 that nothing listens on (right now)."""
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+class ServerProcess:
+    """A server started by a test, its standard output (and error) read line by line in a thread,
+    so that the pipe never fills and blocks it.  Servers bind port 0 and print the port they got
+    (``nmkane serve``, ``python -m backend``): a port picked by the test and bound later by the
+    server could be taken meanwhile by another process (xdist runs two at once)."""
+
+    def __init__(self, args: list[str], env: dict | None = None, cwd=None):
+        self.proc = subprocess.Popen(
+            args,
+            env=env,
+            cwd=cwd,
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        self.lines: list[str] = []
+        self._changed = threading.Condition()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            with self._changed:
+                self.lines.append(line)
+                self._changed.notify_all()
+        with self._changed:
+            self._changed.notify_all()
+
+    @property
+    def output(self) -> str:
+        with self._changed:
+            return "".join(self.lines)
+
+    def wait_for(self, pattern: str | re.Pattern, timeout: float = 600.0) -> re.Match:
+        """The first output line matching ``pattern``, waiting for it up to ``timeout`` s (a cold
+        kernel cache compiles first); fails with the output when the server exits without it."""
+        rx = re.compile(pattern) if isinstance(pattern, str) else pattern
+        deadline = time.monotonic() + timeout
+        seen = 0
+        with self._changed:
+            while True:
+                for line in self.lines[seen:]:
+                    if m := rx.search(line):
+                        return m
+                seen = len(self.lines)
+                if not self._reader.is_alive() or time.monotonic() > deadline:
+                    break
+                self._changed.wait(max(0.0, min(1.0, deadline - time.monotonic())))
+        self.proc.kill()
+        raise AssertionError(f"no line matching {rx.pattern!r} in:\n{self.output}")
+
+    def port(self, pattern: re.Pattern = REST_URL, timeout: float = 600.0) -> int:
+        return int(self.wait_for(pattern, timeout).group(1))
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 60.0) -> tuple[int, str]:
+        """Send ``sig``, wait for the exit; (exit status, the whole output)."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+        try:
+            code = self.proc.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(10)
+            raise AssertionError(
+                f"the server did not stop within {timeout:g} s after signal {sig}:\n{self.output}"
+            ) from None
+        self._reader.join(10)
+        return code, self.output
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(10)
+        self._reader.join(10)
+
+
+def start_backend(db, env: dict | None = None) -> tuple[ServerProcess, int]:
+    """``python -m backend`` (the REST API alone) with the store ``db`` on a port of its own
+    choosing; the server and its port once it answers (a cold kernel cache compiles first)."""
+    import os
+    import sys
+
+    import httpx
+
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", **(env or {})}
+    server = ServerProcess([sys.executable, "-m", "backend", "--port", "0", "--db", str(db)], env=env)
+    port = server.port(timeout=600)
+    server.wait_for("Ctrl-C")  # serving
+    assert httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=10).status_code == 200
+    return server, port
 
 
 def require(module: str):

@@ -1,3 +1,7 @@
+"""The test run's shared state, set once: one kernel cache for the run (warmed before the first
+test, see tests/_warm.py), the registry of systems as it was before each test, and the order and
+grouping of tests for xdist (``make test`` runs two workers)."""
+
 import os
 import sys
 from pathlib import Path
@@ -8,6 +12,98 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 os.environ.setdefault("MPLBACKEND", "Agg")
+
+# -------------------------------------------------------------------------------- the kernel cache
+
+
+def pytest_configure(config):
+    # One kernel cache for the run, its xdist workers and every subprocess a test starts (they
+    # inherit the environment): $NMKANE_CACHE_DIR as given (.ci/run: a new empty folder), else the
+    # default one, named explicitly so that a test changing HOME or XDG_CACHE_HOME does not move it.
+    # numba caches beside each generated kernel, or in $NUMBA_CACHE_DIR when that is set.
+    from nmkane_core.kernel.cache import cache_root
+
+    os.environ["NMKANE_CACHE_DIR"] = str(cache_root())
+
+
+def _warm_wanted(config) -> bool:
+    """Warm the shared cache first: in the controller (or a run without xdist) of a whole run —
+    with xdist workers or under CI — unless NMKANE_TEST_WARM=0; NMKANE_TEST_WARM=1 forces it.
+    A developer's ``pytest tests/x.py`` compiles what it uses, as before."""
+    wanted = os.environ.get("NMKANE_TEST_WARM", "")
+    if hasattr(config, "workerinput") or config.option.collectonly or wanted == "0":
+        return False
+    workers = getattr(config.option, "numprocesses", None) or 0
+    return wanted == "1" or os.environ.get("CI") == "true" or workers != 0
+
+
+def pytest_sessionstart(session):
+    """Before the first test (and before xdist starts its workers): the shared cache warmed once,
+    in two processes, with what nearly every test module compiles otherwise (tests/_warm.py)."""
+    if not _warm_wanted(session.config):
+        return
+    from tests import _warm
+
+    reporter = session.config.pluginmanager.get_plugin("terminalreporter")
+
+    def log(line: str) -> None:
+        if reporter is not None:
+            reporter.write_line(f"nmkane tests: {line}")
+
+    _warm.warm(Path(os.environ["NMKANE_CACHE_DIR"]), processes=min(2, os.cpu_count() or 1), log=log)
+
+
+# -------------------------------------------------------------------------------- shared state
+
+
+@pytest.fixture(autouse=True)
+def _registry_as_it_was():
+    """Systems a test registers (a plugged-in example, a user's system) are unregistered after it:
+    the next test sees the registry as it was (the catalogue, the web app's scenes, the service's
+    warm-up steps all follow the registry, and a test counting or warming every system would
+    otherwise depend on which tests ran before it)."""
+    from nmkane_core.run import registry
+
+    before = set(registry.system_names())
+    yield
+    for name in set(registry.system_names()) - before:
+        registry.unregister(name)
+
+
+# -------------------------------------------------------------------------------- xdist
+
+
+SESSION_GROUPS = {"quick_runs": "paper", "quick_report": "paper"}  # session fixtures made once, on one worker
+
+
+@pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups into the node ids
+def pytest_collection_modifyitems(config, items):
+    """Under xdist (``--dist loadgroup``): the tests of a module stay on one worker (module-scoped
+    fixtures and the user systems a module compiles are made once), so do the modules sharing an
+    expensive session fixture (the paper's quick runs), the browser tests share one worker and
+    one Chromium, and the groups with slow tests go first, so that the two workers end together."""
+    if not hasattr(config, "workerinput"):
+        return
+    modules: dict[str, list] = {}
+    for item in items:
+        modules.setdefault(item.nodeid.split("::", 1)[0], []).append(item)
+    group_of = {}
+    for module, its in modules.items():
+        shared = {SESSION_GROUPS[f] for i in its for f in i.fixturenames if f in SESSION_GROUPS}
+        group_of[module] = shared.pop() if shared else module
+    for item in items:
+        if item.get_closest_marker("xdist_group") is None:
+            module = item.nodeid.split("::", 1)[0]
+            item.add_marker(
+                pytest.mark.xdist_group("browser" if item.get_closest_marker("browser") else group_of[module])
+            )
+    first = {_group(i) for i in items if i.get_closest_marker("slow") or i.get_closest_marker("browser")}
+    items[:] = sorted(items, key=lambda i: _group(i) not in first)  # a stable sort: file order otherwise
+
+
+def _group(item) -> str:
+    mark = item.get_closest_marker("xdist_group")
+    return mark.kwargs.get("name", mark.args[0] if mark.args else "")
 
 
 @pytest.fixture(scope="session")

@@ -1,10 +1,7 @@
 """A server killed with SIGKILL during runs loses no acknowledged run and leaves no partial one."""
 
-import os
 import signal
 import sqlite3
-import subprocess
-import sys
 import threading
 import time
 
@@ -12,35 +9,18 @@ import httpx
 
 from backend.store import RunStore
 from nmkane_core.schema import RunResult
-from tests._helpers import free_port
+from tests._helpers import start_backend
 
 RUN = {"system": "appell-hamel", "dt": 0.005, "t_final": 20}  # 4001 rows
 
 
-def _start(db, port):
-    env = {**os.environ, "NMKANE_MAX_CONCURRENT_RUNS": "2"}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "backend", "--port", str(port), "--db", str(db)],
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    deadline = time.time() + 600  # a cold kernel cache compiles first
-    while time.time() < deadline:
-        assert proc.poll() is None, "the server exited"
-        try:
-            if httpx.get(f"http://127.0.0.1:{port}/api/health", timeout=1).status_code == 200:
-                return proc
-        except httpx.HTTPError:
-            time.sleep(0.1)
-    proc.kill()
-    raise RuntimeError("server did not start")
+def _start(db):
+    return start_backend(db, {"NMKANE_MAX_CONCURRENT_RUNS": "2"})
 
 
 def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one(tmp_path):
     db = tmp_path / "runs.sqlite3"
-    port = free_port()
-    proc = _start(db, port)
+    server, port = _start(db)
     acked, lock, stop = {}, threading.Lock(), threading.Event()
 
     def client():
@@ -60,8 +40,7 @@ def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one
     deadline = time.time() + 30
     while len(acked) < 30 and time.time() < deadline:  # killed in full flow, runs in flight
         time.sleep(0.05)
-    proc.send_signal(signal.SIGKILL)
-    proc.wait(10)
+    server.kill()  # SIGKILL
     stop.set()
     for th in threads:
         th.join(30)
@@ -84,12 +63,11 @@ def test_sigkill_during_runs_loses_no_acknowledged_run_and_leaves_no_partial_one
         store.close()
 
     # and a restarted server serves each acknowledged run exactly as it was acknowledged
-    proc = _start(db, port)
+    server, port = _start(db)
     try:
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=10) as c:
             for run_id, content in acked.items():
                 assert c.get(f"/api/runs/{run_id}").content == content
             assert c.post("/api/runs", json=RUN).status_code == 201
     finally:
-        proc.send_signal(signal.SIGTERM)
-        assert proc.wait(30) == 0
+        assert server.stop(signal.SIGTERM, timeout=30)[0] == 0

@@ -1,15 +1,13 @@
 """A REST sweep whose server is killed is marked ``interrupted`` when the service starts again
 (not left ``running`` forever); its rows so far stay readable, and new sweeps run."""
 
-import signal
 import sqlite3
 import time
 
 import httpx
-from test_backend_kill import _start
 
 from backend.sweeps import SweepStore, owner_alive, process_owner
-from tests._helpers import free_port
+from tests._helpers import start_backend
 
 LONG = {  # 500 runs of 5000 steps: still running when the server is killed
     "settings": {"system": "appell-hamel", "dt": 0.001, "t_final": 5},
@@ -30,8 +28,7 @@ def _wait(c, sweep_id, until, timeout=300):
 
 def test_a_killed_servers_sweep_is_interrupted_after_restart(tmp_path):
     db = tmp_path / "runs.sqlite3"
-    port = free_port()
-    proc = _start(db, port)
+    server, port = start_backend(db)
     try:
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as c:
             r = c.post("/api/sweeps", json=LONG)
@@ -40,13 +37,12 @@ def test_a_killed_servers_sweep_is_interrupted_after_restart(tmp_path):
             st = _wait(c, sweep_id, lambda s: s["status"] == "running" and s["done"] > 0)
             assert st["done"] < st["total"] == 500
     finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(10)
+        server.kill()  # SIGKILL
     con = sqlite3.connect(db)
     assert con.execute("SELECT status FROM sweeps WHERE id = ?", (sweep_id,)).fetchone()[0] == "running"
     con.close()
 
-    proc = _start(db, port)  # the same file: the service starts again
+    server, port = start_backend(db)  # the same file: the service starts again
     try:
         with httpx.Client(base_url=f"http://127.0.0.1:{port}", timeout=30) as c:
             con = sqlite3.connect(db)  # marked at start, before any sweep request
@@ -66,8 +62,7 @@ def test_a_killed_servers_sweep_is_interrupted_after_restart(tmp_path):
             # and its own running sweep is not touched by another store opening the file
             assert SweepStore(db).interrupted == []
     finally:
-        proc.send_signal(signal.SIGKILL)
-        proc.wait(10)
+        server.kill()
 
 
 def test_owner_liveness(tmp_path):

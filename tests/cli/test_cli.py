@@ -165,24 +165,35 @@ def test_bench_quick_measures_every_workload():
     assert table.splitlines()[0].startswith("workload") and "evals/s" in table
 
 
-def test_slow_preparation_is_announced_and_quick_one_is_silent():
+def test_slow_preparation_is_announced_and_quick_one_is_silent(monkeypatch):
+    """Events, no fixed waits: the slow block ends once its notice is out; the quick blocks'
+    timers are joined after they were cancelled, so a notice they would print is printed by then."""
     import io
-    import time as _time
+    import re
+    import threading
 
-    from nmkane_core.cli import notice_if_slow
+    from nmkane_core.cli import common, notice_if_slow
 
+    timers = []
+
+    class Recorded(threading.Timer):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            timers.append(self)
+
+    monkeypatch.setattr(common.threading, "Timer", Recorded)
     out = io.StringIO()
     with notice_if_slow("preparing x", after=0.05, stream=out):
-        _time.sleep(0.3)
+        timers[-1].join(30)  # the notice is printed
     lines = out.getvalue().splitlines()
-    assert lines[0] == "nmkane: preparing x …" and lines[1].startswith("nmkane: ready in 0.")
+    assert lines[0] == "nmkane: preparing x …" and re.fullmatch(r"nmkane: ready in \d+\.\d s \(.*\)", lines[1])
     out = io.StringIO()
     with notice_if_slow("preparing y", after=0.5, stream=out):
         pass
-    _time.sleep(0.6)  # the cancelled timer never fires
+    timers[-1].join(30)  # the cancelled timer ended without printing
     assert out.getvalue() == ""
     out = io.StringIO()
     with pytest.raises(ValueError), notice_if_slow("preparing z", after=0.05, stream=out):
         raise ValueError("bad input")
-    _time.sleep(0.1)
+    timers[-1].join(30)
     assert out.getvalue() == ""

@@ -38,34 +38,15 @@ def test_headless_viser_clients_receive_frames():
 
 
 def test_the_classroom_script_end_to_end(tmp_path):
-    """scripts/classroom.py with 3 websocket clients and 1 REST client for 5 s against a real
-    ``nmkane serve`` (the web app in its own process): it exits 0 when nothing failed and
-    every client got frames (the rate and latency targets are lifted here)."""
+    """scripts/classroom.py, a small short class: 2 websocket clients and 1 REST client for 2 s
+    against a real ``nmkane serve`` (the web app in its own process): it exits 0 when nothing
+    failed and every client got frames (the rate and latency targets are lifted here; the full
+    30-session measurement is the script's, run by hand: docs/reliability.md)."""
     import classroom
 
-    code = classroom.main(
-        [
-            "--sessions",
-            "3",
-            "--rest-clients",
-            "1",
-            "--browsers",
-            "0",
-            "--seconds",
-            "5",
-            "--baseline-seconds",
-            "1",
-            "--web-only-seconds",
-            "2",
-            "--min-fps",
-            "0",
-            "--max-p99-ms",
-            "1e9",
-            "--warm-timeout",
-            "120",
-        ]
-    )
-    assert code == 0
+    argv = "--sessions 2 --rest-clients 1 --browsers 0 --seconds 2 --baseline-seconds 1 --web-only-seconds 1"
+    argv += " --settle-seconds 0 --min-fps 0 --max-p99-ms 1e9 --warm-timeout 300"
+    assert classroom.main(argv.split()) == 0
 
 
 def test_the_fast_pose_setter_behaves_as_visers():

@@ -5,18 +5,17 @@ canvas the panel leaves free (the pixels that change when the bodies are hidden)
 
 ``NMKANE_SHOTS=/a/folder`` keeps the screenshots to look at."""
 
-import io
 import os
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from tests._helpers import require_browser
-from web.screenshot import CHROMIUM_ARGS, close_toasts, open_page
+from tests.web._pages import png, until
+from web.screenshot import close_toasts, open_page
 
-CHROMIUM, sync_playwright = require_browser()
+require_browser()
 
 from nmkane_core.run.plugins import load_systems
 from nmkane_core.run.registry import system_names
@@ -29,21 +28,6 @@ SHOTS = os.environ.get("NMKANE_SHOTS")  # a folder: keep the screenshots to look
 W, H = 1280, 800
 MIN_SHARE = 0.001  # of the free canvas covered by the moving bodies (a 20-pixel ball: 0.05 %)
 MIN_SPAN = 0.05  # the moving bodies' extent on the screen, of the free canvas' width or height
-
-
-def _png(data: bytes) -> np.ndarray:
-    from matplotlib.image import imread
-
-    return imread(io.BytesIO(data), format="png")[..., :3]
-
-
-def _until(predicate, timeout: float = 60.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(0.1)
-    return predicate()
 
 
 def _drawn(page) -> None:
@@ -65,7 +49,11 @@ def _hidden(page, paths: list[str]) -> bool:
 def _first_view(browser, app, name: str) -> dict:
     page = open_page(browser, f"{app.url}?hideViserLogo&system={name}", width=W, height=H)
     try:
-        assert _until(lambda: any(s.kind == name and s.traj is not None for s in list(app.sessions.values())))
+        until(
+            lambda: any(s.kind == name and s.traj is not None for s in list(app.sessions.values())),
+            120,
+            f"{name}: a run",
+        )
         session = next(s for s in list(app.sessions.values()) if s.kind == name)
         assert session.wait_idle(120) and session.traj.kind == name
         close_toasts(page)
@@ -73,10 +61,14 @@ def _first_view(browser, app, name: str) -> dict:
         session.seek(0.3 * session.traj.t_end)
         session.reset_view()
         placed = lambda: session.camera.placed[1]  # noqa: E731  (a late install may frame it again)
-        assert _until(lambda: np.allclose(_camera(page), placed(), atol=1e-3 * (1 + np.linalg.norm(placed()))))
+        until(
+            lambda: np.allclose(_camera(page), placed(), atol=1e-3 * (1 + np.linalg.norm(placed()))),
+            60,
+            f"{name}: the camera placed",
+        )
         _drawn(page)
         raw = page.screenshot(timeout=180000)
-        shot = _png(raw)
+        shot = png(raw)
         d = session.system_view.declared
         nodes = [*d.frames.values(), *(m.node for m in d.moving)]
         paths = [n.name for n in nodes]
@@ -84,9 +76,9 @@ def _first_view(browser, app, name: str) -> dict:
             for n in nodes:
                 n.visible = False
         session.target.flush()
-        assert _until(lambda: _hidden(page, paths), 30)
+        until(lambda: _hidden(page, paths), 30, f"{name}: the bodies hidden")
         _drawn(page)
-        bare = _png(page.screenshot(timeout=180000))
+        bare = png(page.screenshot(timeout=180000))
         if SHOTS:
             Path(SHOTS).mkdir(parents=True, exist_ok=True)
             Path(SHOTS, f"{name}.png").write_bytes(raw)
@@ -95,19 +87,14 @@ def _first_view(browser, app, name: str) -> dict:
         page.close()
 
 
-def test_every_systems_first_view_frames_its_moving_bodies():
+def test_every_systems_first_view_frames_its_moving_bodies(browser):
     assert load_systems([str(EXAMPLE)]) == []
     names = list(system_names())
     app = launch(port=0)
     views = {}
     try:
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-            try:
-                for name in names:
-                    views[name] = _first_view(browser, app, name)
-            finally:
-                browser.close()
+        for name in names:
+            views[name] = _first_view(browser, app, name)
     finally:
         app.stop()
     free = slice(0, int(W - PANEL_PX))

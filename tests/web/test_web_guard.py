@@ -155,7 +155,8 @@ def test_nothing_is_sent_to_a_browser_that_left_mid_run():
             client.close()
             assert _until(lambda: not app.sessions, 10)
             assert session.wait_idle(10)
-            time.sleep(0.5)  # frames go on
+            last = app.frame_times[-1]  # frames go on: 20 more animation frames
+            assert _until(lambda: sum(t > last for t in app.frame_times[-40:]) >= 20, 30)
         # the late run's scene (install: positions, shapes) must not be sent; a GUI text update racing
         # the disconnect inside viser (it closes the socket before dropping the client) is not ours
         closed = [

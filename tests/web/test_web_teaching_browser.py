@@ -1,7 +1,7 @@
 """The teacher's page in headless Chromium: what is typed in the boxes is what the run uses
 (or is refused beside the box), a link reopens its setup in a fresh browser, the keys work,
 and the plots show values at the cursor and keep a zoom.  Waits are deadlines on the page's
-or the session's state, never fixed sleeps."""
+or the session's state, never fixed sleeps; the run's one Chromium (tests/web/conftest.py)."""
 
 import re
 import time
@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from tests._helpers import require_browser
-from web.screenshot import CHROMIUM_ARGS, close_toasts, input_of, open_page
+from tests.web._pages import until
+from web.screenshot import close_toasts, input_of, open_page
 
-CHROMIUM, sync_playwright = require_browser()
+require_browser()
 
 from web.app import launch
 
@@ -26,22 +27,6 @@ def app():
     handle.stop()
 
 
-@pytest.fixture(scope="module")
-def browser():
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, headless=True, args=CHROMIUM_ARGS)
-        yield b
-        b.close()
-
-
-def _until(predicate, timeout: float = 60.0, what: str = "") -> None:
-    end = time.monotonic() + timeout
-    while not predicate():
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what or predicate}")
-        time.sleep(0.05)
-
-
 def _session(app, before: set, name: str | None = None):
     """The session of the page just opened (its system installed, if one is named)."""
     found = []
@@ -51,7 +36,7 @@ def _session(app, before: set, name: str | None = None):
         s = found[0] if found else None
         return s is not None and s.traj is not None and (name is None or s.traj.kind == name)
 
-    _until(ready, 120, f"the new page's session ({name})")
+    until(ready, 120, f"the new page's session ({name})")
     assert found[0].wait_idle(60)
     return found[0]
 
@@ -119,7 +104,7 @@ def test_what_is_typed_in_the_page_is_what_the_run_uses(app, browser, label, tex
             s = _shown(session)
             return (s[field[0]] if len(field) == 1 else s[field[0]][field[1]]) == value
 
-        _until(used, 30, f"{label} = {text} in the run")
+        until(used, 30, f"{label} = {text} in the run")
         assert "input refused" not in page.inner_text("body")
     finally:
         page.close()
@@ -143,9 +128,9 @@ def test_what_cannot_be_read_is_refused_beside_the_box_in_the_page(app, browser)
         assert session.wait_idle(30) and _shown(session) == before  # nothing ran with a refused value
         page.get_by_text("Physical parameters", exact=True).first.click()  # a log slider's box, in kg
         _type_exact(page, "M [kg]", "1e1")
-        _until(lambda: _shown(session)["params"]["M"] == 10.0, 30, "M = 10 kg in the run")
+        until(lambda: _shown(session)["params"]["M"] == 10.0, 30, "M = 10 kg in the run")
         _type(page, "Final time [s]", "7")  # good again: its message goes
-        _until(lambda: _shown(session)["t_final"] == 7.0, 30, "t_final = 7")
+        until(lambda: _shown(session)["t_final"] == 7.0, 30, "t_final = 7")
         page.wait_for_function(
             "() => !Array.from(document.querySelectorAll('.nmk-msg')).some((m) => m.innerText.includes('abc'))",
             timeout=30000,
@@ -165,7 +150,7 @@ def test_a_link_reopens_its_setup_in_a_fresh_browser(app, browser):
         link = page.url
         assert "system=rolling-disk" in link and "params.r=0.25" in link and "hideViserLogo" in link
         page.get_by_role("button", name="Copy link").click()
-        _until(lambda: session.link.copied == link, 30, "the copied link")
+        until(lambda: session.link.copied == link, 30, "the copied link")
     finally:
         page.close()
     fresh = browser.new_context(viewport={"width": 1400, "height": 900})  # no cookies, no storage
@@ -174,13 +159,13 @@ def test_a_link_reopens_its_setup_in_a_fresh_browser(app, browser):
         page = fresh.new_page()
         page.goto(link)
         again = _session(app, before, "rolling-disk")
-        _until(lambda: _shown(again).get("initial", {}).get("u3") == -1.0, 60, "the link's values")
+        until(lambda: _shown(again).get("initial", {}).get("u3") == -1.0, 60, "the link's values")
         s = _shown(again)
         assert (s["dt"], s["t_final"], s["gamma"], s["params"]["r"], s["initial"]["u4"]) == (0.002, 7, -10, 0.25, 0.5)
         assert input_of(page, "u3 = ψ̇").input_value() == "-1"
         page.reload()  # state survives a reload
         third = _session(app, set(app.sessions) - {again.client.client_id}, "rolling-disk")
-        _until(lambda: _shown(third).get("initial", {}).get("u3") == -1.0, 60, "the setup after a reload")
+        until(lambda: _shown(third).get("initial", {}).get("u3") == -1.0, 60, "the setup after a reload")
     finally:
         fresh.close()
 
@@ -191,13 +176,13 @@ def test_keys_play_step_and_fit_and_the_plots_show_values_and_keep_a_zoom(app, b
         page.mouse.click(300, 450)  # the canvas has the focus, not a box
         assert session.playing
         page.keyboard.press(" ")
-        _until(lambda: not session.playing, 10, "space to pause")
+        until(lambda: not session.playing, 10, "space to pause")
         t = session.t_now
         page.keyboard.press("ArrowRight")
-        _until(lambda: session.t_now > t, 10, "→ to step")
+        until(lambda: session.t_now > t, 10, "→ to step")
         assert session.follow.value
         page.keyboard.press("f")
-        _until(lambda: not session.follow.value, 10, "f to fit the whole motion (not following)")
+        until(lambda: not session.follow.value, 10, "f to fit the whole motion (not following)")
         assert "space play/pause" in page.inner_text("body")
 
         plot = page.locator(".uplot").filter(has_text="Energy drift").first
@@ -210,19 +195,19 @@ def test_keys_play_step_and_fit_and_the_plots_show_values_and_keep_a_zoom(app, b
             "&& t.textContent.includes('ΔE') && /\\d/.test(t.textContent); }",
             timeout=30000,
         )
-        _until(lambda: session.plots.busy, 10, "the page to report the pointer on a plot")
+        until(lambda: session.plots.busy, 10, "the page to report the pointer on a plot")
         page.mouse.move(box["x"] + 0.2 * box["width"], box["y"] + 0.5 * box["height"])
         page.mouse.down()
         page.mouse.move(box["x"] + 0.6 * box["width"], box["y"] + 0.5 * box["height"], steps=6)
         page.mouse.up()
         page.mouse.move(10, 10)  # away from the plot: still busy (zoomed), the marker waits
-        _until(lambda: session.plots.busy, 10, "a zoomed plot to keep the marker waiting")
+        until(lambda: session.plots.busy, 10, "a zoomed plot to keep the marker waiting")
         axes = session.plot_handles[("appell-hamel", "energy")].axes
         session.seek(session.t_now + 1.0)
         assert session.plot_handles[("appell-hamel", "energy")].axes == axes
         _retry(lambda: over.dblclick(timeout=30000))
         page.mouse.move(10, 10)
-        _until(lambda: not session.plots.busy, 10, "double-click to zoom out")
+        until(lambda: not session.plots.busy, 10, "double-click to zoom out")
         assert np.isfinite(session.t_now)
     finally:
         page.close()

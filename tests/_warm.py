@@ -1,0 +1,115 @@
+"""The tests' shared kernel cache, compiled once at the start of a run (see tests/conftest.py).
+
+Every test process and every subprocess a test starts uses one kernel cache (``$NMKANE_CACHE_DIR``;
+numba's own cache lives beside each generated kernel, or in ``$NUMBA_CACHE_DIR`` when that is set).
+Under CI it starts empty (``.ci/run``), so before the first test it is warmed here, in parallel
+processes, with what nearly every test module uses: for each built-in system, every variant's
+loops as ``nmkane serve`` warms them (fixed step and adaptive, with and without a projection),
+the scipy adapter for the paper's two systems, and what the web app derives from a system (its
+compiled visuals, its matrices panels).  Without it, two xdist workers compiled the same kernels
+at once, and each subprocess test paid for whatever the tests before it had not compiled yet.
+
+A stamp (a hash of the sources of ``nmkane_core``, ``backend``, ``web`` and this file, Python's and
+numba's versions) marks a warmed cache: a second run with nothing changed skips the warm-up.
+Tests that need an empty cache on purpose (a first start, a first run) make their own.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import hashlib
+import multiprocessing
+import os
+import sys
+import time
+import traceback
+from importlib.metadata import version
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+# the costliest first, so that two processes finish together (seconds on two cores, empty cache)
+ORDER = ("whipple-bicycle", "appell-hamel", "sliding-particle", "chaplygin-sleigh", "rolling-disk")
+SCIPY_SYSTEMS = ("appell-hamel", "sliding-particle")  # the systems tests run with scipy's integrators
+
+
+def stamp() -> str:
+    """What the warm cache was made from: the sources that generate and load kernels."""
+    h = hashlib.sha256(f"{sys.version}\0numba {version('numba')}\0".encode())
+    for package in ("nmkane_core", "backend", "web"):
+        for path in sorted((ROOT / package).rglob("*.py")):
+            h.update(str(path.relative_to(ROOT)).encode() + b"\0" + path.read_bytes())
+    h.update(Path(__file__).read_bytes())
+    return h.hexdigest()[:24]
+
+
+def warm_system(name: str) -> tuple[str, float]:
+    """In a child process: load, or compile once, what the tests use of system ``name``."""
+    t0 = time.perf_counter()
+    from nmkane_core.kernel.visuals import compile_visuals
+    from nmkane_core.run.registry import get_system
+    from nmkane_core.run.simulate import simulate
+
+    system = get_system(name)
+    for variant in system.variants:
+        base = {"system": name, system.option: variant, "t_final": 0.05}
+        for integrator in ("kutta-merson", "kutta-merson-adaptive"):
+            for projection in ("none", "yoon"):
+                simulate({**base, "integrator": integrator, "projection": projection}, progress=False)
+    if name in SCIPY_SYSTEMS:
+        simulate({"system": name, "integrator": "rk45", "t_final": 0.05}, progress=False)
+    compile_visuals(system)
+    try:
+        from web import matrices
+    except ImportError:  # the web extra is not installed: its tests skip
+        return name, time.perf_counter() - t0
+    for variant in system.variants:
+        matrices.panel(name, variant)
+    return name, time.perf_counter() - t0
+
+
+def _child_init() -> None:
+    # one compiling process per core: the loop's background precompile child would be a third
+    os.environ["NMKANE_PRECOMPILE"] = "0"
+    os.environ.setdefault("MPLBACKEND", "Agg")
+    sys.path.insert(0, str(ROOT))
+
+
+def _builtin_names() -> list[str]:
+    from nmkane_core.run.registry import system_names
+
+    names = list(system_names())
+    return sorted(names, key=lambda n: ORDER.index(n) if n in ORDER else len(ORDER))
+
+
+def warm(root: Path, processes: int, log) -> bool:
+    """Warm the cache at ``root`` (the stamp says whether it is) with ``processes`` processes;
+    ``log(line)`` hears what was done.  Returns True when the cache is warm."""
+    folder = root / "tests-warm"
+    folder.mkdir(parents=True, exist_ok=True)
+    mark = folder / stamp()
+    if mark.exists():
+        return True
+    import fcntl
+
+    with open(folder / ".lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # another test run warming the same cache: wait for it
+        if mark.exists():
+            return True
+        t0 = time.perf_counter()
+        names = _builtin_names()
+        failed, took = [], {}
+        ctx = multiprocessing.get_context("spawn")
+        with concurrent.futures.ProcessPoolExecutor(processes, mp_context=ctx, initializer=_child_init) as pool:
+            futures = {pool.submit(warm_system, n): n for n in names}
+            for future in concurrent.futures.as_completed(futures):
+                try:
+                    name, seconds = future.result()
+                    took[name] = seconds
+                except Exception:  # the tests of that system fail and say why
+                    failed.append(futures[future])
+                    log(f"warming {futures[future]} failed:\n{traceback.format_exc()}")
+        detail = ", ".join(f"{n} {took[n]:.0f} s" for n in names if n in took)
+        log(f"kernel cache {root} warmed in {time.perf_counter() - t0:.0f} s by {processes} processes ({detail})")
+        if not failed:
+            mark.touch()  # (stamps of other sources stay: worktrees of other branches share a cache)
+        return not failed

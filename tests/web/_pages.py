@@ -1,0 +1,54 @@
+"""Helpers of the browser tests: screenshots as arrays, and waits for what the page shows (a
+deadline and a condition, never a fixed time)."""
+
+from __future__ import annotations
+
+import io
+import time
+
+import numpy as np
+
+#: screenshot style: the notifications (SwiftShader's "Software WebGL rendering detected", shown
+#: whenever it pleases) left out of the picture
+HIDE_TOASTS = ".mantine-Notification-root, .mantine-Notifications-root { visibility: hidden !important; }"
+
+
+def png(data: bytes) -> np.ndarray:
+    """A screenshot as an RGB array of floats in [0, 1]."""
+    from matplotlib.image import imread
+
+    return imread(io.BytesIO(data), format="png")[..., :3]
+
+
+def settled(shoot, timeout: float = 60.0) -> np.ndarray:
+    """``shoot()`` (a screenshot, PNG bytes) once two in a row are the same: the page has drawn
+    what it was sent.  A page that keeps changing fails after ``timeout`` s."""
+    deadline = time.monotonic() + timeout
+    last = png(shoot())
+    while True:
+        time.sleep(0.1)  # between two looks, not a wait for something
+        now = png(shoot())
+        if now.shape == last.shape and np.array_equal(now, last):
+            return now
+        assert time.monotonic() < deadline, f"the page did not settle within {timeout:g} s"
+        last = now
+
+
+def until(cond, timeout: float = 60.0, what: str = "condition") -> None:
+    """Poll ``cond()`` until true, within a deadline."""
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, f"{what}: not within {timeout:g} s"
+        time.sleep(0.05)
+
+
+def new_session(app, open_page):
+    """The page ``open_page()`` opens and its session: ``(session, page)`` (the pages closed
+    before may still have their sessions for a moment)."""
+    with app._lock:
+        before = set(app.sessions)
+    page = open_page()
+    until(lambda: set(app.sessions) - before, 30, "the page's session")  # stored once its page is built
+    with app._lock:
+        session = app.sessions[next(iter(set(app.sessions) - before))]
+    return session, page
