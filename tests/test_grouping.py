@@ -1,0 +1,11 @@
+"""The test run's grouping under xdist works (``make test``: ``--dist loadgroup``, groups set in
+tests/conftest.py): with pytest 9.2 and pytest-xdist 3.8 the groups were silently ignored
+(pytest-xdist #1386) and two Chromiums raced on two cores."""
+
+import pytest
+
+
+def test_a_module_is_one_group_under_xdist(request, pytestconfig):
+    if not pytestconfig.getvalue("loadgroup"):
+        pytest.skip("not under xdist --dist loadgroup")
+    assert request.node.nodeid.endswith("@tests/test_grouping.py"), request.node.nodeid
