@@ -112,13 +112,25 @@ def make_workspace():
     w = np.zeros(WSIZE)
     w[ORC] = 1.0
     w[ORC + 1] = 1.0
+    if ROBUST:
+        _solve_defaults(w)
     return w
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T.
-    With w[OFLAG] set, J2 is copied to w[OJ2C] before its LU (for :func:`_forces`)."""
+    With w[OFLAG] set, J2 is copied to w[OJ2C] before its LU (for :func:`_forces`).
+    Kernels with the rank-robust solve run ``_rhs_robust`` (source/robust.py) instead."""
+    if ROBUST:
+        _rhs_robust(t, x, p, G, G1, G2, K, row, w)  # INLINE
+    else:
+        _rhs_paper(t, x, p, G, G1, G2, K, row, w)  # INLINE
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _rhs_paper(t, x, p, G, G1, G2, K, row, w):
+    """The paper's solve with the declared partition (pasted into ``rhs_ws``)."""
     terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (kernel.inline.inline_marked)
     for i in range(N):
         K[row, i] = w[OQD + i]
@@ -227,8 +239,9 @@ def _reduced_solve(w, K, row):
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
-def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
-    """Fill the stage derivatives K[i] of one explicit RK step; return a status code."""
+def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log):
+    """Fill the stage derivatives K[i] of one explicit RK step; return a status code.
+    (``order``, ``solve_log``: the rank-robust solve's partition and records, kernels with ROBUST.)"""
     S = TC.shape[0]
     n2 = 2 * N
     for i in range(S):
@@ -245,6 +258,10 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
         if not math.isfinite(total):  # a stage left the finite numbers: divergence
             return STATUS_DIVERGED
         rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)  # INLINE
+        if ROBUST:
+            code = _robust_outcome(t + TC[i] * h, h, w, stats, order, solve_log)
+            if code != STATUS_OK:
+                return code
         rc0 = w[ORC]
         rc1 = w[ORC + 1]
         if rc0 <= rcond_min or rc1 <= rcond_min:
@@ -262,6 +279,37 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
             _forces(w, K, 0)
             w[OFLAG] = 0.0
     return STATUS_OK
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _robust_outcome(t, h, w, stats, order, solve_log):
+    """After an evaluation of a kernel with the rank-robust solve (a stage of a step ``h``): its
+    counters into ``stats``, a change of solve or partition into the solve log, and the status
+    it ends a run with (Q not positive definite, J u̇ = c inconsistent, the Baumgarte terms
+    carrying more than ROBUST_LEAVE_KE of the kinetic energy in a step; not finite terms:
+    diverged)."""
+    st = w[OSV + SV_STATUS]
+    if st != 0.0 and not _finite_work(w):
+        return STATUS_DIVERGED
+    share = h * h * w[OSV + SV_STAB]
+    if share > stats[STATS_MAX_STAB]:
+        stats[STATS_MAX_STAB] = share
+    if w[OSV + SV_USED] == 1.0:
+        stats[STATS_ROBUST_EVALS] += 1.0
+        if w[OSV + SV_PIVOT] < stats[STATS_MIN_PIVOT]:
+            stats[STATS_MIN_PIVOT] = w[OSV + SV_PIVOT]
+        if w[OSV + SV_RANK] < stats[STATS_MIN_RANK]:
+            stats[STATS_MIN_RANK] = w[OSV + SV_RANK]
+    if w[OSV + SV_CHANGED] != 0.0 or st == 2.0:
+        _log_solve(t, w, stats, order, solve_log)
+    code = STATUS_OK
+    if st == 1.0:
+        code = STATUS_Q_SINGULAR
+    elif st == 2.0:
+        code = STATUS_INCONSISTENT
+    elif share > ROBUST_LEAVE_KE:
+        code = STATUS_LEFT_CONSTRAINTS
+    return code
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -302,6 +350,15 @@ def _forces(w, K, krow):
     F_c = Jᵀλ into w[OLAM], from the dependent rows (F_c)_D = J2ᵀλ (exact: the independent
     rows (F_c)_I = J1ᵀλ follow from A2 F_c = 0, the nonminimal equations).  u̇ is the run's
     own, the Baumgarte terms included."""
+    if ROBUST:
+        _forces_robust(w, K, krow)
+    else:
+        _forces_paper(w, K, krow)
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _forces_paper(w, K, krow):
+    """``_forces`` of the paper's solve with the declared partition."""
     for r in range(N):
         acc = -w[OP + r]
         for c in range(N):
@@ -332,6 +389,22 @@ def _store_forces(w, row, out_F, out_L):
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _project_step(t, x, p, w, ps, proj, stats, viol, perm):
+    """The post-step projection of an accepted state; its status (a singular correction
+    matrix; with the rank-robust solve also: the motion left the constraints)."""
+    code = project(t, x, p, w, ps, proj, stats[STATS_E0], viol, perm)
+    if ROBUST:
+        if w[OSV + SV_LEAVE] > stats[STATS_MAX_LEAVE]:
+            stats[STATS_MAX_LEAVE] = w[OSV + SV_LEAVE]
+    status = STATUS_OK
+    if code == 1:
+        status = STATUS_PROJECTION_FAILED
+    elif code == 2:
+        status = STATUS_LEFT_CONSTRAINTS
+    return status
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
     """Steps k0 … k1−1 of a fixed-step run of ``nsteps`` steps; ``x`` is advanced in place.
 
@@ -348,6 +421,8 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
+    if ROBUST:
+        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order)
     ps = make_projection_scratch()
     perm = PERM.copy()
     forces = out_F.shape[0] > 0
@@ -355,7 +430,7 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
         t = t0 + k * dt
         h = dt if k < nsteps - 1 else t_final - t
         w[OFLAG] = 1.0 if pending >= 0 else 0.0
-        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log)
         if code != STATUS_OK:
             return code, k, row, pending
         if pending >= 0:
@@ -375,8 +450,9 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
             return STATUS_DIVERGED, k, row, pending
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
         if proj is not None:
-            if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
-                return STATUS_PROJECTION_FAILED, k, row, pending
+            code = _project_step(tn, xn, p, w, ps, proj, stats, viol, perm)
+            if code != STATUS_OK:
+                return code, k, row, pending
         E = _record(tn, xn, p, viol, stats, NV)
         if not math.isfinite(E):
             return STATUS_DIVERGED, k, row, pending
@@ -412,6 +488,8 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
+    if ROBUST:
+        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order)
     ps = make_projection_scratch()
     perm = PERM.copy()
     cap = out_t.shape[0]
@@ -427,7 +505,7 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
             h = t_final - t
             last = True
         w[OFLAG] = 1.0 if pending >= 0 else 0.0
-        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log)
         if pending >= 0 and w[OFLAG] == 0.0:  # the first stage came through: the row's forces
             _store_forces(w, pending, out_F, out_L)
             pending = -1
@@ -438,7 +516,26 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
         if code != STATUS_OK and code != STATUS_DIVERGED:
             return code, t, h, row, accepted, attempts, pending
         errsum = 0.0
-        if finite:
+        if finite and ROBUST and proj is not None:
+            # the error estimate without its components along the constraint normals (the
+            # projection's business): source/robust.py _tangent
+            for j in range(n2):
+                acc = 0.0
+                accE = 0.0
+                for i in range(S):
+                    acc += TB[i] * K[i, j]
+                    accE += TE[i] * K[i, j]
+                xn[j] = x[j] + h * acc
+                w[ODX + j] = h * accE
+                if not math.isfinite(xn[j]):
+                    finite = False
+            if finite:
+                _tangent(t + h, xn, p, w, proj)
+                for j in range(n2):
+                    sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
+                    e = w[ODX + j] / sc
+                    errsum += e * e
+        elif finite:
             for j in range(n2):
                 acc = 0.0
                 accE = 0.0
@@ -456,8 +553,9 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
         if err <= 1.0:
             tn = t_final if last else t + h
             if proj is not None:
-                if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
-                    return STATUS_PROJECTION_FAILED, t, h, row, accepted, attempts, pending
+                code = _project_step(tn, xn, p, w, ps, proj, stats, viol, perm)
+                if code != STATUS_OK:
+                    return code, t, h, row, accepted, attempts, pending
             E = _record(tn, xn, p, viol, stats, NV)
             if not math.isfinite(E):
                 return STATUS_DIVERGED, t, h, row, accepted, attempts, pending
