@@ -55,7 +55,8 @@ class Catalog(BaseModel):
 
     systems: list[dict] = Field(
         description="name, parameters with defaults and ranges, models or "
-        "formulations, coordinates and speeds, constraint names, defaults, what to try, the stability "
+        "formulations, coordinates and speeds, constraint names, the forces at points each model declares "
+        "(forces: model → name, components, route, what it acts on), defaults, what to try, the stability "
         "sweep a system declares (or null)"
     )
     integrators: dict[str, str] = Field(description="name: description")

@@ -61,6 +61,7 @@ def encode_document(run: Run, run_id: str, summary: dict | None = None) -> bytes
         "violation": run.violation,
         "constraint_forces": run.constraint_forces,
         "multipliers": run.multipliers,
+        "point_forces": run.point_forces,
         "summary": summary,
     }
     return orjson.dumps(doc, option=orjson.OPT_SERIALIZE_NUMPY)

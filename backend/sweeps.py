@@ -34,6 +34,7 @@ from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
 
 from nmkane_core.errors import InputError
+from nmkane_core.run.registry import system_names
 from nmkane_core.sweep.executors import _Executor, run_batch
 from nmkane_core.sweep.output import columns as output_columns
 from nmkane_core.sweep.runner import constraint_columns, run_sweep
@@ -272,7 +273,8 @@ def create_sweep(body: SweepRequest, sweeps: Sweeps, settings: AppSettings):
     except InputError as e:
         return _unprocessable(e)
     sweep_id = secrets.token_urlsafe(12)
-    sweeps.store.create(sweep_id, base["system"], len(spec), body.model_dump(mode="json"), columns)
+    system = base.get("system") or system_names()[0]  # left out: the catalogue's first, as a run
+    sweeps.store.create(sweep_id, system, len(spec), body.model_dump(mode="json"), columns)
     sweeps.queue.submit(sweeps.run, sweep_id, base, spec)
     return JSONResponse(
         {"id": sweep_id, "status": "queued", "total": len(spec)},

@@ -249,6 +249,11 @@ class RunSummary(BaseModel):
     max_abs_multiplier: dict[str, float] = Field(
         default_factory=dict, description="largest |λ| of each constraint over the output rows (empty: not asked for)"
     )
+    max_abs_point_force: dict[str, float] = Field(
+        default_factory=dict,
+        description="largest magnitude |R| of each physical force the system declares at a point, over the output "
+        "rows (empty: none declared, or not asked for)",
+    )
     min_rcond: dict[str, float] = Field(
         default_factory=dict, description="smallest reciprocal condition estimate of J2 and T"
     )
@@ -285,5 +290,11 @@ class RunResult(BaseModel):
         default_factory=dict,
         description="λ of each constraint with F_c = Jᵀλ, J = ∂[φ; ψ̇]/∂u (depends on how a constraint is "
         "written; F_c does not), one value per output row",
+    )
+    point_forces: dict[str, list[float]] = Field(
+        default_factory=dict,
+        description="the physical forces the system declares at points (a contact force, a blade force, a thread "
+        "tension), by NAME.LABEL (e.g. contact.normal): each force's components along its declared axes, N, one value "
+        "per output row; which forces, where and by which route: GET /api/systems",
     )
     summary: RunSummary

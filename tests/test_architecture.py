@@ -52,7 +52,7 @@ def test_generic_core_code_names_no_system():
         rel = path.relative_to(ROOT / "nmkane_core")
         if rel.parts[0] in NAMED_SYSTEMS_ALLOWED:
             continue
-        text = path.read_text(encoding="utf-8").lower()
+        text = path.read_text(encoding="utf-8").lower().replace("appell–chetaev", "")  # a name of mechanics
         for w in sorted(words):
             for m in re.finditer(re.escape(w), text):
                 found.append(f"{rel}:{text.count(chr(10), 0, m.start()) + 1}: {w!r}")

@@ -1,28 +1,32 @@
 """The control panel of one browser: GUI handles built from data, and their guard.
 
 A system's simulation controls are described by :class:`Control` rows (what
-:func:`web.generic.generic_controls` makes from a system's declaration);
-:class:`ControlPanel` turns them into viser handles, reads them back into the core's
-settings (:func:`settings_from`), resets them to their defaults, and guards every
-slider: a value that is not finite or lies outside the slider's range (a websocket
-message can carry either) is refused with a message in the status panel and the slider
-goes back to its last good value.
+:func:`web.generic.generic_controls` makes from a system's declaration); their ``field`` is
+the run settings' own name (``dt``, ``gamma``, ``params.m``, ``initial.u1`` — the names of
+the REST API and of page links).  :class:`ControlPanel` turns them into handles: a number
+becomes a :class:`~web.numbers.NumberField` (a text box read exactly, a slider, a message
+line), a choice a viser dropdown; it reads them back into the core's settings
+(:func:`settings_from`) and collects refusals for the status line.
 """
 
 from __future__ import annotations
 
 import math
+import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from .expressions import parse
+from .numbers import Deadlines, ExpressionField, NumberField
+
 INTEGRATORS = ("kutta-merson", "rk4", "kutta-merson-adaptive", "rk45", "dop853", "radau")
-DT_MARKS = ((-4.0, "1e-4"), (-3.0, "1e-3"), (-2.0, "0.01"), (-1.0, "0.1"))
-LOG_DT_RANGE = (-4.0, math.log10(0.2), 0.05)
+DT_RANGE = (1e-4, 0.2)  # s, the step size's slider (log scale)
+DT_STEP = 0.05  # decades per slider step
 TARGET_ROWS = 4000  # output rows kept per run for the animation (`every`)
 
 
 def dt_of(log_dt: float) -> float:
-    """The step size of the log-scale slider, rounded to two significant digits."""
+    """The step size at a position of the log-scale slider, rounded to two significant digits."""
     return float(f"{10.0 ** float(log_dt):.2g}")
 
 
@@ -34,109 +38,145 @@ def every_of(dt: float, t_final: float) -> int:
 class Control:
     """One simulation control.
 
-    ``attr`` names the handle on the session (``app.gamma``); ``field`` says where its value
-    goes: ``"variant"`` (the system's model/formulation), ``"integrator"``, ``"gamma"``,
-    ``"gamma1"``, ``"gamma2"``, ``"log_dt"``, ``"t_final"``, ``"initial.<name>"``,
-    ``"params.<name>"``, ``"logparams.<name>"`` (a log10 slider), ``"projection"``, or
-    ``"option.<name>"`` (a display option of the view, e.g. compare).
-    ``kind`` is ``"slider"``, ``"dropdown"`` or ``"checkbox"``."""
+    ``attr`` names it uniquely on the page; ``field`` says where its value goes, in the run
+    settings' names: ``"variant"`` (the system's model/formulation), ``"integrator"``,
+    ``"projection"``, ``"gamma"``, ``"gamma1"``, ``"gamma2"``, ``"dt"``, ``"t_final"``,
+    ``"initial.<name>"``, ``"params.<name>"``, or ``"option.<name>"`` (a display option of
+    the view, e.g. compare).  ``kind`` is ``"number"``, ``"dropdown"`` or ``"checkbox"``.
+    A number's ``min``, ``max`` and ``default`` are in its own units (``unit``), also on a
+    ``log`` slider, whose ``step`` is in decades (then a dragged value keeps ``digits``
+    significant digits)."""
 
     attr: str
     label: str
     field: str
     default: object
-    kind: str = "slider"
+    kind: str = "number"
     min: float = 0.0
     max: float = 1.0
     step: float = 0.1
+    log: bool = False
+    unit: str = ""
+    digits: int = 3
     options: tuple = ()
-    marks: tuple | None = None
     hint: str | None = None
 
 
-def log_dt_control(attr: str, label: str, default: float, hint: str | None = None) -> Control:
-    lo, hi, step = LOG_DT_RANGE
-    return Control(attr, label, "log_dt", default, min=lo, max=hi, step=step, marks=DT_MARKS, hint=hint)
+def dt_control(attr: str, default: float, hint: str | None = None) -> Control:
+    lo, hi = DT_RANGE
+    return Control(attr, "Δt [s]", "dt", default, min=lo, max=hi, step=DT_STEP, log=True, unit="s", digits=2, hint=hint)
 
 
 class ControlPanel:
-    """The handles of one view's controls, their defaults, and the guard of every slider.
+    """The handles of the page's controls and the refusals they report.
 
-    ``refuse(text)`` shows a refusal in the status panel; ``changed()`` is called after a
-    simulation control took a good value."""
+    ``status()`` is called whenever the set of refusals changes (the status line shows
+    them under the run's own status)."""
 
-    def __init__(self, gui, refuse: Callable[[str], None]):
+    def __init__(self, gui, status: Callable[[], None], lock: threading.RLock | None = None):
         self.gui = gui
-        self._refuse = refuse
-        self._good: dict[int, float] = {}  # id(handle) -> last good value
-        self._restoring: set[int] = set()  # handles being written by the app itself
+        self._status = status
+        self.lock = lock or threading.RLock()
+        self.deadlines = Deadlines()
+        self.refusals: dict[int, str] = {}  # id(field) -> its refusal
+        self.notes: dict[str, list[str]] = {}  # refusals that belong to no box
+        self.fields: list[NumberField | ExpressionField] = []
+        self._quiet: set[int] = set()  # handles being written by the app itself
 
     # ---------------------------------------------------------------- building
     def add(self, c: Control):
         g = self.gui
         if c.kind == "dropdown":
-            return g.add_dropdown(c.label, options=c.options, initial_value=c.default)
+            return g.add_dropdown(c.label, options=c.options, initial_value=c.default, hint=c.hint)
         if c.kind == "checkbox":
-            return g.add_checkbox(c.label, initial_value=c.default)
-        kw = {"marks": c.marks} if c.marks else {}
-        if c.hint:
-            kw["hint"] = c.hint
-        return self.slider(c.label, min=c.min, max=c.max, step=c.step, initial_value=c.default, **kw)
-
-    def slider(self, label: str, **kw):
-        h = self.gui.add_slider(label, **kw)
-        self._good[id(h)] = float(h.value)
-        return h
-
-    # ---------------------------------------------------------------- the guard
-    def on_change(self, handle, fn: Callable[[], None]) -> None:
-        """Call ``fn()`` when the handle takes a new good value (sliders are guarded)."""
-        if id(handle) not in self._good:
-            handle.on_update(lambda _: None if id(handle) in self._restoring else fn())
-            return
-
-        def update(_event) -> None:
-            if id(handle) in self._restoring:
-                return
-            if self.accept(handle):
-                fn()
-
-        handle.on_update(update)
-
-    def accept(self, handle) -> bool:
-        """Keep a good slider value; refuse a bad one and put the last good value back."""
-        v = handle.value
-        try:
-            x = float(v)
-        except (TypeError, ValueError):
-            x = math.nan
-        lo, hi = float(handle.min), float(handle.max)
-        if math.isfinite(x) and lo - 1e-9 * (1 + abs(lo)) <= x <= hi + 1e-9 * (1 + abs(hi)):
-            self._good[id(handle)] = x
-            return True
-        good = self._good[id(handle)]
-        why = "not a finite number" if not math.isfinite(x) else "outside the slider's range"
-        self._refuse(
-            f"**input refused** — {handle.label.strip()} = {v!r}: {why} "
-            f"(allowed: {lo:g} … {hi:g}); back to {good:g}  \nthe previous motion keeps playing"
+            return g.add_checkbox(c.label, initial_value=c.default, hint=c.hint)
+        if c.kind == "text":  # a plotted quantity: an expression of the names in options
+            names = c.options
+            f = ExpressionField(
+                g,
+                c.label,
+                str(c.default),
+                lambda text: parse(text, names),
+                hint=c.hint,
+                deadlines=self.deadlines,
+                report=self._report,
+            )
+            self.fields.append(f)
+            return f
+        assert isinstance(c.default, (int, float))
+        return self.number(
+            c.label, float(c.default), c.min, c.max, c.step, log=c.log, digits=c.digits, unit=c.unit, hint=c.hint
         )
-        self.set_quietly(handle, good)
-        return False
+
+    def number(self, label: str, default: float, lo: float, hi: float, step: float, **kw) -> NumberField:
+        f = NumberField(
+            self.gui, label, default, lo, hi, step, deadlines=self.deadlines, report=self._report, lock=self.lock, **kw
+        )
+        self.fields.append(f)
+        return f
+
+    # ---------------------------------------------------------------- refusals
+    def refuse(self, field: NumberField | ExpressionField, text: str) -> None:
+        """Show a refusal beside a field (a link's value, the core's check of a run)."""
+        field._refuse(text)
+
+    def _report(self, field, text: str | None) -> None:
+        with self.lock:
+            if text is None:
+                self.refusals.pop(id(field), None)
+            else:
+                self.refusals[id(field)] = text
+        self._status()
+
+    def note(self, key: str, lines: list[str]) -> None:
+        """Refusals that belong to no box (a link's unknown name, a choice it does not offer)."""
+        with self.lock:
+            if not lines and key not in self.notes:
+                return
+            self.notes[key] = [f"**input refused** — {line}" for line in lines]
+            if not lines:
+                del self.notes[key]
+        self._status()
+
+    def refusal_lines(self) -> list[str]:
+        with self.lock:
+            return [*self.refusals.values(), *(line for lines in self.notes.values() for line in lines)]
+
+    def clear_refusals(self) -> None:
+        for f in self.fields:
+            f._clear()
+
+    # ---------------------------------------------------------------- values
+    def on_change(self, handle, fn: Callable[[], None]) -> None:
+        """Call ``fn()`` when the handle takes a new good value."""
+        if isinstance(handle, (NumberField, ExpressionField)):
+            handle.on_change(fn)
+        else:
+            handle.on_update(lambda _: None if id(handle) in self._quiet else fn())
 
     def set_quietly(self, handle, value) -> None:
         """Set a value without running the actions of its callbacks."""
-        self._restoring.add(id(handle))
+        if isinstance(handle, (NumberField, ExpressionField)):
+            handle.set_quietly(value)
+            return
+        self._quiet.add(id(handle))
         try:
             handle.value = value
         finally:
-            self._restoring.discard(id(handle))
-        if id(handle) in self._good:
-            self._good[id(handle)] = float(handle.value)
+            self._quiet.discard(id(handle))
 
-    def value(self, handle):
-        """A control's value; a slider's last good one (a refused value may still sit in the
-        handle while its callback is on the way)."""
-        return self._good.get(id(handle), handle.value)
+    @staticmethod
+    def value(handle):
+        """A control's value (a number field's last good one)."""
+        return handle.value
+
+    def submit(self) -> None:
+        """Enter in a form: apply every box whose typing has not been applied yet."""
+        for f in self.fields:
+            f.submit()
+
+    def close(self) -> None:
+        self.deadlines.close()
 
 
 def settings_from(system, controls: dict, read: Callable) -> tuple[dict, dict]:
@@ -145,7 +185,6 @@ def settings_from(system, controls: dict, read: Callable) -> tuple[dict, dict]:
     ``controls`` maps :class:`Control` to its handle; ``read(handle)`` gives its value."""
     s: dict = {"system": system.name}
     options: dict = {}
-    dt = t_final = None
     for c, h in controls.items():
         v = read(h)
         kind, _, name = c.field.partition(".")
@@ -153,19 +192,15 @@ def settings_from(system, controls: dict, read: Callable) -> tuple[dict, dict]:
             s[system.option] = v
         elif kind in ("integrator", "projection"):
             s[kind] = v
-        elif kind in ("gamma", "gamma1", "gamma2"):
+        elif kind in ("gamma", "gamma1", "gamma2", "dt", "t_final"):
             s[kind] = float(v)
-        elif kind == "log_dt":
-            dt = dt_of(v)
-        elif kind == "t_final":
-            t_final = float(v)
         elif kind in ("initial", "params"):
             s.setdefault(kind, {})[name] = float(v)
-        elif kind == "logparams":  # a log-scale slider: its value is log10
-            s.setdefault("params", {})[name] = float(f"{10.0 ** float(v):.6g}")
         elif kind == "option":
             options[name] = v
-    dt = system.default_dt if dt is None else dt
-    t_final = system.default_t_final if t_final is None else t_final
+    dt = float(s.get("dt", system.default_dt))
+    t_final = float(s.get("t_final", system.default_t_final))
+    if not (math.isfinite(dt) and dt > 0):
+        dt = system.default_dt
     s.update(dt=dt, t_final=t_final, every=every_of(dt, t_final), rtol=1e-9, atol=1e-10)
     return s, options

@@ -15,21 +15,193 @@ A *ghost* (``ghost=(r, g, b)``) draws another run of the same system (a compare 
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
 import numpy as np
 
+from nmkane_core.declare import visuals as decl
 from nmkane_core.kernel.built import built
-from nmkane_core.kernel.visuals import AXES, axis_wxyz, compile_visuals, rotation_to_wxyz
+from nmkane_core.kernel.visuals import AXES, CompiledVisuals, Slot, axis_wxyz, compile_visuals, rotation_to_wxyz
 
 from . import geometry as geo
 
 BIG = 1e6  # coordinates are clipped to ±BIG for float32 nodes
 GHOST_OPACITY = 0.35
-SOLID = ("box", "cylinder", "sphere")
 LINE_PX = {"segments": 3.0, "trace": 2.5}  # default line thickness in screen pixels
+Bounds = tuple[np.ndarray, np.ndarray]
 
 
 def _clip(a):
     return np.clip(np.nan_to_num(np.asarray(a, float), nan=0.0), -BIG, BIG)
+
+
+@dataclass
+class Moving:
+    """A node placed at world points that may move with the state: a ball or a label
+    (``how`` "point": at the first point) or line segments (``how`` "segments")."""
+
+    node: Any
+    how: str
+    slot: Slot | None  # into the pose outputs (None: the fallback point, the first coordinates)
+    body: bool = False  # a solid (a ball), not a line or a label: what the camera frames
+
+    def place(self, pts: np.ndarray) -> None:
+        """Put the node at these points (m, 3)."""
+        if self.how == "point":
+            self.node.position = tuple(float(v) for v in pts[0])
+        else:
+            self.node.points = pts.reshape(-1, 2, 3)
+
+
+@dataclass
+class Pen:
+    """Draws the shapes of one scene (the main one, or a ghost in one colour) and keeps what
+    it made that the poses move: the renderers of :data:`RENDERERS` draw with it."""
+
+    scene: Any
+    prefix: str
+    ghost: tuple | None = None
+    moving: list[Moving] = field(default_factory=list)
+    traces: dict[str, tuple[Any, Slot]] = field(default_factory=dict)
+    fixed_points: list[np.ndarray] = field(default_factory=list)  # vertices of fixed surfaces (for the bounds)
+    extents: list[float] = field(default_factory=list)  # sizes of solid shapes (the camera's sense of scale)
+    halves: list[float] = field(default_factory=list)  # half sizes of the solids (what a body's view pads)
+
+    def path(self, s: decl.Shape) -> str:
+        parent = f"{self.prefix}/frames/{s.frame}" if s.frame else f"{self.prefix}/world"
+        return f"{parent}/{s.name}"
+
+    def color(self, s: decl.Shape) -> tuple:
+        return tuple(s.color) if self.ghost is None else self.ghost
+
+    def style(self, s: decl.Shape) -> dict:
+        """The opacity keyword (translucent ghosts; nothing for an opaque shape)."""
+        op = s.opacity if self.ghost is None else min(s.opacity, GHOST_OPACITY)
+        return {"opacity": op} if op < 1 else {}
+
+    def lines(self, name: str, color: tuple, px: float):
+        return self.scene.add_line_segments(
+            name, points=np.zeros((1, 2, 3), np.float32), colors=color, thickness=px, thickness_units="screen"
+        )
+
+
+# ------------------------------------------------------------------ one renderer per kind
+def _box(pen: Pen, s: decl.Box) -> None:
+    size = tuple(float(abs(v)) for v in s.size)
+    pen.extents += size
+    pen.halves.append(max(size) / 2)
+    pen.scene.add_box(pen.path(s), color=pen.color(s), dimensions=size, position=tuple(s.offset), **pen.style(s))
+
+
+def _cylinder(pen: Pen, s: decl.Cylinder) -> None:
+    pen.extents += [abs(s.radius), abs(s.length)]
+    pen.halves.append(max(abs(s.radius), abs(s.length) / 2))
+    pen.scene.add_cylinder(
+        pen.path(s),
+        radius=abs(s.radius),
+        height=abs(s.length),
+        color=pen.color(s),
+        wxyz=axis_wxyz(s.axis),
+        position=tuple(s.offset),
+        radial_segments=48,
+        **pen.style(s),
+    )
+
+
+def _sphere(pen: Pen, s: decl.Sphere) -> None:
+    pen.extents.append(abs(s.radius))
+    pen.halves.append(abs(s.radius))
+    node = pen.scene.add_icosphere(
+        pen.path(s), radius=abs(s.radius), color=pen.color(s), position=tuple(s.offset), **pen.style(s)
+    )
+    if s.at is not None:
+        pen.moving.append(Moving(node, "point", s.at, body=True))
+
+
+def _rod(pen: Pen, s: decl.Rod) -> None:
+    p, q = np.asarray(s.start, float), np.asarray(s.end, float)
+    length = float(np.linalg.norm(q - p))
+    t = abs(s.thickness)
+    pen.scene.add_box(
+        pen.path(s),
+        color=pen.color(s),
+        dimensions=(t, t, max(length, 1e-3)),
+        position=tuple((p + q) / 2),
+        wxyz=geo.quat_z_to(q - p) if length > 0 else (1.0, 0.0, 0.0, 0.0),
+        **pen.style(s),
+    )
+
+
+def _segments(pen: Pen, s: decl.Segments) -> None:
+    node = pen.lines(pen.path(s), pen.color(s), s.thickness or LINE_PX["segments"])
+    pen.moving.append(Moving(node, "segments", s.points))
+
+
+def _trace(pen: Pen, s: decl.Trace) -> None:
+    pen.traces[s.name] = (pen.lines(pen.path(s), pen.color(s), s.thickness or LINE_PX["trace"]), s.point)
+
+
+def _strip(pen: Pen, s: decl.Strip) -> None:
+    path = np.asarray(s.path, float)
+    verts, faces = strip_mesh(path, float(s.width), s.axis)
+    pen.extents.append(float(np.linalg.norm(path.max(0) - path.min(0))) / 2)
+    pen.scene.add_mesh_simple(
+        pen.path(s), verts, faces, color=pen.color(s), side="double", cast_shadow=False, **pen.style(s)
+    )
+    pen.fixed_points.append(verts)
+
+
+def _label(pen: Pen, s: decl.Label) -> None:
+    if pen.ghost is not None:
+        return  # one name per part is enough
+    if s.at is not None:
+        node = pen.scene.add_label(pen.path(s), s.text, anchor="bottom-left")
+        pen.moving.append(Moving(node, "point", s.at))
+    else:  # on a frame: moves with it
+        pen.scene.add_label(pen.path(s), s.text, position=tuple(s.offset), anchor="bottom-left")
+
+
+def _ground(pen: Pen, s: decl.Ground, width: float = 200.0, infinite: bool = True) -> None:
+    pen.scene.add_grid(
+        f"{pen.prefix}/ground",
+        width=width,
+        height=width,
+        plane="xy",
+        cell_size=0.5,
+        section_size=2.0,
+        cell_color=(205, 208, 200),
+        section_color=(150, 155, 145),
+        plane_color=tuple(s.color),
+        plane_opacity=0.6,
+        shadow_opacity=0.25,
+        infinite_grid=infinite,
+        fade_distance=120.0,
+        position=(0.0, 0.0, float(s.height)),
+    )
+
+
+RENDERERS: dict[type, Callable[[Pen, Any], None]] = {
+    decl.Box: _box,
+    decl.Cylinder: _cylinder,
+    decl.Sphere: _sphere,
+    decl.Rod: _rod,
+    decl.Segments: _segments,
+    decl.Trace: _trace,
+    decl.Strip: _strip,
+    decl.Label: _label,
+    decl.Ground: _ground,
+}
+
+
+def draw(pen: Pen, cv: CompiledVisuals, sizes: np.ndarray) -> None:
+    """Every declared shape, by its kind's renderer (a ghost leaves out what does not move)."""
+    for cs in cv.shapes:
+        if pen.ghost is not None and cs.fixed:
+            continue  # drawn once, by the main scene
+        shape = cs.resolve(sizes)
+        RENDERERS[type(shape)](pen, shape)
 
 
 class DeclaredScene:
@@ -46,18 +218,23 @@ class DeclaredScene:
             self.prefix = f"/sys/{system.name}/ghost{index}"
             self.root = scene.add_frame(self.prefix, show_axes=False, visible=True)
         self.compiled = compile_visuals(system)
+        self.pen = Pen(scene, self.prefix, ghost)
         self.frames: dict = {}  # frame name -> node
-        self.dynamic: list = []  # (node, kind, point indices)
-        self.traces: dict = {}
-        self.sizes_for = None
+        self.sizes_for: tuple | None = None
         self.frame_poses: dict = {}  # frame name -> (positions (n,3), wxyz (n,4))
         self.points: list[np.ndarray] = []
-        self.rows: list[np.ndarray] = []
-        self.moving: list[bool] = []
+        self.rows: list[np.ndarray] = []  # per moving node: its points over the run (n, m, 3)
+        self.moves: list[bool] = []
         self.shown: int | None = None  # the output row the nodes show
         self.extent = 0.5  # a length of the system itself: its largest shape (m)
-        self.fixed_points: list[np.ndarray] = []  # vertices of fixed surfaces (for the bounds)
-        self.bounds_ = None
+        self.half = 0.25  # half the size of its largest solid (m)
+        self.bounds_: Bounds | None = None
+        self.tag_node: Any = None  # a label naming a ghost, when it rides on a moving part
+        self.tag_rows: np.ndarray | None = None
+
+    @property
+    def moving(self) -> list[Moving]:
+        return self.pen.moving
 
     # ---------------------------------------------------------------- geometry
     def shape(self, params: dict) -> None:
@@ -66,186 +243,69 @@ class DeclaredScene:
         if key == self.sizes_for:
             return
         self.sizes_for = key
-        sc, pre = self.scene, self.prefix
+        self.pen = Pen(self.scene, self.prefix, self.ghost)
         cv = self.compiled
-        self.dynamic, self.traces, self.fixed_points = [], {}, []
-        if cv is None and self.ghost is not None:
-            node = sc.add_icosphere(f"{pre}/world/point", radius=0.05, color=self.ghost, opacity=GHOST_OPACITY)
-            self.dynamic.append((node, "point", [0]))
-            return
         if cv is None:
-            sc.add_grid(
-                f"{pre}/ground",
-                width=40.0,
-                height=40.0,
-                plane="xy",
-                cell_size=0.5,
-                section_size=2.0,
-                plane_color=(232, 236, 226),
-                plane_opacity=0.5,
-                shadow_opacity=0.2,
-            )
-            node = sc.add_icosphere(f"{pre}/world/point", radius=0.05, color=(200, 80, 40))
-            self.dynamic.append((node, "point", [0]))
-            self.traces["trace"] = sc.add_line_segments(
-                f"{pre}/world/trace",
-                points=np.zeros((1, 2, 3), np.float32),
-                colors=(214, 48, 39),
-                thickness=2.0,
-                thickness_units="screen",
-            )
+            self._fallback()
             return
-        sizes = cv.sizes(params)
-        self.extent = self._extent(cv, sizes)
         for name in cv.frames:
-            self.frames[name] = sc.add_frame(f"{pre}/frames/{name}", show_axes=False)
-        for s in cv.shapes:
-            i, n = s["size"]
-            size = sizes[i : i + n]
-            off = tuple(float(v) for v in sizes[s["offset"] : s["offset"] + 3])
-            parent = f"{pre}/frames/{s['frame']}" if s["frame"] else f"{pre}/world"
-            path, color, op = f"{parent}/{s['name']}", tuple(s["color"]), s["opacity"]
-            kind = s["kind"]
-            fixed = kind in ("ground", "strip") or (s["frame"] is None and not s["points"])
-            if self.ghost is not None:
-                if fixed:
-                    continue  # drawn once, by the main scene
-                color, op = self.ghost, min(op, GHOST_OPACITY)
-            kw = {"opacity": op} if op < 1 else {}
-            px = s.get("thickness") or LINE_PX.get(kind, 3.0)
-            if kind == "rod":
-                p = np.array(off)
-                q = np.array([float(v) for v in sizes[s["end"] : s["end"] + 3]])
-                length = float(np.linalg.norm(q - p))
-                t = float(abs(size[0]))
-                sc.add_box(
-                    path,
-                    color=color,
-                    dimensions=(t, t, max(length, 1e-3)),
-                    position=tuple((p + q) / 2),
-                    wxyz=geo.quat_z_to(q - p) if length > 0 else (1.0, 0.0, 0.0, 0.0),
-                    **kw,
-                )
-            elif kind == "label":
-                if self.ghost is None and s["points"]:
-                    node = sc.add_label(path, s.get("text", ""), anchor="bottom-left")
-                    self.dynamic.append((node, "point", s["points"]))
-                elif self.ghost is None:  # on a frame: moves with it
-                    sc.add_label(path, s.get("text", ""), position=off, anchor="bottom-left")
-            elif kind == "strip":
-                verts, faces = strip_mesh(
-                    np.array([[float(v) for v in sizes[j : j + 3]] for j in s["path"]]), float(size[0]), s["axis"]
-                )
-                sc.add_mesh_simple(path, verts, faces, color=color, side="double", cast_shadow=False, **kw)
-                self.fixed_points.append(verts)
-            elif kind == "box":
-                sc.add_box(path, color=color, dimensions=tuple(float(abs(v)) for v in size), position=off, **kw)
-            elif kind == "cylinder":
-                sc.add_cylinder(
-                    path,
-                    radius=float(abs(size[0])),
-                    height=float(abs(size[1])),
-                    color=color,
-                    wxyz=axis_wxyz(s["axis"]),
-                    position=off,
-                    radial_segments=48,
-                    **kw,
-                )
-            elif kind == "sphere":
-                node = sc.add_icosphere(path, radius=float(abs(size[0])), color=color, position=off, **kw)
-                if s["points"]:
-                    self.dynamic.append((node, "point", s["points"]))
-            elif kind == "segments":
-                npairs = len(s["points"]) // 2
-                node = sc.add_line_segments(
-                    path,
-                    points=np.zeros((npairs, 2, 3), np.float32),
-                    colors=color,
-                    thickness=px,
-                    thickness_units="screen",
-                )
-                self.dynamic.append((node, "segments", s["points"]))
-            elif kind == "trace":
-                self.traces[s["name"]] = (
-                    sc.add_line_segments(
-                        path,
-                        points=np.zeros((1, 2, 3), np.float32),
-                        colors=color,
-                        thickness=px,
-                        thickness_units="screen",
-                    ),
-                    s["points"][0],
-                )
-            elif kind == "ground":
-                sc.add_grid(
-                    f"{pre}/ground",
-                    width=200.0,
-                    height=200.0,
-                    plane="xy",
-                    cell_size=0.5,
-                    section_size=2.0,
-                    cell_color=(205, 208, 200),
-                    section_color=(150, 155, 145),
-                    plane_color=color,
-                    plane_opacity=0.6,
-                    shadow_opacity=0.25,
-                    infinite_grid=True,
-                    fade_distance=120.0,
-                    position=(0.0, 0.0, float(size[0])),
-                )
+            self.frames[name] = self.scene.add_frame(f"{self.prefix}/frames/{name}", show_axes=False)
+        draw(self.pen, cv, cv.sizes(params))
+        self.extent = max(self.pen.extents, default=0.5)
+        self.half = max(self.pen.halves, default=0.25)
 
-    @staticmethod
-    def _extent(cv, sizes) -> float:
-        """A length of the system itself (for the camera): its largest solid shape or fixed
-        surface (frame members, rods, are left out: a tall frame is not the thing to frame)."""
-        out = [abs(float(v)) for s in cv.shapes if s["kind"] in SOLID for v in sizes[s["size"][0] : sum(s["size"])]]
-        for s in cv.shapes:
-            if s["kind"] == "strip":
-                pts = np.array([sizes[j : j + 3] for j in s["path"]])
-                out.append(float(np.linalg.norm(pts.max(0) - pts.min(0))) / 2)
-        return max(out, default=0.5)
+    def _fallback(self) -> None:
+        """A system without visuals: a ball at its first coordinates (with a ground and its trace)."""
+        pen, pre = self.pen, self.prefix
+        color = (200, 80, 40) if self.ghost is None else self.ghost
+        kw = {} if self.ghost is None else {"opacity": GHOST_OPACITY}
+        node = self.scene.add_icosphere(f"{pre}/world/point", radius=0.05, color=color, **kw)
+        pen.moving.append(Moving(node, "point", None, body=True))
+        if self.ghost is None:
+            _ground(pen, decl.Ground(name="ground"), width=40.0, infinite=False)
+            pen.traces["trace"] = (pen.lines(f"{pre}/world/trace", (214, 48, 39), 2.0), Slot(0, (3,)))
 
     # ---------------------------------------------------------------- poses
     def install(self, run, params: dict) -> None:
         """Poses of every row of a run (and the traces)."""
         self.shown = None
         self.shape(params)
-        states = dict(run.state)
         cv = self.compiled
         if cv is None:
             names = list(built(self.system).coordinates)[:3]
-            cols = [states[n] for n in names] + [np.zeros(len(run.t))] * (3 - len(names))
-            pts = _clip(np.column_stack(cols))
-            self.points = [pts]
+            cols = [run.state[n] for n in names] + [np.zeros(len(run.t))] * (3 - len(names))
+            out = list(_clip(np.column_stack(cols)).T)
             self.frame_poses = {}
-            if "trace" in self.traces:
-                self.traces["trace"].points = geo.segments(pts[geo.decimate(len(pts), 2000)])
-            self.bounds_ = (pts.min(0), pts.max(0))
-            return
-        frames, out = cv.frame_poses(states, params)
-        self.frame_poses = {k: (_clip(p), rotation_to_wxyz(np.nan_to_num(R))) for k, (p, R) in frames.items()}
+        else:
+            frames, out = cv.frame_poses(dict(run.state), params)
+            self.frame_poses = {k: (_clip(p), rotation_to_wxyz(np.nan_to_num(R))) for k, (p, R) in frames.items()}
         self.points = out
-        lo, hi = [], []
-        for pos, _ in self.frame_poses.values():
-            lo.append(pos.min(0)), hi.append(pos.max(0))
-        for node, i in self.traces.values():
-            pts = _clip(cv.point(out, i))
+        extremes = [pos for pos, _ in self.frame_poses.values()]
+        for node, slot in self.pen.traces.values():
+            pts = _clip(slot.rows(out))
             node.points = geo.segments(pts[geo.decimate(len(pts), 2000)])
-            lo.append(pts.min(0)), hi.append(pts.max(0))
-        self.rows, self.moving = [], []  # per shape at points: its points over the run (n, m, 3)
-        for node, kind, idx in self.dynamic:  # balls at points, segment ends (a thread's top)
-            pts = _clip(np.stack([cv.point(out, i) for i in idx], axis=1)).astype(np.float32)
-            moving = bool(np.any(pts != pts[:1]))
+            extremes.append(pts)
+        extremes += self._install_moving(out)
+        if not extremes:  # nothing moves: the fixed surfaces then
+            extremes += self.pen.fixed_points
+        if extremes:
+            self.bounds_ = (np.min([e.min(0) for e in extremes], axis=0), np.max([e.max(0) for e in extremes], axis=0))
+
+    def _install_moving(self, out: list[np.ndarray]) -> list[np.ndarray]:
+        """Each moving node's points over the run; one that does not move is placed once
+        (a ghost does not show it: the main scene does).  Returns the points of those that
+        move (for the bounds)."""
+        self.rows, self.moves = [], []
+        for m in self.pen.moving:
+            slot = m.slot or Slot(0, (3,))
+            pts = _clip(slot.rows(out)).reshape(len(out[0]), -1, 3).astype(np.float32)
+            moves = bool(np.any(pts != pts[:1]))
             self.rows.append(pts)
-            self.moving.append(moving)
-            if not moving:  # fixed (a bowl's rings): placed once, drawn by the main scene only
-                self._place(node, kind, pts[0])
-                node.visible = self.ghost is None
-            lo.append(pts.min((0, 1))), hi.append(pts.max((0, 1)))
-        for pts in self.fixed_points:
-            lo.append(pts.min(0)), hi.append(pts.max(0))
-        if lo:
-            self.bounds_ = (np.min(lo, axis=0), np.max(hi, axis=0))
+            self.moves.append(moves)
+            if not moves:
+                m.place(pts[0])
+                m.node.visible = self.ghost is None
+        return [r.reshape(-1, 3) for r, moves in zip(self.rows, self.moves, strict=True) if moves]
 
     def pose(self, k: int) -> None:
         """Put every node at output row k (nothing is sent when row k is already shown)."""
@@ -256,36 +316,59 @@ class DeclaredScene:
             node = self.frames[name]
             node.position = tuple(pos[k])
             node.wxyz = tuple(q[k])
-        if not self.points:
-            return
-        if self.compiled is None:
-            for node, _, _ in self.dynamic:
-                node.position = tuple(self.points[0][k])
-            return
-        for (node, kind, _), rows, moving in zip(self.dynamic, self.rows, self.moving, strict=True):
-            if moving and (prev is None or not np.array_equal(rows[k], rows[prev])):
-                self._place(node, kind, rows[k])
+        for m, rows, moves in zip(self.pen.moving, self.rows, self.moves, strict=True):
+            if moves and (prev is None or not np.array_equal(rows[k], rows[prev])):
+                m.place(rows[k])
+        if self.tag_node is not None and self.tag_rows is not None:
+            self.tag_node.position = tuple(self.tag_rows[min(k, len(self.tag_rows) - 1)])
 
-    @staticmethod
-    def _place(node, kind: str, pts: np.ndarray) -> None:
-        """Put a ball or label (kind "point") or line segments at these points (m, 3)."""
-        if kind == "point":
-            node.position = tuple(float(v) for v in pts[0])
-        else:
-            node.points = pts.reshape(-1, 2, 3)
+    def tag(self, text: str, row: int = 1, spacing: float = 0.1) -> None:
+        """A label naming this scene (a ghost's run), riding above its first frame or above
+        its first moving part (call after :meth:`install`); ghosts in one place put their
+        labels in rows (``row`` 1, 2, …, ``spacing`` apart) so that they do not overlap."""
+        above = np.array([0.0, 0.0, 1.3 * self.extent + 0.1 + spacing * (row - 1)])
+        if self.frame_poses:
+            first = next(iter(self.frame_poses))
+            path = f"{self.prefix}/frames/{first}/tag"
+            self.scene.add_label(path, text, position=tuple(above), anchor="bottom-left")
+        elif self.rows:
+            self.tag_node = self.scene.add_label(f"{self.prefix}/world/tag", text, anchor="bottom-left")
+            self.tag_rows = self.rows[0][:, 0].astype(float) + above
+            self.shown = None
 
-    def bounds_at(self, k: int) -> tuple[np.ndarray, np.ndarray] | None:
+    def bounds_at(self, k: int) -> Bounds | None:
         """(lowest, highest) corner of the frame origins and moving points at output row k."""
         pts = [pos[min(k, len(pos) - 1)] for pos, _ in self.frame_poses.values()]
         pts += [p for rows in self.rows for p in rows[min(k, len(rows) - 1)].astype(float)]
-        if self.compiled is None and self.points:
-            pts.append(self.points[0][min(k, len(self.points[0]) - 1)])
         if not pts:
             return None
         return np.min(pts, axis=0), np.max(pts, axis=0)
 
-    def bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """(lowest, highest) corner of everything that moves over the installed run."""
+    def bodies_at(self, k: int) -> Bounds | None:
+        """(lowest, highest) corner of the system's bodies at output row k: its frames' origins
+        and the balls near them (a part hanging far away, such as a load on a long thread, is
+        left out), padded by the system's own size.  What a following camera frames."""
+        frames = [pos[min(k, len(pos) - 1)] for pos, _ in self.frame_poses.values()]
+        balls = [
+            rows[min(k, len(rows) - 1), 0].astype(float)
+            for m, rows in zip(self.pen.moving, self.rows, strict=True)
+            if m.body
+        ]
+        pts = list(frames)
+        if frames:
+            lo, hi = np.min(frames, axis=0), np.max(frames, axis=0)
+            reach = 3.0 * self.extent
+            pts += [b for b in balls if np.all(b >= lo - reach) and np.all(b <= hi + reach)]
+        else:
+            pts += balls
+        if not pts:
+            return None
+        pad = 1.6 * self.half  # the bodies around their frames' origins, and some room around them
+        return np.min(pts, axis=0) - pad, np.max(pts, axis=0) + pad
+
+    def bounds(self) -> Bounds | None:
+        """(lowest, highest) corner of everything that moves over the installed run (the
+        paths travelled; fixed surfaces only when nothing moves)."""
         return self.bounds_
 
 
@@ -296,21 +379,3 @@ def strip_mesh(path: np.ndarray, width: float, axis: str) -> tuple[np.ndarray, n
     verts = np.vstack([path - d, path + d]).astype(np.float32)
     faces = [(i, i + 1, n + i) for i in range(n - 1)] + [(i + 1, n + i + 1, n + i) for i in range(n - 1)]
     return verts, np.array(faces, np.uint32)
-
-
-def fit_camera(bounds, fov: float = 1.309, panel_shift: float = 0.4, direction=None) -> tuple[np.ndarray, np.ndarray]:
-    """(look_at, position) framing a box: seen from ``direction`` (from the box to the camera;
-    default front-right and above), far enough for the box's bounding sphere (plus a margin)
-    to fit the vertical field of view ``fov`` (radians, viser's default 75°).  The control
-    panel covers the right of the page, so the box is moved left of the centre by
-    ``panel_shift`` of the half-height of the view at its distance."""
-    lo, hi = (np.asarray(b, float) for b in bounds)
-    centre = (lo + hi) / 2
-    radius = max(float(np.linalg.norm(hi - lo)) / 2, 0.4)
-    direction = np.array([0.55, -0.75, 0.5] if direction is None else direction, float)
-    direction /= np.linalg.norm(direction)
-    dist = 1.05 * radius / np.sin(fov / 2)  # the bounding sphere inside the cone of view
-    right = np.cross(-direction, [0.0, 0.0, 1.0])
-    right /= np.linalg.norm(right)
-    look_at = centre + right * panel_shift * dist * np.tan(fov / 2)
-    return look_at, look_at + direction * dist

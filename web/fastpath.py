@@ -92,8 +92,9 @@ def follow_camera(camera, position, look_at) -> None:
         camera.position = position
         camera.look_at = look_at
         return
-    pos = _as_tuple(np.asarray(position, dtype=float), 3)
-    at = _as_tuple(np.asarray(look_at, dtype=float), 3)
+    px, py, pz = _as_tuple(np.asarray(position, dtype=float), 3)
+    ax, ay, az = _as_tuple(np.asarray(look_at, dtype=float), 3)
+    pos, at = (px, py, pz), (ax, ay, az)
     if not all(map(math.isfinite, pos + at)):
         raise ValueError(f"camera position {pos} / look_at {at}: finite numbers are needed")
     conn = state.client._websock_connection

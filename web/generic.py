@@ -19,7 +19,6 @@ system's moving visuals, in the colour of its dashed curves in the plots.
 from __future__ import annotations
 
 import math
-from typing import ClassVar
 
 import numpy as np
 
@@ -28,18 +27,22 @@ from nmkane_core.kernel.built import built
 from nmkane_core.run.initial import default_state
 from nmkane_core.run.registry import get_system
 
+from . import curves as cv
+from . import expressions as ex
 from . import geometry as geo
 from . import plots as pl
-from .controls import INTEGRATORS, Control, log_dt_control
-from .declared import DeclaredScene, fit_camera
+from .camera import CameraPlan, Viewport, frame
+from .controls import DT_RANGE, INTEGRATORS, Control, dt_control
+from .declared import DeclaredScene
 
 DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
+FOLLOW_BEYOND_M = 4.0  # a whole motion within this radius is seen whole, not followed
 OFF, UNSTABILIZED, ALL = "off", "Γ = 0", "all"  # compare choices besides the variants
 GAMMAS = ("gamma", "gamma1", "gamma2")
 
 
 def _rgb(hex_color: str) -> tuple[int, int, int]:
-    return tuple(int(hex_color[i : i + 2], 16) for i in (1, 3, 5))
+    return int(hex_color[1:3], 16), int(hex_color[3:5], 16), int(hex_color[5:7], 16)
 
 
 def _step(lo: float, hi: float, n: int = 200) -> float:
@@ -47,42 +50,39 @@ def _step(lo: float, hi: float, n: int = 200) -> float:
 
 
 def parameter_control(p, prefix: str) -> Control:
-    """A slider for a core Parameter: linear over its range, or log10 when it spans decades."""
+    """A number for a core Parameter, typed and shown in its unit: a linear slider over its
+    range, or a log one when the range spans decades."""
     lo, hi, d = p.min, p.max, p.default
     if not math.isfinite(hi):
         hi = d + 4 * abs(d) if d else 1.0
     if not math.isfinite(lo):
         lo = d - 4 * abs(d) if d else -1.0
     label = f"{p.name} [{p.unit}]" if p.unit else p.name
+    hint = p.description or None
     if d > 0 and (lo > 0 or not p.min_inclusive):
         low = lo if lo > 0 else min(d, hi) / 100.0  # an open range (0, max]: two decades below
         if math.log10(hi / low) >= DECADES:
             a, b = math.log10(low), math.log10(hi)
             return Control(
                 f"{prefix}p_{p.name}",
-                f"log₁₀ {label}",
-                f"logparams.{p.name}",
-                round(math.log10(d), 6),
-                min=a,
-                max=b,
+                label,
+                f"params.{p.name}",
+                d,
+                min=low,
+                max=hi,
                 step=_step(a, b),
-                hint=f"{p.description} (log scale: {low:g} … {hi:g})",
+                log=True,
+                unit=p.unit,
+                hint=hint,
             )
         lo = max(lo, low)
     return Control(
-        f"{prefix}p_{p.name}",
-        label,
-        f"params.{p.name}",
-        d,
-        min=lo,
-        max=hi,
-        step=_step(lo, hi),
-        hint=p.description or None,
+        f"{prefix}p_{p.name}", label, f"params.{p.name}", d, min=lo, max=hi, step=_step(lo, hi), unit=p.unit, hint=hint
     )
 
 
 def initial_control(name: str, default: float, prefix: str, declared=None) -> Control:
-    """An initial value's slider: ``declared`` (min, max, label) from the System, else around the default."""
+    """An initial value's number: ``declared`` (min, max, label) from the System, else around the default."""
     span = max(3.0 * abs(default), 2.0)
     lo, hi, label = declared or (default - span, default + span, f"{name}(0)")
     return Control(f"{prefix}i_{name}", label, f"initial.{name}", default, min=lo, max=hi, step=_step(lo, hi))
@@ -99,17 +99,42 @@ def compare_choices(core) -> tuple[str, ...]:
 
 
 def generic_controls(core, prefix: str) -> tuple[Control, ...]:
-    """The simulation controls of any system, from its declaration and its model's info."""
-    info = built(core).info(core.default_variant)
+    """The simulation controls of any system, from its declaration and its model's info:
+    the choosers, the Baumgarte gains its constraints need, the time step and final time,
+    the independent initial values and the plotted coordinate."""
     show = dict(getattr(core, "showcase", {}))
+    return (
+        *_choosers(core, prefix, show),
+        *_gains(core, prefix, show),
+        *_times(core, prefix, show),
+        *_initials(core, prefix),
+        *_plot_controls(core, prefix),
+    )
+
+
+def _plot_controls(core, prefix: str) -> list[Control]:
+    """The plotted quantity: an expression of the run's quantities, against time or another one."""
+    b = built(core)
+    info = b.info(core.default_variant)
+    names = ex.names_of(b.state_names, info.viol_names, info.has_energy)
+    hint = f"an expression of {', '.join(names)}; functions such as sin, sqrt; ^ for powers"
+    return [
+        Control(f"{prefix}plot", "Plot y =", "option.plot", b.state_names[0], kind="text", options=names, hint=hint),
+        Control(f"{prefix}plot_x", "against x =", "option.plot_x", "t", kind="text", options=names, hint=hint),
+    ]
+
+
+def _choosers(core, prefix: str, show: dict) -> list[Control]:
+    """Variant (when there are several), compare, integrator and projection."""
     out = []
     if len(core.variants) > 1:
+        variant = show.get("variant", core.default_variant)
         out.append(
             Control(
                 f"{prefix}variant",
                 core.option.capitalize(),
                 "variant",
-                show.get("variant", core.default_variant),
+                variant,
                 kind="dropdown",
                 options=tuple(core.variants),
             )
@@ -134,52 +159,50 @@ def generic_controls(core, prefix: str) -> tuple[Control, ...]:
     out.append(
         Control(f"{prefix}projection", "Projection", "projection", "none", kind="dropdown", options=tuple(PRESETS))
     )
+    return out
+
+
+def _gains(core, prefix: str, show: dict) -> list[Control]:
+    """Γ when the system has nonholonomic constraints; Γ1, Γ2 when it has holonomic ones."""
+    info = built(core).info(core.default_variant)
+    out = []
     if info.nonholonomic:
         g = show.get("gamma", core.default_gamma)
-        out.append(Control(f"{prefix}gamma", "Γ (nonholonomic)", "gamma", g, min=-50.0, max=10.0, step=0.5))
+        out.append(
+            Control(f"{prefix}gamma", "Γ (nonholonomic) [1/s]", "gamma", g, min=-50.0, max=10.0, step=0.5, unit="1/s")
+        )
     if info.holonomic:
+        g1, g2 = show.get("gamma1", core.default_gamma1), show.get("gamma2", core.default_gamma2)
         out.append(
-            Control(
-                f"{prefix}gamma1",
-                "Γ1 (holonomic) [1/s]",
-                "gamma1",
-                show.get("gamma1", core.default_gamma1),
-                min=-50.0,
-                max=10.0,
-                step=0.5,
-            )
+            Control(f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", g1, min=-50.0, max=10.0, step=0.5, unit="1/s")
         )
         out.append(
             Control(
-                f"{prefix}gamma2",
-                "Γ2 (holonomic) [1/s²]",
-                "gamma2",
-                show.get("gamma2", core.default_gamma2),
-                min=-500.0,
-                max=50.0,
-                step=5.0,
+                f"{prefix}gamma2", "Γ2 (holonomic) [1/s²]", "gamma2", g2, min=-500.0, max=50.0, step=5.0, unit="1/s²"
             )
         )
-    log_dt = min(max(math.log10(show.get("dt", core.default_dt)), -4.0), math.log10(0.2))
-    out.append(log_dt_control(f"{prefix}log_dt", "log₁₀ Δt [s]", round(log_dt, 2)))
+    return out
+
+
+def _times(core, prefix: str, show: dict) -> list[Control]:
+    """The step size (a log slider) and the final time."""
+    lo, hi_dt = DT_RANGE
+    dt = min(max(float(show.get("dt", core.default_dt)), lo), hi_dt)
     tf = float(show.get("t_final", core.default_t_final))
-    out.append(
+    hi = max(5 * tf, 10.0)
+    return [
+        dt_control(f"{prefix}dt", dt),
         Control(
-            f"{prefix}t_final",
-            "Final time [s]",
-            "t_final",
-            tf,
-            min=min(1.0, tf),
-            max=max(5 * tf, 10.0),
-            step=_step(0, max(5 * tf, 10.0)),
-        )
-    )
+            f"{prefix}t_final", "Final time [s]", "t_final", tf, min=min(1.0, tf), max=hi, step=_step(0, hi), unit="s"
+        ),
+    ]
+
+
+def _initials(core, prefix: str) -> list[Control]:
+    """The initial values the system declares sliders for (default: its independent ones)."""
     shown = getattr(core, "initial_controls", None) or dict.fromkeys(built(core).independent)
-    for name, declared in shown.items():
-        out.append(initial_control(name, float(default_state(core).get(name, 0.0)), prefix, declared))
-    names = built(core).state_names
-    out.append(Control(f"{prefix}plot", "Plotted coordinate", "option.plot", names[0], kind="dropdown", options=names))
-    return tuple(out)
+    state = default_state(core)
+    return [initial_control(name, float(state.get(name, 0.0)), prefix, declared) for name, declared in shown.items()]
 
 
 class GenericView:
@@ -190,9 +213,6 @@ class GenericView:
     runs), ``curves`` into plot data, and the scene (:class:`~web.declared.DeclaredScene`,
     plus one ghost per compare run) is shaped once per trajectory and posed per frame."""
 
-    follows = True
-    camera_views: ClassVar[dict] = {"system": None}
-    fixed_camera = None
     params_folder = "Physical parameters"
     reset_label = "Reset to the defaults"
 
@@ -211,17 +231,15 @@ class GenericView:
         self.plots = (
             ("energy", "Energy drift ΔE(t)"),
             ("violation", "log₁₀ |constraint violation|"),
-            ("coord", "Plotted coordinate"),
+            ("coord", "Plotted quantity"),
         )
         self.declared = DeclaredScene(scene, core)
         self.ghosts: list[DeclaredScene] = []  # one per compare run, made on first use
         self.root = self.declared.root
-        self.plot_name = built(core).state_names[0]
+        self.plot_y, self.plot_x = built(core).state_names[0], "t"  # the typed plotted quantity
         self.k = 0
         self.fit_pending = True
-        self.fixed_target = None  # the whole motion fits in view: the camera stays put
-        self.offset = None
-        self.shift = np.zeros(3)  # following: the camera looks at the centre plus this
+        self.plan: CameraPlan | None = None  # how the installed run is looked at
 
     @property
     def core(self):
@@ -243,7 +261,8 @@ class GenericView:
         """label -> the core's settings of each run of one request: the shown run, then the
         compare runs (same settings; another variant, or Γ = 0)."""
         core = self.core
-        self.plot_name = options.get("plot", self.plot_name)
+        self.plot_y = options.get("plot", self.plot_y)
+        self.plot_x = options.get("plot_x", self.plot_x)
         main = settings.get(core.option, core.default_variant)
         out = {main: settings}
         compare = options.get("compare", OFF)
@@ -261,47 +280,27 @@ class GenericView:
         return out
 
     def curves(self, runs: dict) -> dict:
-        labels = list(runs)
-        many = len(labels) > 1
-        main = runs[labels[0]]
-        t = main.t
+        """Plot data of one request's runs (:mod:`web.curves`): energy drift, violations, and
+        the typed quantity against time or against another quantity (key ``phase``)."""
+        out: dict = {"energy": cv.energy(runs), "violation": cv.violation(runs)}
+        try:
+            q = cv.quantity(runs, self.plot_y, self.plot_x)
+        except ex.ExpressionError as e:  # a name the runs lack (the box checked the system's names)
+            main = next(iter(runs.values()))
+            q = pl.curves(main.t, [np.zeros(len(main.t))], [f"({e})"], y_label=self.plot_y)
+        out["phase" if isinstance(q, cv.Phase) else "coord"] = q
+        return out
 
-        def on_t(r, v):
-            return np.asarray(v, float) if r is main else np.interp(t, r.t, v)
-
-        def style(j: int, color: str) -> dict:
-            return {"stroke": color, **({"dash": pl.DASHES[(j - 1) % len(pl.DASHES)]} if j else {})}
-
-        dEs = []
-        for r in runs.values():
-            e = np.zeros(len(r.t)) if r.energy is None else np.asarray(r.energy, float)
-            dEs.append(on_t(r, e - e[0] if len(e) else e))
-        factor, unit = pl.readable(dEs, "J")
-        energy = pl.curves(
-            t, [d / factor for d in dEs], [f"ΔE {lab} [{unit}]" if many else f"ΔE [{unit}]" for lab in labels]
-        )
-        energy.styles = [style(j, pl.RUN_COLORS[j % len(pl.RUN_COLORS)]) for j in range(len(labels))]
-        ys, names, styles = [], [], []
-        for j, (lab, r) in enumerate(runs.items()):
-            for c, (name, v) in enumerate(r.violation.items()):
-                ys.append(pl.log10_abs(on_t(r, v)))
-                names.append(name if j == 0 else f"{name} ({lab})")
-                color = pl.COLORS[c % len(pl.COLORS)] if len(r.violation) > 1 else pl.RUN_COLORS[j % len(pl.RUN_COLORS)]
-                styles.append(style(j, color))
-        if not ys:
-            ys, names, styles = (
-                [np.full(len(t), math.log10(pl.LOG_FLOOR))],
-                ["(no constraints)"],
-                [style(0, pl.COLORS[0])],
-            )
-        violation = pl.curves(t, ys, names)
-        violation.styles = styles
-        name = self.plot_name if self.plot_name in main.state else next(iter(main.state))
-        coord = pl.curves(
-            t, [on_t(r, r.state[name]) for r in runs.values()], [f"{name} {lab}" if many else name for lab in labels]
-        )
-        coord.styles = energy.styles
-        return {"energy": energy, "violation": violation, "coord": coord}
+    def legend(self, traj) -> str:
+        """Which colour (and line style) is which run, in the panel (the scene names the ghosts too)."""
+        labels = list(traj.runs)
+        if len(labels) < 2:
+            return ""
+        parts = [f"**{pl.RUN_COLOR_NAMES[0]}**, solid: {labels[0]} (shown)"]
+        for j, lab in enumerate(labels[1:], start=1):
+            color = pl.RUN_COLOR_NAMES[j % len(pl.RUN_COLOR_NAMES)]
+            parts.append(f"**{color}**, {pl.DASH_NAMES[(j - 1) % len(pl.DASH_NAMES)]}: {lab} (ghost)")
+        return "Runs — " + " · ".join(parts)
 
     def series_style(self, key: str, i: int, traj) -> dict:
         styles = traj.plots[key].styles
@@ -309,16 +308,18 @@ class GenericView:
 
     # ---------------------------------------------------------------- scene
     def install(self, traj) -> None:
-        runs = list(traj.runs.values())
+        runs, labels = list(traj.runs.values()), list(traj.runs)
         self.declared.install(runs[0], traj.params)
         for j, run in enumerate(runs[1:], start=1):
             if len(self.ghosts) < j:
                 color = _rgb(pl.RUN_COLORS[j % len(pl.RUN_COLORS)])
                 self.ghosts.append(DeclaredScene(self.scene, self.core, ghost=color, index=j))
             self.ghosts[j - 1].install(run, traj.params)
+            name = f"{pl.RUN_COLOR_NAMES[j % len(pl.RUN_COLOR_NAMES)]} ghost: {labels[j]}"
+            self.ghosts[j - 1].tag(name, row=j, spacing=0.15 * self.declared.extent)
         for j, g in enumerate(self.ghosts, start=1):
             g.root.visible = j < len(runs)
-        self._plan_camera(traj)
+        self.plan = self.camera_plan()
 
     def pose(self, traj, t_now: float) -> dict:
         labels = list(traj.runs)
@@ -331,48 +332,39 @@ class GenericView:
     def readouts(self, traj, t_now: float) -> None:
         """Slow-rate labels in the scene (none)."""
 
-    def rest_row(self) -> dict:
-        return {}
-
     def _centre(self) -> np.ndarray:
-        """The mean of the frame origins (or the point) at the shown row."""
+        """The mean of the frame origins (or the first moving part) at the shown row."""
         d = self.declared
         if d.frame_poses:
             return np.mean([pos[min(self.k, len(pos) - 1)] for pos, _ in d.frame_poses.values()], axis=0)
-        if d.points and d.compiled is None:
-            return d.points[0][min(self.k, len(d.points[0]) - 1)]
         if d.rows:
             return d.rows[0][min(self.k, len(d.rows[0]) - 1), 0].astype(float)
         return np.zeros(3)
 
-    def _plan_camera(self, traj) -> None:
-        """Fixed on the whole motion when it is not much larger than the system; else follow it.
-        Seen from the side the system declares (``Visuals.view``), if it does."""
-        b = self.declared.bounds()
-        if b is None:
-            return
-        lo, hi = b
-        whole = float(np.linalg.norm(hi - lo)) / 2
-        size = self.declared.extent
-        cv = self.declared.compiled
-        side = None if cv is None else cv.view
-        if whole <= 3.0 * size + 1.0:
-            self.fixed_target, self.offset = fit_camera(b, direction=side)
-            self.offset = self.offset - self.fixed_target
-        else:  # the system at the shown row (a tall frame, a thread) and around its centre
-            c = self._centre()
-            lo, hi = c - 1.2 * size, c + 1.2 * size
-            now = self.declared.bounds_at(self.k)
-            if now is not None:
-                lo, hi = np.minimum(lo, now[0]), np.maximum(hi, now[1])
-            look, pos = fit_camera((lo, hi), direction=side)
-            self.fixed_target, self.offset, self.shift = None, pos - look, look - c
+    def camera_plan(self, viewport: Viewport | None = None) -> CameraPlan | None:
+        """How to look at the installed run (:mod:`web.camera`): the whole motion framed (Fit
+        view), and the bodies at the shown row framed for following; the first view follows
+        when the whole motion is much larger than the system.  Seen from the side the system
+        declares (``Visuals.view``), if it does."""
+        d = self.declared
+        whole = d.bounds()
+        if whole is None:
+            return None
+        side = None if d.compiled is None else d.compiled.view
+        radius = float(np.linalg.norm(whole[1] - whole[0])) / 2
+        bodies = d.bodies_at(self.k) or whole
+        look, pos = frame(bodies, side, viewport)
+        return CameraPlan(
+            whole=frame(whole, side, viewport),
+            offset=pos - look,
+            shift=look - self._centre(),
+            follows=radius > max(3.0 * d.extent + 1.0, FOLLOW_BEYOND_M),
+        )
 
-    def camera_target(self, row: dict | None, view: str) -> np.ndarray:
-        return self.fixed_target if self.fixed_target is not None else self._centre() + self.shift
-
-    def camera_offset(self, row: dict | None, view: str) -> np.ndarray:
-        return self.offset if self.offset is not None else np.array([2.0, -3.0, 2.0])
+    def follow_target(self) -> np.ndarray:
+        """Where a following camera looks at the shown row (it translates with the bodies)."""
+        plan = self.plan
+        return self._centre() + (plan.shift if plan is not None else 0.0)
 
 
 def scene_choices() -> dict[str, str]:

@@ -16,8 +16,8 @@ def quat_z_to(v) -> tuple[float, float, float, float]:
     if w < 1e-9:  # v = −z: half turn about x
         return (0.0, 1.0, 0.0, 0.0)
     q = np.array([w, -v[1], v[0], 0.0])  # (1 + z·v, z × v)
-    q /= np.linalg.norm(q)
-    return tuple(float(c) for c in q)
+    w, x, y, z = (float(c) for c in q / np.linalg.norm(q))
+    return (w, x, y, z)
 
 
 def rotate(wxyz, v) -> np.ndarray:

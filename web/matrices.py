@@ -33,10 +33,13 @@ import numpy as np
 MATRICES = ("A1", "A2", "T")
 TITLES = {"A1": "A_1", "A2": "A_2", "T": "T"}
 EQUATION = {"A1": "(22)", "A2": "(40)", "T": "(44)"}
-DPI = 170
+DPI = 200  # sharp in viser's enlarged view (the image's expand icon)
+ICON_PAD = 30  # px of white above a matrix: viser's expand icon sits in the image's top-right corner
 FONT_SIZE = 11
 PARENT_ENV = "NMKANE_MATRICES_PARENT"  # the child stops when this process is gone
-TYPESET_OPS = 150  # an entry longer than this (sympy count_ops) is drawn as ⋯, not typeset
+TYPESET_OPS = 250  # an entry still longer than this (sympy count_ops) once simplified is drawn as ⋯
+SIMPLIFY_OPS = 400  # entries up to this long are simplified …
+SIMPLIFY_S = 4.0  # … each within this many seconds (else shown as derived)
 
 
 @dataclass
@@ -176,21 +179,53 @@ def _store(path: Path | None, p: Panel) -> None:
 
 
 # --------------------------------------------------------------------------- algebra
+class _Late(Exception):
+    pass
+
+
+def _within(seconds: float, fn, fallback):
+    """``fn()``, or ``fallback`` when it takes longer than ``seconds`` (a timer signal: only
+    in a process's main thread — the panel's child process —, elsewhere without a limit)."""
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"):
+        return fn()
+
+    def late(_sig, _frame):
+        raise _Late
+
+    old = signal.signal(signal.SIGALRM, late)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        return fn()
+    except _Late:
+        return fallback
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0)
+        signal.signal(signal.SIGALRM, old)
+
+
 def _nice(e):
     """A short form of one entry: the shortest of sympy's simplify and a trig-expanded
-    cancellation (which finds e.g. −ρ cos θ in the nonlinear model's A1)."""
+    cancellation (which finds e.g. −ρ cos θ in the nonlinear model's A1), found within
+    :data:`SIMPLIFY_S` (else the entry as derived)."""
     import sympy as sp
 
-    if e.is_number or sp.count_ops(e) > 400:
+    if e.is_number or sp.count_ops(e) > SIMPLIFY_OPS:
         return e
-    s = sp.simplify(e)
-    forms = [s]
-    try:
-        c = sp.cancel(sp.expand_trig(s))
-        forms += [c, sp.factor(c)]
-    except Exception:  # pragma: no cover - sympy corner cases
-        pass
-    return min(forms, key=lambda f: (sp.count_ops(f), len(str(f))))
+
+    def forms():
+        s = sp.simplify(e)
+        out = [e, s]
+        try:
+            c = sp.cancel(sp.expand_trig(s))
+            out += [c, sp.factor(c)]
+        except Exception:  # pragma: no cover - sympy corner cases
+            pass
+        return out
+
+    return min(_within(SIMPLIFY_S, forms, [e]), key=lambda f: (sp.count_ops(f), len(str(f))))
 
 
 def _abbreviate(mats: dict):
@@ -221,9 +256,9 @@ def _build(system: str, variant: str) -> Panel:
     d = built(core).derivation(variant)
     raw = {name: d.matrix(name) for name in MATRICES}
     elided = sp.Dummy("elided")  # stands for an entry too long to typeset
-    longest = max((sp.count_ops(e) for M in raw.values() for e in M), default=0)
-    shown = lambda e: elided if sp.count_ops(e) > TYPESET_OPS else _nice(e)  # noqa: E731
-    mats = {name: M.applyfunc(shown) for name, M in raw.items()}
+    nice = {name: M.applyfunc(_nice) for name, M in raw.items()}
+    longest = max((sp.count_ops(e) for M in nice.values() for e in M), default=0)
+    mats = {name: M.applyfunc(lambda e: elided if sp.count_ops(e) > TYPESET_OPS else e) for name, M in nice.items()}
     short, defs = _abbreviate(mats)
 
     def tex(e) -> str:
@@ -238,13 +273,16 @@ def _build(system: str, variant: str) -> Panel:
         for name in MATRICES
         if short[name].rows and short[name].cols
     }
-    where = _lines_image([f"{tex(n)} = {tex(e)}" for n, e in defs]) if defs else None
+    where_image = _lines_image([f"{tex(n)} = {tex(e)}" for n, e in defs]) if defs else None
+    where = [f"{tex(n)} = {tex(e)}" for n, e in defs]
     latex = {
-        name: f"{TITLES[name]} = {sp.latex(raw[name])}"
-        if all(sp.count_ops(e) <= TYPESET_OPS for e in raw[name])
+        name: f"{TITLES[name]} = {sp.latex(short[name], fold_func_brackets=True)}"
+        if all(e != elided for e in short[name])
         else f"% {TITLES[name]}: too long to show; `nmkane matrices {system} --{core.option} {variant}` prints it"
         for name in MATRICES
     }
+    if where:
+        latex["where"] = r"\text{where } " + r",\quad ".join(where)
     intro = (
         f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
         f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
@@ -255,7 +293,7 @@ def _build(system: str, variant: str) -> Panel:
             f" Entries drawn as ⋯ are too long to typeset (the longest has {longest:,} operations); "
             f"`nmkane matrices {system}` prints them in full."
         )
-    return Panel(system, variant, images, where, latex, intro)
+    return Panel(system, variant, images, where_image, latex, intro)
 
 
 def speed_names(model) -> str:
@@ -326,7 +364,7 @@ def _matrix_image(title: str, cells: list[list[str]], pad: int = 10, gap: int = 
             _blit(canvas, ink, top + (row_h[r] - ink.shape[0]) // 2, left + (col_w[c] - ink.shape[1]) // 2)
             left += col_w[c] + gap
         top += row_h[r] + vgap
-    return _to_rgba(canvas)
+    return _to_rgba(np.pad(canvas, ((ICON_PAD, 0), (0, 0))))
 
 
 def _lines_image(lines: list[str], pad: int = 12, vgap: int = 10) -> np.ndarray:

@@ -14,8 +14,18 @@ from collections.abc import Callable
 import numpy as np
 from viser import uplot
 
+from . import curves as cv
 from . import matrices as mx
 from . import plots as pl
+
+LONG_S = 60.0  # a run longer than this shows its plotted quantity in pages …
+WINDOW_S = 30.0  # … of this many seconds, following the time
+PHASE_REDRAW_S = 1.0  # a phase portrait's current point moves at most this often
+PLOT_HELP = (
+    "Point at a plot for the values under the cursor; drag across it to zoom, double-click to zoom "
+    "out. *Plot y* and *against x* take any expression of the run's quantities (t, the coordinates "
+    "and speeds, E, dE, `phi_NAME` of a constraint), e.g. `u1*cos(theta)`; x other than t draws a phase portrait."
+)
 
 
 def _fmt(v) -> str:
@@ -23,25 +33,41 @@ def _fmt(v) -> str:
 
 
 class PlotPanel:
-    """The plots of every view (only the chosen view's are visible) and the summary table."""
+    """The plots of every view (only the chosen view's are visible) and the summary table.
+
+    The current-time marker is a grid line of the plot's axes: changing the axes rebuilds
+    the chart in the page (viser's uPlot component), which would drop a zoom and the values
+    shown under the cursor, so while the viewer points at a plot or has zoomed one
+    (``busy``, reported by the page: :mod:`web.plotpage`) the marker waits.  A run longer
+    than :data:`LONG_S` shows its plotted quantity in pages of :data:`WINDOW_S` that follow
+    the time (its oscillations, not their envelope)."""
 
     def __init__(self, gui, views: dict):
         self.views = views
+        self.gui = gui
+        self.busy = False
+        self.pages: dict[tuple[str, str], int] = {}  # (kind, key) -> the window shown
+        gui.add_markdown(PLOT_HELP)
         self.summary = gui.add_markdown("")
-        x_scale = {"x": uplot.Scale(time=False, auto=False, range=(0.0, 20.0))}
-        self.handles = {}
+        self.handles: dict = {}
+        self.phases: dict = {}  # kind -> image handle of the phase portrait
+        self.phase_on: dict[str, bool] = {}  # kind -> its plotted quantity is a phase portrait
+        self._phase_t = (0.0, 0.0)  # (when, at which t) the portrait was last drawn
         for i, view in enumerate(views.values()):
-            for key, title in view.plots:
-                self.handles[(view.kind, key)] = self._add_plot(gui, title, x_scale, visible=i == 0)
+            self._add_view_plots(gui, view, visible=i == 0)
 
     def add_view(self, gui, view, order: float | None = None) -> None:
         """Plots of a view added after the page was built (a system chosen later), hidden."""
         self.views[view.kind] = view
+        self._add_view_plots(gui, view, visible=False, order=order)
+
+    def _add_view_plots(self, gui, view, visible: bool, order: float | None = None) -> None:
         x_scale = {"x": uplot.Scale(time=False, auto=False, range=(0.0, 20.0))}
         for i, (key, title) in enumerate(view.plots):
-            self.handles[(view.kind, key)] = self._add_plot(
-                gui, title, x_scale, visible=False, order=None if order is None else order + 1e-3 * i
-            )
+            at = None if order is None else order + 1e-3 * i
+            self.handles[(view.kind, key)] = self._add_plot(gui, title, x_scale, visible=visible, order=at)
+        blank = np.full((2, 2, 4), 255, np.uint8)
+        self.phases[view.kind] = gui.add_image(blank, format="png", visible=False, order=order)
 
     @staticmethod
     def _add_plot(gui, title: str, x_scale: dict, visible: bool = True, order: float | None = None):
@@ -53,36 +79,81 @@ class PlotPanel:
             title=title,
             scales=x_scale,
             axes=pl.marker_axes(0.0),
-            aspect=1.9,
+            aspect=1.6,
             visible=visible,
         )
 
     def show_kind(self, kind: str) -> None:
-        for (k, _), h in self.handles.items():
-            h.visible = k == kind
+        for (k, key), h in self.handles.items():
+            h.visible = k == kind and not (key == "coord" and self._phase_shown(k))
+        for k, h in self.phases.items():
+            h.visible = k == kind and self._phase_shown(k)
+
+    def _phase_shown(self, kind: str) -> bool:
+        return self.phase_on.get(kind, False)
 
     def write(self, traj, t_now: float) -> None:
         """A new trajectory's curves (series styles from its view), x range and marker."""
         view = self.views[traj.kind]
-        end = max(traj.t_end, 1e-3)
+        phase = traj.plots.get("phase")
+        img = self.phases.get(traj.kind)
+        self.phase_on[traj.kind] = phase is not None
         for key, curves in traj.plots.items():
+            if key == "phase":
+                continue
             h = self.handles[(traj.kind, key)]
-            series = [uplot.Series(label="t [s]")]
-            for i, lab in enumerate(curves.labels):
-                series.append(uplot.Series(label=lab, width=2, **view.series_style(key, i, traj)))
-            series = tuple(series)
-            scales = {"x": uplot.Scale(time=False, auto=False, range=(0.0, end))}
+            series = (
+                uplot.Series(label=curves.x_label),
+                *(
+                    uplot.Series(label=lab, width=2, **view.series_style(key, i, traj))
+                    for i, lab in enumerate(curves.labels)
+                ),
+            )
             if tuple(h.series) != series:
                 h.series = series
-            if h.scales != scales:
-                h.scales = scales
-            h.data = curves.data()
-            h.axes = pl.marker_axes(t_now)
+            self.pages.pop((traj.kind, key), None)
+            self._send(h, traj, key, curves, t_now, force=True)
+        self.show_kind(traj.kind)
+        if phase is not None and img is not None:
+            img.image = cv.draw_phase(phase, t_now)
+            self._phase_t = (time.monotonic(), t_now)
         self.summary.content = summary_table(traj)
 
+    def _range(self, traj, key: str, t_now: float) -> tuple[float, float, int]:
+        """The x range shown (the whole run, or the page of a long run that holds t_now)."""
+        end = max(traj.t_end, 1e-3)
+        if key != "coord" or end <= LONG_S:
+            return 0.0, end, 0
+        page = int(max(t_now, 0.0) // WINDOW_S)
+        return page * WINDOW_S, min((page + 1) * WINDOW_S, end), page
+
+    def _send(self, h, traj, key: str, curves, t_now: float, force: bool = False) -> None:
+        t0, t1, page = self._range(traj, key, t_now)
+        if force or self.pages.get((traj.kind, key)) != page:
+            self.pages[(traj.kind, key)] = page
+            scales = {"x": uplot.Scale(time=False, auto=False, range=(t0, t1))}
+            if h.scales != scales:
+                h.scales = scales
+            h.data = curves.window(t0, t1) if page or t1 < traj.t_end else curves.data()
+        h.axes = pl.marker_axes(t_now, curves.x_label, curves.y_label)
+
     def mark(self, traj, t_now: float) -> None:
-        for key in traj.plots:
-            self.handles[(traj.kind, key)].axes = pl.marker_axes(t_now)
+        """The current-time marker (and a long run's page); it waits while the viewer is busy with a plot."""
+        if self.busy:
+            return
+        for key, curves in traj.plots.items():
+            if key == "phase":
+                self._mark_phase(traj, curves, t_now)
+                continue
+            self._send(self.handles[(traj.kind, key)], traj, key, curves, t_now)
+
+    def _mark_phase(self, traj, phase, t_now: float) -> None:
+        """The portrait's current points, drawn again at most once a second (matplotlib)."""
+        when, at = self._phase_t
+        if t_now == at or time.monotonic() - when < PHASE_REDRAW_S:
+            return
+        self._phase_t = (time.monotonic(), t_now)
+        self.phases[traj.kind].image = cv.draw_phase(phase, t_now)
 
 
 def summary_table(traj) -> str:
@@ -106,7 +177,8 @@ def summary_table(traj) -> str:
 
 
 def status_text(traj, installs: int) -> str:
-    lines, groups = [], {}
+    lines: list[str] = []
+    groups: dict[tuple[str, str], list[str]] = {}
     for label, run in traj.runs.items():  # runs with the same outcome share a line
         groups.setdefault((run.summary["status"], run.summary["message"]), []).append(label)
     for (status, message), labels in groups.items():
@@ -135,7 +207,7 @@ class MatricesPanel:
 
     def __init__(self, gui, lock, alive: Callable[[], bool]):
         self.lock, self.alive = lock, alive
-        self.key = None
+        self.key: tuple[str, str] | None = None
         self.intro = gui.add_markdown("(computed in the background …)")
         blank = np.full((2, 2, 4), 255, np.uint8)
         self.images = {
@@ -156,6 +228,7 @@ class MatricesPanel:
             threading.Thread(target=self._fill, args=key, daemon=True, name="nmkane-matrices").start()
 
     def _fill(self, system: str, variant: str) -> None:
+        panel: mx.Panel | Exception
         try:
             panel = mx.panel(system, variant)
         except Exception as e:  # a teaching aid must never take the session down

@@ -18,7 +18,9 @@ import numpy as np
 
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b")  # one per constraint
 RUN_COLORS = ("#1f77b4", "#ff7f0e", "#9467bd", "#2ca02c")  # the shown run, then the compare runs (ghosts)
+RUN_COLOR_NAMES = ("blue", "orange", "purple", "green")  # as the legend and the scene name them
 DASHES = ((6.0, 4.0), (2.0, 3.0), (10.0, 3.0, 2.0, 3.0))  # compare runs: dashed, one pattern each
+DASH_NAMES = ("dashed", "dotted", "dash-dot")
 MAX_POINTS = 800  # per series after decimation (two per bucket: min and max)
 LOG_FLOOR = 1e-16  # |φ| below this is plotted as 1e-16 (round-off level)
 
@@ -65,24 +67,42 @@ def readable(values: list[np.ndarray], unit: str) -> tuple[float, str]:
 
 @dataclass
 class Curves:
-    """One plot's decimated curves: t and one array per series (without the marker)."""
+    """One plot's decimated curves: t and one array per series (without the marker), the
+    axis titles, and the whole-resolution curves a time window is cut from."""
 
     t: np.ndarray
     ys: list[np.ndarray]
     labels: list[str]
     styles: list[dict] = field(default_factory=list)  # uPlot series styles (stroke, dash), one per series
+    y_label: str = ""
+    x_label: str = "t [s]"
+    full: tuple[np.ndarray, list[np.ndarray]] | None = None  # (t, ys) before decimation
 
     def data(self) -> tuple[np.ndarray, ...]:
         """uPlot's data: (t, y1, …, yn)."""
         return (self.t, *self.ys)
 
+    def window(self, t0: float, t1: float) -> tuple[np.ndarray, ...]:
+        """uPlot's data for the rows with t0 ≤ t ≤ t1 (decimated again, so a long run's
+        window shows its oscillations instead of their envelope)."""
+        if self.full is None:
+            return self.data()
+        t, ys = self.full
+        i0 = max(0, int(np.searchsorted(t, t0, side="left")) - 1)
+        i1 = min(len(t), int(np.searchsorted(t, t1, side="right")) + 1)
+        if i1 - i0 < 2:
+            return self.data()
+        td, yd = envelope(t[i0:i1], [y[i0:i1] for y in ys])
+        return (td, *yd)
 
-def marker_axes(t_now: float) -> tuple[dict, ...]:
-    """uPlot axes: the usual x and y axes, plus a hidden top x axis whose single grid line
-    at t_now is the current-time marker."""
+
+def marker_axes(t_now: float, x_label: str = "t [s]", y_label: str = "") -> tuple[dict, ...]:
+    """uPlot axes: the x and y axes with their titles (the y axis wide enough for labels such
+    as −0.002), plus a hidden top x axis whose single grid line at t_now is the current-time
+    marker."""
     return (
-        {"scale": "x"},
-        {},
+        {"scale": "x", "label": x_label, "labelSize": 18, "size": 36},
+        {"label": y_label, "labelSize": 18, "size": 68, "gap": 4},
         {
             "scale": "x",
             "side": 0,
@@ -95,8 +115,9 @@ def marker_axes(t_now: float) -> tuple[dict, ...]:
     )
 
 
-def curves(t, ys, labels, max_points: int = MAX_POINTS) -> Curves:
+def curves(t, ys, labels, max_points: int = MAX_POINTS, y_label: str = "") -> Curves:
     """Decimated curves for one plot; non-finite samples are clipped (never sent as NaN)."""
     ys = [np.nan_to_num(np.asarray(y, float), nan=0.0, posinf=1e300, neginf=-1e300) for y in ys]
+    t = np.asarray(t, float)
     td, yd = envelope(t, ys, max_points)
-    return Curves(td, yd, list(labels))
+    return Curves(td, yd, list(labels), y_label=y_label, full=(t, ys))

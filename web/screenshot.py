@@ -101,7 +101,9 @@ def capture(out_dir: str = "docs/screenshots", names=None, fraction: float = 0.4
                     session.wait_idle(60)
                     time.sleep(1.0)
                     session.set_playing(False)
-                    session.seek(fraction * session.traj.t_end)
+                    traj = session.traj
+                    assert traj is not None  # wait_idle: the first run is installed
+                    session.seek(fraction * traj.t_end)
                     session.reset_view()
                     collapse(page, session.system_view.folder)  # show the plots beside the scene
                     time.sleep(3.0)  # camera settles, plot markers refresh

@@ -282,6 +282,22 @@ class WebApp:
             del session
             self._trim_due = time.monotonic() + TRIM_DELAY_S  # once its threads have ended too
 
+    def _tick_sessions(self, dt_wall: float, refresh: bool) -> None:
+        """One frame of every session (a session whose browser left skips itself)."""
+        with self._lock:
+            sessions = list(self.sessions.items())
+        for cid, s in sessions:
+            owed = self._owed.pop(cid, 0.0) + dt_wall
+            backlog = _backlog(s.client)
+            if backlog < 0:  # closed: its session is about to be dropped
+                continue
+            if backlog > 0:  # its browser has not taken the last frame yet: skip this one
+                self._owed[cid] = min(owed, 0.25)
+                self.skipped += 1
+                continue
+            with contextlib.suppress(Exception):  # a client gone mid-frame: skip it this frame
+                s.tick(owed, refresh)
+
     def _animate(self) -> None:
         period = 1.0 / FPS
         last = last_refresh = next_frame = time.perf_counter()
@@ -291,20 +307,7 @@ class WebApp:
             refresh = t0 - last_refresh >= 1.0 / REFRESH_HZ
             if refresh:
                 last_refresh = t0
-            with self._lock:
-                sessions = list(self.sessions.items())
-            for cid, s in sessions:  # a session whose browser left skips itself
-                owed = self._owed.pop(cid, 0.0) + dt_wall
-                backlog = _backlog(s.client)
-                if backlog < 0:  # closed: its session is about to be dropped
-                    continue
-                if backlog > 0:  # its browser has not taken the last frame yet: skip this one
-                    self._owed[cid] = min(owed, 0.25)
-                    self.skipped += 1
-                    continue
-                with contextlib.suppress(Exception):  # a client gone mid-frame: skip it this frame
-                    s.tick(owed, refresh)
-            sessions = s = None  # hold no closed session until the next frame
+            self._tick_sessions(dt_wall, refresh)  # its locals (the sessions) go when it returns
             if self._trim_due is not None and time.monotonic() >= self._trim_due:
                 self._trim_due = None
                 _release_memory()

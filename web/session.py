@@ -21,8 +21,12 @@ from nmkane_core.run.simulate import simulate as core_simulate
 
 from . import stability
 from .camera import CameraRig
-from .controls import ControlPanel, settings_from
+from .controls import Control, ControlPanel, settings_from
 from .generic import GenericView, scene_choices
+from .keys import add_keys
+from .link import Link, LinkPanel, read_link, read_system
+from .numbers import HIDE_SLIDER_BOXES, ExpressionField, NumberField
+from .page import PageBridge
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
 from .study import StudyPanel
@@ -60,8 +64,8 @@ class MechanismApp:
         self.playing = True
         self.closed = False
         self._installs = 0
-        self._writing_time = False
-        self._shown_t = None
+        self.run_status = "computing … (the first run loads the compiled kernels)"
+        self._shown_t: float | None = None
         self.views: dict[str, GenericView] = {}
         self.choices = scene_choices()  # dropdown title -> system name
         first = next((t for t, n in self.choices.items() if n == scene), None) if scene else None
@@ -70,28 +74,36 @@ class MechanismApp:
         self.runner = Runner(self, simulate, sync=sync)
         self._build_gui(first)
         if self.client is not None:
-            self.client.camera.on_update(lambda cam: self.camera.on_report(self.system_view, cam))
+            self.client.camera.on_update(lambda cam: self.camera.on_report(cam))
         self._on_scene()
+        self.link.start()  # the page says which link it was opened with; then its address follows the page
+        self.bridge.help_plots()
 
     # ---------------------------------------------------------------- GUI
     def _build_gui(self, first: str) -> None:
         gui = self.gui
-        self.controls = ControlPanel(gui, self.show_status)
+        gui.add_html(HIDE_SLIDER_BOXES)  # viser's own slider boxes misread typing: ours are above them
+        self.controls = ControlPanel(gui, self._show_status, self.lock)
         gui.add_markdown("Nonminimal Kane's equations — Bajodah, Hodges & Chen (2005)")
         titles = tuple(self.choices)
         self.scene_choice = gui.add_dropdown("Scene", options=titles, initial_value=first)
-        self.status = gui.add_markdown("computing … (the first run loads the compiled kernels)")
+        self.status = gui.add_markdown(self.run_status)
+        self.bridge = PageBridge(gui, self.client, self._on_page)
+        self.link = LinkPanel(gui, self)
 
-        with gui.add_folder("Playback"):
+        with self._form("Playback"):
             self.play = gui.add_button("❚❚ Pause")
-            self.speed = self.controls.slider("Speed ×", min=0.1, max=20.0, step=0.1, initial_value=1.0)
-            self.time = self.controls.slider("Time t [s]", min=0.0, max=20.0, step=0.01, initial_value=0.0)
+            self.speed = self.controls.number("Speed ×", 1.0, 0.1, 20.0, 0.1)
+            self.time = self.controls.number("Time t [s]", 0.0, 0.0, 20.0, 0.01, unit="s", marks=False)
             self.follow = gui.add_checkbox("Camera follows", initial_value=True)
             self.view_reset = gui.add_button("Reset view")
             self.fit_view = gui.add_button("Fit view")
+            self.keys = add_keys(gui, self)
 
         self.sim_controls: dict[str, dict] = {}  # kind -> {Control: handle}
-        self.folders, self.resets = {}, {}
+        self.folders: dict[str, viser.GuiFolderHandle] = {}
+        self.legends: dict[str, viser.GuiMarkdownHandle] = {}
+        self.resets: dict[str, viser.GuiButtonHandle] = {}
         view = GenericView(self.scene, self.choices[first])
         self.views[view.kind] = self.system_view = view  # the chosen system's view
         self._add_view_gui(view, visible=True)
@@ -110,28 +122,60 @@ class MechanismApp:
         self.controls.on_change(self.speed, lambda: None)
         self.controls.on_change(self.time, self._on_time)
         self.view_reset.on_click(lambda _: self.reset_view())
-        self.fit_view.on_click(lambda _: self.reset_view())
-        self.follow.on_update(lambda _: self._aim_camera(reset=True) if self.follow.value else None)
-        with gui.add_folder("Γ study", expand_by_default=False):  # web/study.py; follows the scene itself
+        self.fit_view.on_click(lambda _: self.fit())
+        self.controls.on_change(self.follow, lambda: self._look(follow=bool(self.follow.value)))
+        with self._form("Γ study", expand_by_default=False):  # web/study.py; follows the scene itself
             self.study = StudyPanel(gui, self)
 
     def _add_view_gui(self, view, visible: bool, order: float | None = None) -> None:
         """A view's simulation folder (controls, parameters, reset button), wired to re-simulate."""
         gui = self.gui
-        self.folders[view.kind] = folder = gui.add_folder(view.folder, visible=visible, order=order)
+        self.folders[view.kind] = folder = self._form(view.folder, visible=visible, order=order)
         with folder:
-            what = view.core.what_to_try
-            if what:
-                gui.add_markdown(f"*{view.core.description}*  \n**What to try:** {what}")
-            handles = {c: self.controls.add(c) for c in view.controls}
+            core = view.core
+            text = [f"*{core.description}*"] if core.description else []
+            text += [f"**What to try:** {core.what_to_try}"] if core.what_to_try else []
+            if text:
+                gui.add_markdown("  \n".join(text))
+            handles: dict[Control, object] = {}
+            for c in view.controls:
+                if c.field.startswith("initial.") and not any(k.field.startswith("initial.") for k in handles):
+                    gui.add_markdown("**Initial values** (t = 0; the dependent ones follow from the constraints)")
+                handles[c] = self.controls.add(c)
+                if c.field == "option.compare":
+                    self.legends[view.kind] = gui.add_markdown("")  # which colour is which run
             with gui.add_folder(view.params_folder, expand_by_default=False):
                 params = {c.attr: self.controls.add(c) for c in view.param_controls}
             self.resets[view.kind] = gui.add_button(view.reset_label)
         handles.update({c: params[c.attr] for c in view.param_controls})
         self.sim_controls[view.kind] = handles
+        self._keep_the_ghost(handles)
         for h in handles.values():
             self.controls.on_change(h, self.request)
         self.resets[view.kind].on_click(lambda _: self.reset_to_paper())
+
+    def _keep_the_ghost(self, handles: dict) -> None:
+        """Choosing as the model the one shown as the ghost swaps them: the ghost then shows
+        the model shown before (rather than silently vanishing)."""
+        by_field = {c.field: h for c, h in handles.items()}
+        variant, compare = by_field.get("variant"), by_field.get("option.compare")
+        if variant is None or compare is None:
+            return
+        before = {"variant": variant.value}
+
+        def swap(_event) -> None:
+            new, old = variant.value, before["variant"]
+            before["variant"] = new
+            if compare.value == new and old != new:
+                self.controls.set_quietly(compare, old)
+
+        variant.on_update(swap)  # before the re-simulation's callback: the run sees the swapped compare
+
+    def _form(self, label: str, **kw) -> viser.GuiFolderHandle:
+        """A folder whose boxes apply what is typed on Enter (viser's form)."""
+        form = self.gui.add_form(label, **kw)
+        form.on_submit(lambda _: self.controls.submit())
+        return form
 
     def _view_for(self, title: str) -> GenericView:
         """The view of a dropdown entry (built on first use)."""
@@ -184,10 +228,35 @@ class MechanismApp:
         self.playing = bool(playing)
         self.play.label = "❚❚ Pause" if self.playing else "▶ Play"
 
-    def reset_view(self) -> None:
-        """The camera preset of the current scene and target, seen at the current heading."""
+    def fit(self) -> None:
+        """Frame the whole motion of the run (every path travelled) in the part of the view the
+        panel leaves free, and stop following (else the camera would leave that view)."""
         with self.lock:
-            self._aim_camera(reset=True)
+            self._look(follow=False)
+
+    def reset_view(self) -> None:
+        """The system's first view: its bodies followed, or its whole motion when that is small."""
+        with self.lock:
+            self._look(follow=None)
+
+    def _look(self, follow: bool | None) -> None:
+        """Frame the shown system, following it (True), fixed on its whole motion (False), or
+        as its first view does (None); the *Camera follows* box says which."""
+        view = self.system_view
+        traj = self.traj
+        if traj is None or traj.kind != view.kind:
+            return
+        plan = view.plan = view.camera_plan(self.camera.viewport())
+        if plan is None:
+            return
+        follow = plan.follows if follow is None else follow
+        if bool(self.follow.value) != follow:
+            self.controls.set_quietly(self.follow, follow)
+        if follow:
+            target = view.follow_target()
+            self.camera.place(target, target + plan.offset, following=True)
+        else:
+            self.camera.place(*plan.whole, following=False)
 
     def seek(self, t: float) -> None:
         """Show time t (the scrubber, or a test)."""
@@ -199,8 +268,7 @@ class MechanismApp:
                 self._refresh(force=True)
 
     def _on_time(self) -> None:
-        if not self._writing_time:  # a person (or a test) moved the scrubber
-            self.seek(float(self.controls.value(self.time)))
+        self.seek(float(self.time.value))  # a person (or a test) typed a time or moved the scrubber
 
     def reset_to_paper(self) -> None:
         """Every control of the current scene back to its default (the system's showcase, e.g. the
@@ -218,12 +286,11 @@ class MechanismApp:
             self.system_view = self._view_for(self.scene_choice.value)
         for kind, folder in self.folders.items():
             folder.visible = kind == self.kind
-        self.follow.visible = self.system_view.follows
         for v in self.views.values():
             v.root.visible = v is self.system_view
         self.plots.show_kind(self.kind)
         self.speed.value = self.system_view.speed
-        self._aim_camera(reset=True)
+        self._look(follow=None)
         self.request()
 
     # ---------------------------------------------------------------- simulation
@@ -233,14 +300,61 @@ class MechanismApp:
         settings, options = settings_from(view.core, self.sim_controls[view.kind], self.controls.value)
         return self.runner.next_request(view.kind, settings, options)
 
-    def request(self) -> None:
+    def request(self, keep_notes: bool = False) -> None:
         if self.runner.quiet or self.closed:
             return
+        if not keep_notes:
+            self.controls.note("link", [])  # a link's refusals last until the next change
         self.runner.submit(self.snapshot())
+        self.link.update()
+
+    # ---------------------------------------------------------------- the page
+    def _on_page(self, answer: dict) -> None:
+        """An answer of the page's scripts (:mod:`web.page`)."""
+        if answer.get("kind") == "plots":
+            busy = bool(answer.get("busy"))
+            with self.lock:
+                self.plots.busy = busy
+                if not busy and self.traj is not None:
+                    self.plots.mark(self.traj, self.t_now)
+        else:
+            self.link.on_answer(answer)
+
+    # ---------------------------------------------------------------- links
+    def link_values(self) -> dict:
+        """The shown system's controls and their values (what a link carries)."""
+        return {c: self.controls.value(h) for c, h in self.sim_controls[self.kind].items()}
+
+    def open_link(self, query: str) -> Link:
+        """Build the page a link asks for (``?system=…&dt=…``): its system, then its values —
+        each box reads its value as if it were typed, a bad one is refused beside its box and
+        the rest are applied — and one run."""
+        system, refused = read_system(query, tuple(self.choices.values()))
+        self.runner.quiet = True
+        try:
+            if system is not None and system != self.kind:
+                self.scene_choice.value = next(t for t, n in self.choices.items() if n == system)
+            link = read_link(query, tuple(self.sim_controls[self.kind]), self.system_view.core.option)
+            handles = self.sim_controls[self.kind]
+            for c, v in link.values.items():
+                if isinstance(handles[c], (NumberField, ExpressionField)):
+                    handles[c].text.value = str(v)  # read and checked as typed (at once: set from Python)
+                else:
+                    handles[c].value = v
+        finally:
+            self.runner.quiet = False
+        self.controls.note("link", refused + link.refused)
+        self.request(keep_notes=True)
+        return link
 
     def show_status(self, text: str) -> None:
+        """The run's status line (the refusals of the boxes are added under it)."""
+        self.run_status = text
+        self._show_status()
+
+    def _show_status(self) -> None:
         if self.alive():
-            self.status.content = text
+            self.status.content = "  \n".join([self.run_status, *self.controls.refusal_lines()])
 
     def install(self, traj: Trajectory) -> None:
         """Show a new trajectory: geometry that depends on it, trace, plots, summary."""
@@ -256,19 +370,17 @@ class MechanismApp:
                 if getattr(view, "fit_pending", False) and traj.kind == self.kind:
                     view.fit_pending = False  # first sight of this system: frame it
                     self.show_time(self.t_now)
-                    self._aim_camera(reset=True)
-                self._writing_time = True
-                try:
-                    self.time.max = max(traj.t_end, 0.01)
-                finally:
-                    self._writing_time = False
+                    self._look(follow=None)
+                self.time.set_range(0.0, max(traj.t_end, 0.01))
                 self._installs += 1
                 self.plots.write(traj, self.t_now)
                 stability.update(self, traj)  # the run's value marked on the eigenvalue plot
                 self.show_time(self.t_now)
                 self._refresh(force=True)
                 self.runner.record_install(traj)
-                self.status.content = status_text(traj, self._installs)
+                self.show_status(status_text(traj, self._installs))
+                if traj.kind in self.legends:
+                    self.legends[traj.kind].content = view.legend(traj)
         self.target.flush()  # out now, not at the next 1/60 s window
 
     @contextlib.contextmanager
@@ -282,9 +394,10 @@ class MechanismApp:
         traj = self.traj
         if traj is None:
             return
-        row = self.views[traj.kind].pose(traj, t_now)
-        if row is not None and self.follow.value and traj.kind == self.kind:
-            self._aim_camera(row=row)
+        view = self.views[traj.kind]
+        view.pose(traj, t_now)
+        if self.follow.value and traj.kind == self.kind:
+            self.camera.follow(view.follow_target())
 
     def _refresh(self, force: bool = False) -> None:
         """The slow-rate part of a frame: plot markers, scrubber, readouts."""
@@ -293,11 +406,7 @@ class MechanismApp:
             return
         self._shown_t = self.t_now
         self.plots.mark(traj, self.t_now)
-        self._writing_time = True
-        try:
-            self.controls.set_quietly(self.time, round(min(self.t_now, self.time.max), 2))
-        finally:
-            self._writing_time = False
+        self.time.display(round(min(self.t_now, self.time.max), 2))
         self.views[traj.kind].readouts(traj, self.t_now)
 
     def tick(self, dt_wall: float, refresh: bool) -> None:
@@ -309,19 +418,13 @@ class MechanismApp:
             if traj is None or not self.alive():
                 return
             if self.playing:
-                self.t_now += dt_wall * float(self.controls.value(self.speed))
+                self.t_now += dt_wall * float(self.speed.value)
                 if self.t_now > traj.t_end:
                     self.t_now = 0.0 if traj.t_end > 0 else traj.t_end
             with self._atomic():
                 self.show_time(self.t_now)
             if refresh:
                 self._refresh()
-
-    def _aim_camera(self, reset: bool = False, row: dict | None = None) -> None:
-        traj = self.traj
-        if row is None and traj is not None and traj.kind == self.kind:
-            row = traj.row(next(iter(traj.runs)), self.t_now)
-        self.camera.aim(self.system_view, "system", row, reset=reset)
 
     # ---------------------------------------------------------------- lifecycle
     def wait_idle(self, timeout: float = 30.0) -> bool:
@@ -331,3 +434,4 @@ class MechanismApp:
         with self.lock:
             self.closed = True
         self.runner.close()
+        self.controls.close()

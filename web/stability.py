@@ -19,7 +19,7 @@ from viser import uplot
 from . import plots as pl
 
 KEY = "stability"
-COLORS = ("#222222", "#1f77b4")
+IMAG_COLOR = "#555555"  # max |Im λ|, dashed (the real parts take the plots' colours, one each)
 YMAX = 10.0  # the y range shown, ±1/s (Meijaard et al. 2007, Fig. 3)
 
 
@@ -35,8 +35,11 @@ class StabilityPlot:
         n = len(self.st.keep)
         z = np.zeros(2)
         series = [uplot.Series(label=f"{self.st.over} [{self.st.unit}]")]
-        series += [uplot.Series(label=f"Re λ{i + 1}", stroke=COLORS[0], width=1.5) for i in range(n)]
-        series.append(uplot.Series(label="max |Im λ|", stroke=COLORS[1], width=1.5, dash=(5.0, 3.0)))
+        series += [
+            uplot.Series(label=f"Re λ{i + 1} [1/s]", stroke=pl.COLORS[i % len(pl.COLORS)], width=1.8) for i in range(n)
+        ]
+        series.append(uplot.Series(label="max |Im λ| [1/s], dashed", stroke=IMAG_COLOR, width=1.5, dash=(5.0, 3.0)))
+        self.x_label = f"{self.st.over} [{self.st.unit}]"
         self.handle = gui.add_uplot(
             order=order,
             data=(z,) * (n + 2),
@@ -46,7 +49,7 @@ class StabilityPlot:
                 "x": uplot.Scale(time=False, auto=False, range=(self.st.start, self.st.stop)),
                 "y": uplot.Scale(auto=False, range=(-YMAX, YMAX)),
             },
-            axes=pl.marker_axes(0.0),
+            axes=pl.marker_axes(0.0, f"{self.st.over} [{self.st.unit}]", "eigenvalues [1/s]"),
             aspect=1.4,
             visible=False,
         )
@@ -72,7 +75,7 @@ class StabilityPlot:
                 self.value = float(self.st.value_of(initial, values))
         except Exception:  # a marker is not worth an error on the page
             return
-        self.handle.axes = pl.marker_axes(self.value)
+        self.handle.axes = pl.marker_axes(self.value, self.x_label, "eigenvalues [1/s]")
         key = tuple(sorted(values.items()))
         with self._lock:
             if key == self.params_key:
@@ -91,7 +94,7 @@ class StabilityPlot:
             if key != self.params_key:
                 return  # parameters changed meanwhile: the newer thread draws
         self.handle.data = self.data(rows)
-        self.handle.axes = pl.marker_axes(self.value)
+        self.handle.axes = pl.marker_axes(self.value, self.x_label, "eigenvalues [1/s]")
 
 
 def attach(session, view) -> None:

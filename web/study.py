@@ -30,7 +30,7 @@ from nmkane_core.sweep.plot import metric_values
 from nmkane_core.sweep.runner import run_sweep
 from nmkane_core.sweep.spec import Axis, SweepSpec
 
-from .controls import LOG_DT_RANGE, dt_of, settings_from
+from .controls import DT_RANGE, dt_of, settings_from
 
 __all__ = ["METRICS", "StudyGrid", "StudyPanel", "study_axes", "study_grid"]
 
@@ -58,7 +58,7 @@ class StudyGrid:
     kind: str  # the page view's kind
     gain: str  # "gamma" | "gamma1" | "gamma2"
     gains: tuple[float, ...]
-    log_dts: tuple[float, ...]  # the Δt slider's values
+    log_dts: tuple[float, ...]  # log10 of the step sizes, half a decade apart
     dts: tuple[float, ...]  # dt_of(log_dts): the step sizes run
     base: dict  # the settings every run shares
     rows: list[dict] = field(default_factory=list)
@@ -99,16 +99,16 @@ class StudyGrid:
 
 
 def study_axes(controls, gain: str, log_dt_now: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """The gains (N_GAIN values from the gain slider's minimum to 0, on its step) and the Δt
-    slider values (N_DT, half a decade apart, centred on ``log_dt_now`` inside the slider's
-    range) of a study; ``controls`` are the page view's :class:`~web.controls.Control` rows."""
+    """The gains (N_GAIN values from the gain slider's minimum to 0, on its step) and log10
+    of the step sizes (N_DT, half a decade apart, centred on ``log_dt_now`` inside the Δt
+    slider's range) of a study; ``controls`` are the page view's :class:`~web.controls.Control` rows."""
     c = next((c for c in controls if c.field == gain), None)
     if c is None:
         raise ValueError(f"this system has no {gain} control")
     hi = min(c.max, 0.0)
     step = c.step or 1e-9
     gains = tuple(float(round(round(g / step) * step, 10)) for g in np.linspace(c.min, hi, N_GAIN))
-    lo_dt, hi_dt, _ = LOG_DT_RANGE
+    lo_dt, hi_dt = (math.log10(v) for v in DT_RANGE)
     half = 0.5 * (N_DT - 1) * 0.5
     centre = min(max(float(log_dt_now), lo_dt + half), hi_dt - half)
     log_dts = tuple(round(centre + 0.5 * (k - (N_DT - 1) / 2), 2) for k in range(N_DT))
@@ -119,8 +119,7 @@ def study_grid(kind: str, controls: dict, read, system, gain: str, horizon: floa
     """The study of a page view: ``controls`` maps Control → handle, ``read(handle)`` its value,
     ``system`` the core System; the base settings are the page's, over ``horizon`` seconds."""
     settings, _ = settings_from(system, controls, read)
-    log_dt_now = next((read(h) for c, h in controls.items() if c.field == "log_dt"), math.log10(settings["dt"]))
-    gains, log_dts = study_axes(tuple(controls), gain, log_dt_now)
+    gains, log_dts = study_axes(tuple(controls), gain, math.log10(settings["dt"]))
     dts = tuple(dt_of(v) for v in log_dts)
     t_final = min(float(settings["t_final"]), float(horizon))
     base = {**settings, "t_final": t_final, "every": max(1, round(t_final / min(dts) / ROWS_PER_RUN))}
@@ -167,6 +166,23 @@ def _title(grid: StudyGrid) -> str:
     return f"{st['system']} · {st.get('integrator', '')} · horizon {st['t_final']:g} s"
 
 
+class _Sink:
+    """run_sweep's output for a study: rows kept in the grid, the progress bar moved; a
+    superseded study stops at its next batch."""
+
+    def __init__(self, panel: StudyPanel, grid: StudyGrid, gen: int, n: int):
+        self.panel, self.grid, self.gen, self.n = panel, grid, gen, n
+        self.done: set = set()  # nothing to resume
+
+    def write(self, rows) -> None:
+        panel = self.panel
+        panel._check(self.gen)
+        self.grid.rows.extend(rows)
+        with panel.app.lock:
+            panel._check(self.gen)
+            panel.progress.value = min(100.0, 100.0 * len(self.grid.rows) / self.n)
+
+
 class StudyPanel:
     """The panel's handles and its background study, for one session ``app`` (a
     :class:`web.session.MechanismApp`: its ``system_view``, ``sim_controls``, ``controls``,
@@ -187,7 +203,7 @@ class StudyPanel:
         )
         self.gain = gui.add_dropdown("Gain (x axis)", options=("Γ",), initial_value="Γ")
         self.metric = gui.add_dropdown("Colour", options=tuple(METRICS), initial_value=next(iter(METRICS)))
-        self.horizon = gui.add_number("Horizon [s]", initial_value=HORIZON_S, min=0.05, max=60.0, step=0.05)
+        self.horizon = app.controls.number("Horizon [s]", HORIZON_S, 0.05, 60.0, 0.05, unit="s", slider=False)
         self.compute_button = gui.add_button("Compute the map")
         self.progress = gui.add_progress_bar(0.0, visible=False)
         self.note = gui.add_markdown("")
@@ -231,13 +247,7 @@ class StudyPanel:
             self.note.content = "(this system has no Baumgarte gain to study)"
             return None
         view = app.system_view
-        try:
-            horizon = float(self.horizon.value)
-            if not (math.isfinite(horizon) and horizon > 0):
-                raise ValueError
-        except (TypeError, ValueError):
-            self.note.content = f"**input refused** — Horizon = {self.horizon.value!r}: a number > 0 s"
-            return None
+        horizon = float(self.horizon.value)  # the box refuses what is not a number in its range
         grid = study_grid(view.kind, app.sim_controls[view.kind], app.controls.value, view.core, gain, horizon)
         self._gen += 1
         gen = self._gen
@@ -255,28 +265,15 @@ class StudyPanel:
             raise _Stale
 
     def _run(self, grid: StudyGrid, gen: int) -> None:
+        """The study's thread: the sweep, then the map (or the failure) on the panel."""
+        from nmkane_core.sweep.output import columns
+        from nmkane_core.sweep.runner import constraint_columns
+
         spec = SweepSpec(axes=[Axis(grid.gain, grid.gains), Axis("dt", grid.dts)])
-        n = len(spec)
-        panel = self
-
-        class Sink:  # run_sweep's output: rows kept here; a superseded study stops at its next batch
-            def __init__(self):
-                self.done: set = set()
-
-            def write(self, rows):
-                panel._check(gen)
-                grid.rows.extend(rows)
-                with panel.app.lock:
-                    panel._check(gen)
-                    panel.progress.value = min(100.0, 100.0 * len(grid.rows) / n)
-
         try:
-            from nmkane_core.sweep.output import columns
-            from nmkane_core.sweep.runner import constraint_columns
-
             grid.columns = columns(spec.names, constraint_columns(grid.base, spec))
             with SerialExecutor(time_limit=TIME_LIMIT_S) as ex:
-                res = run_sweep(grid.base, spec, Sink(), executor=ex, progress=False)
+                res = run_sweep(grid.base, spec, _Sink(self, grid, gen, len(spec)), executor=ex, progress=False)
         except _Stale:
             return
         except Exception as e:  # a teaching aid never takes the session down
@@ -289,22 +286,25 @@ class StudyPanel:
         metric = self.metric.value
         img = render(grid, metric, grid.best(metric), _title(grid))  # drawn outside the session lock
         with self.app.lock:
-            if gen != self._gen or not self.app.alive():
-                return
-            self.grid = grid
-            counts = ", ".join(f"{v} {k}" for k, v in sorted(res.statuses.items()))
-            self.note.content = (
-                f"{res.ran} runs in {res.wall_s:.1f} s ({counts}); horizon {grid.base['t_final']:g} s, "
-                f"{grid.base.get('integrator', '')}. Grey: the run did not end ok."
-            )
-            self.progress.visible = False
-            self._quiet = True  # the cell dropdown's callback would draw the map again
-            try:
-                self._set_cells(grid.cells())
-            finally:
-                self._quiet = False
-            self.image.image = img
-            self.image.visible = True
+            if gen == self._gen and self.app.alive():
+                self._show(grid, res, img)
+
+    def _show(self, grid: StudyGrid, res, img: np.ndarray) -> None:
+        """A finished study on the panel: the note, the cells, the map."""
+        self.grid = grid
+        counts = ", ".join(f"{v} {k}" for k, v in sorted(res.statuses.items()))
+        self.note.content = (
+            f"{res.ran} runs in {res.wall_s:.1f} s ({counts}); horizon {grid.base['t_final']:g} s, "
+            f"{grid.base.get('integrator', '')}. Grey: the run did not end ok."
+        )
+        self.progress.visible = False
+        self._quiet = True  # the cell dropdown's callback would draw the map again
+        try:
+            self._set_cells(grid.cells())
+        finally:
+            self._quiet = False
+        self.image.image = img
+        self.image.visible = True
 
     def wait(self, timeout: float = 120.0) -> bool:
         """Wait for the running study (tests); True when none is left running."""
@@ -363,8 +363,8 @@ class StudyPanel:
         app.runner.quiet = True
         try:
             handles[grid.gain].value = grid.gains[i]
-            if "log_dt" in handles:  # every view has one; a view without keeps its Δt
-                handles["log_dt"].value = grid.log_dts[j]
+            if "dt" in handles:  # every view has one; a view without keeps its Δt
+                handles["dt"].value = grid.dts[j]
         finally:
             app.runner.quiet = False
         app.request()

@@ -129,7 +129,8 @@ def list_runs(
 @router.get("/api/runs/{run_id}.csv", response_class=CSVResponse, responses=NOT_FOUND_CSV, operation_id="get_run_csv")
 def get_run_csv(store: Store, run_id: str = RUN_ID):
     """The stored run as CSV: t, the state, energy, violation_<constraint>, force_<speed>,
-    multiplier_<constraint> (one row per output step)."""
+    multiplier_<constraint> and the declared forces at points, <force>.<component> (one row per
+    output step)."""
     doc = store.document(run_id)
     if doc is None:
         return _no_run(run_id)
@@ -184,6 +185,7 @@ def csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
     violation = {k: _floats(v) for k, v in d["violation"].items()}
     forces = {k: _floats(v) for k, v in d.get("constraint_forces", {}).items()}
     multipliers = {k: _floats(v) for k, v in d.get("multipliers", {}).items()}
+    at_points = {k: _floats(v) for k, v in d.get("point_forces", {}).items()}
     del d
     for start in range(0, max(t.size, 1), rows_per_chunk):
         part = slice(start, start + rows_per_chunk)
@@ -197,6 +199,7 @@ def csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
             summary={},
             constraint_forces={k: v[part] for k, v in forces.items()},
             multipliers={k: v[part] for k, v in multipliers.items()},
+            point_forces={k: v[part] for k, v in at_points.items()},
         ).to_csv()
         yield text if start == 0 else text.split("\n", 1)[1]
 

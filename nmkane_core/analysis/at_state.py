@@ -20,10 +20,11 @@ import numpy as np
 from ..declare.system import System
 from ..errors import InconsistentStateError, InputError
 from ..kernel.built import built
+from ..run.forces import point_forces_at
 from ..run.initial import CHECK_TOL, complete_state
 from ..run.registry import get_system
 
-__all__ = ["accelerations", "linearize", "Linearization"]
+__all__ = ["Accelerations", "accelerations", "linearize", "Linearization"]
 
 
 def _setup(system: System | str, state: Mapping[str, float], params, variant):
@@ -72,14 +73,41 @@ def _check_consistent(system, module, info, x, p, tol):
         )
 
 
+class Accelerations(dict):
+    """``{speed name: du/dt}`` (a plain dict to every caller) with the constraint forces at that
+    state as attributes.
+
+    Attributes
+    ----------
+    constraint_forces : dict of str to float
+        F_c = Q u̇ − P by speed name (the generalized constraint force).
+    multipliers : dict of str to float
+        λ by constraint name, F_c = Jᵀλ.
+    point_forces : dict of str to float
+        The physical forces the system declares at points, by ``NAME.LABEL``
+        (:mod:`nmkane_core.declare.forces`); empty when it declares none.
+    """
+
+    constraint_forces: dict[str, float]
+    multipliers: dict[str, float]
+    point_forces: dict[str, float]
+
+    def __init__(self, du, constraint_forces=None, multipliers=None, point_forces=None):
+        super().__init__(du)
+        self.constraint_forces = dict(constraint_forces or {})
+        self.multipliers = dict(multipliers or {})
+        self.point_forces = dict(point_forces or {})
+
+
 def accelerations(
     system: System | str,
     state: Mapping[str, float],
     params: Mapping[str, float] | None = None,
     variant: str | None = None,
     t: float = 0.0,
-) -> dict[str, float]:
-    """du/dt of every speed at a full consistent state (all q and u), no stabilization terms.
+) -> Accelerations:
+    """du/dt of every speed at a full consistent state (all q and u), no stabilization terms —
+    and the constraint forces there.
 
     Evaluates the nonminimal equations T u̇ = V (44); the Baumgarte terms vanish on the
     constraint manifold anyway.
@@ -99,8 +127,10 @@ def accelerations(
 
     Returns
     -------
-    dict of str to float
-        Speed name → du/dt.
+    Accelerations
+        Speed name → du/dt (a dict), with the constraint forces there as attributes:
+        ``constraint_forces`` (F_c = Q u̇ − P by speed), ``multipliers`` (λ by constraint) and
+        ``point_forces`` (the system's declared forces at points, ``NAME.LABEL``).
 
     Raises
     ------
@@ -109,12 +139,25 @@ def accelerations(
     InconsistentStateError
         When the state violates the constraints.
     """
-    system, _, module, info, p, x = _setup(system, state, params, variant)
-    _check_consistent(system, module, info, x, p, CHECK_TOL)
-    xdot, _, _ = module.rhs(t, x, p, *_zero_gains(info))
+    sys_, variant, module, info, p, x = _setup(system, state, params, variant)
+    _check_consistent(sys_, module, info, x, p, CHECK_TOL)
+    gains = _zero_gains(info)
+    xdot, _, _ = module.rhs(t, x, p, *gains)
     if not np.all(np.isfinite(xdot)):
         raise InputError("state", dict(state), "a state where J2 and T are invertible", "singular there")
-    return {name: float(v) for name, v in zip(info.u, xdot[info.n :], strict=True)}
+    F, L = np.zeros((1, info.n)), np.zeros((1, info.m))
+    module.forces_rows(np.array([float(t)]), x[None, :], p, *gains, F, L)
+    fc = {name: float(v) for name, v in zip(info.u, F[0], strict=True)}
+    lam = {name: float(v) for name, v in zip(info.constraint_names, L[0], strict=True)}
+    full = {name: float(v) for name, v in zip(info.state_names, x, strict=True)}
+    if info.outputs:
+        O = np.empty((1, len(info.outputs)))
+        module.outputs_rows(np.array([float(t)]), x[None, :], p, O)
+        full.update({name: float(v) for name, v in zip(info.outputs, O[0], strict=True)})
+    values = sys_.resolve_params(params or {})
+    at_points = point_forces_at(sys_, variant, t, full, values, lam, fc, xdot)
+    du = {name: float(v) for name, v in zip(info.u, xdot[info.n :], strict=True)}
+    return Accelerations(du, fc, lam, at_points)
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ from ..kernel.built import built
 from ..run.plan import resolve
 from ..run.registry import get_system
 from ..run.simulate import kernel_for, simulate, simulate_many
+from .forces import forces_rows
 
 
 def _best(fn, repeat=3):
@@ -95,6 +96,7 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
     _cold_start_rows(add, quick, long_t)
     _user_system_rows(add)
     _bicycle_rows(add, quick)
+    forces_rows(add, quick)
     _interactive_rows(add)
     _adaptive_rows(add, quick, long_t)
     _gamma_sweep_rows(add, quick)

@@ -65,6 +65,9 @@ def format_summary(run) -> str:
     if s.get("max_abs_multiplier"):
         lam = ", ".join(f"{k} {v:.3e}" for k, v in s["max_abs_multiplier"].items())
         lines.append(f"max |λ|  {lam}  (constraint forces F_c = Jᵀλ)")
+    if s.get("max_abs_point_force"):
+        at = ", ".join(f"{k} {v:.4g} N" for k, v in s["max_abs_point_force"].items())
+        lines.append(f"max |F|  {at}  (forces at points: {', '.join(run.point_forces)})")
     for sw in s.get("switches") or []:
         lines.append(f"switch   t = {sw['t']:.4g} s: {sw['from']} → {sw['to']} (rcond {sw['rcond']:.2g})")
     for w in s.get("warnings", []):

@@ -105,6 +105,12 @@ class System:
         ``t_final`` (numbers), ``variant``, ``integrator``, ``compare`` (the runs drawn as
         ghosts beside the shown one: ``"off"``, a variant name, ``"Γ = 0"`` or ``"all"``) and
         ``speed`` (playback).  Runs through the CLI and REST are not affected.
+    forces:
+        A function of the variant name (or of nothing) returning
+        :class:`~nmkane_core.declare.forces.Forces`: where the constraint forces act (points,
+        the frame of their components, sympy expressions of the state, the multipliers and the
+        accelerations; compiled once, see :mod:`nmkane_core.declare.forces`), or None.  Runs
+        then report the forces' components (``Run.point_forces``).
     events:
         A zero-argument function returning ``{name: expression}`` (sympy, of the state and
         parameters, negative in normal motion): a run ends with status ``"event"`` when one
@@ -144,6 +150,7 @@ class System:
     what_to_try: str = ""
     showcase: Mapping[str, Any] = field(default_factory=dict)
     events: Callable[[], Any] | None = None
+    forces: Callable[..., Any] | None = None
     stability: Any = None
     initial_controls: Mapping[str, tuple[float, float, str]] = field(default_factory=dict)
     given_models: dict = field(default_factory=dict, init=False, repr=False)  # variants given as objects
@@ -187,6 +194,9 @@ class System:
             g = self._finite(gain, getattr(self, gain))
             if abs(g) > LIMITS["max_gain"]:
                 raise InputError(f"{self.name}: {gain}", g, f"|Γ| ≤ {LIMITS['max_gain']:g}", "out of range")
+        if self.forces is not None and not callable(self.forces):
+            what = type(self.forces).__name__
+            raise InputError(f"{self.name}: forces", what, "a function returning Forces, or None", "not callable")
         self.showcase = dict(self.showcase)
         for k, v in self.showcase.items():
             if k in SHOWCASE_NUMBERS:

@@ -22,6 +22,12 @@ the pose functions are not cached yet) returns a :class:`Visuals`:
 * :func:`ground` — a grid plane at a height;
 * :func:`label` — a text at a world point ("load P").
 
+Each builder returns one small class per kind (:class:`Box`, :class:`Cylinder`,
+:class:`Sphere`, :class:`Rod`, :class:`Segments`, :class:`Trace`, :class:`Strip`,
+:class:`Label`, :class:`Ground`; :data:`SHAPES` maps kind names to them): its fields are
+the one definition of what the kind holds, which of them are expressions of the
+parameters only and which move with the state — the compiler and the web view read them.
+
 ``Visuals(view=(dx, dy, dz))`` says from which side a viewer's default camera looks at
 the system (the direction from the system to the camera; None: the viewer's choice).
 
@@ -33,12 +39,22 @@ from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import Any, ClassVar
 
 __all__ = [
     "Frame",
     "Shape",
+    "SHAPES",
+    "Box",
+    "Cylinder",
+    "Ground",
+    "Label",
+    "Rod",
+    "Segments",
+    "Sphere",
+    "Strip",
+    "Trace",
     "Visuals",
     "box",
     "cylinder",
@@ -74,29 +90,140 @@ class Frame:
         return cls(name, tuple(point.pos_from(origin).to_matrix(inertial)), inertial.dcm(frame))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Shape:
-    """One drawn thing.  ``kind``: box | cylinder | sphere | rod | segments | trace | strip | ground | label.
-    ``size``: box (lx, ly, lz), cylinder (radius, length), sphere (radius,), rod (thickness,),
-    strip (width,), ground (height,); ``offset``: position in its frame (a rod's start);
-    ``end``: a rod's end in its frame; ``axis``: a cylinder's axis in its frame, a strip's
-    sweep direction (x|y|z); ``points``: world points (sphere ``at``, trace point, segment end
-    points); ``path``: a strip's polyline (parameter expressions); ``thickness``: of lines,
-    in screen pixels (0: the viewer's default); ``text``: a label's text."""
+    """One drawn thing: the fields every kind has.  Each kind is a subclass naming which of
+    its fields hold expressions of the parameters only (``PARAM_FIELDS``: sizes, offsets,
+    fixed paths; evaluated once per parameter set) and which hold world points that move
+    with the state (``STATE_FIELDS``; evaluated on every output row); its other fields are
+    plain values (colours, an axis name, a text).  The same class describes the shape
+    declared (its fields sympy expressions) and the shape resolved for drawing (its
+    parameter fields numbers, see :meth:`nmkane_core.kernel.visuals.CompiledShape.resolve`)."""
 
-    kind: str
+    kind: ClassVar[str] = ""
+    PARAM_FIELDS: ClassVar[tuple[str, ...]] = ()
+    STATE_FIELDS: ClassVar[tuple[str, ...]] = ()
+
     name: str
-    frame: str | None = None
-    size: tuple = ()
-    offset: tuple = (0, 0, 0)
-    axis: str = "z"
-    points: tuple = ()
+    frame: str | None = None  # the frame it is attached to (None: the world)
     color: tuple = (120, 130, 150)
     opacity: float = 1.0
-    end: tuple = ()
-    path: tuple = ()
+
+    @classmethod
+    def plain_fields(cls) -> tuple[str, ...]:
+        """The fields that are plain values (neither expressions nor name and frame)."""
+        skip = {"name", "frame", *cls.PARAM_FIELDS, *cls.STATE_FIELDS}
+        return tuple(f.name for f in fields(cls) if f.name not in skip)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Box(Shape):
+    """A box of edge lengths ``size`` (lx, ly, lz) centred at ``offset`` in its frame."""
+
+    kind = "box"
+    PARAM_FIELDS = ("size", "offset")
+    size: Any = (1, 1, 1)
+    offset: Any = (0, 0, 0)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Cylinder(Shape):
+    """A cylinder (a disk when short) along ``axis`` (x|y|z) of its frame, centred at ``offset``."""
+
+    kind = "cylinder"
+    PARAM_FIELDS = ("radius", "length", "offset")
+    radius: Any = 1
+    length: Any = 1
+    offset: Any = (0, 0, 0)
+    axis: str = "z"
+
+
+@dataclass(frozen=True, kw_only=True)
+class Sphere(Shape):
+    """A ball at ``offset`` in its frame, or at the world point ``at`` (None: on the frame)."""
+
+    kind = "sphere"
+    PARAM_FIELDS = ("radius", "offset")
+    STATE_FIELDS = ("at",)
+    radius: Any = 1
+    offset: Any = (0, 0, 0)
+    at: Any = None
+    color: tuple = (200, 80, 40)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Rod(Shape):
+    """A square bar of side ``thickness`` from ``start`` to ``end`` (points of its frame)."""
+
+    kind = "rod"
+    PARAM_FIELDS = ("start", "end", "thickness")
+    start: Any = (0, 0, 0)
+    end: Any = (0, 0, 1)
+    thickness: Any = 0.05
+    color: tuple = (150, 160, 178)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Segments(Shape):
+    """Line segments between world points: ``points`` = (p0, q0, p1, q1, …); ``thickness``
+    in screen pixels (0: the viewer's default)."""
+
+    kind = "segments"
+    STATE_FIELDS = ("points",)
+    points: Any = ()
     thickness: float = 0.0
+    color: tuple = (90, 40, 30)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Trace(Shape):
+    """The path of the world ``point`` over the run; ``thickness`` in screen pixels."""
+
+    kind = "trace"
+    STATE_FIELDS = ("point",)
+    point: Any = (0, 0, 0)
+    thickness: float = 0.0
+    color: tuple = (214, 48, 39)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Strip(Shape):
+    """A fixed surface: the polyline ``path`` (world points) swept by ``width`` along ``axis``."""
+
+    kind = "strip"
+    PARAM_FIELDS = ("path", "width")
+    path: Any = ()
+    width: Any = 1
+    axis: str = "y"
+    color: tuple = (175, 188, 205)
+    opacity: float = 0.65
+
+
+@dataclass(frozen=True, kw_only=True)
+class Label(Shape):
+    """A text at the world point ``at``, or at ``offset`` in its frame (``at`` None)."""
+
+    kind = "label"
+    PARAM_FIELDS = ("offset",)
+    STATE_FIELDS = ("at",)
     text: str = ""
+    offset: Any = (0, 0, 0)
+    at: Any = None
+
+
+@dataclass(frozen=True, kw_only=True)
+class Ground(Shape):
+    """The plane z = ``height``, drawn as a grid."""
+
+    kind = "ground"
+    PARAM_FIELDS = ("height",)
+    height: Any = 0
+    color: tuple = (232, 236, 226)
+
+
+SHAPES: dict[str, type[Shape]] = {
+    c.kind: c for c in (Box, Cylinder, Sphere, Rod, Segments, Trace, Strip, Label, Ground)
+}
 
 
 @dataclass(frozen=True)
@@ -123,28 +250,40 @@ class Visuals:
                 )
 
 
+def _refuse(where: str, value, allowed: str, why: str):
+    from ..errors import InputError
+
+    raise InputError(where, value, allowed, why)
+
+
 def box(name, frame, size, offset=(0, 0, 0), color=(120, 130, 150), opacity=1.0) -> Shape:
-    return Shape("box", name, frame, tuple(size), tuple(offset), color=tuple(color), opacity=opacity)
+    return Box(name=name, frame=frame, size=tuple(size), offset=tuple(offset), color=tuple(color), opacity=opacity)
 
 
 def cylinder(name, frame, radius, length, axis="z", offset=(0, 0, 0), color=(120, 130, 150), opacity=1.0) -> Shape:
     """A cylinder (a disk when short) along ``axis`` of its frame, centred at ``offset``."""
     if axis not in AXES:
-        from ..errors import InputError
-
-        raise InputError(f"visuals.{name}.axis", axis, "x | y | z", "unknown axis")
-    return Shape("cylinder", name, frame, (radius, length), tuple(offset), axis, color=tuple(color), opacity=opacity)
+        _refuse(f"visuals.{name}.axis", axis, "x | y | z", "unknown axis")
+    return Cylinder(
+        name=name,
+        frame=frame,
+        radius=radius,
+        length=length,
+        axis=axis,
+        offset=tuple(offset),
+        color=tuple(color),
+        opacity=opacity,
+    )
 
 
 def sphere(name, radius, frame=None, offset=(0, 0, 0), at=None, color=(200, 80, 40), opacity=1.0) -> Shape:
     """A ball on a frame (at ``offset``) or at a world point ``at``."""
-    return Shape(
-        "sphere",
-        name,
-        frame,
-        (radius,),
-        tuple(offset),
-        points=(tuple(at),) if at is not None else (),
+    return Sphere(
+        name=name,
+        frame=frame,
+        radius=radius,
+        offset=tuple(offset),
+        at=tuple(at) if at is not None else None,
         color=tuple(color),
         opacity=opacity,
     )
@@ -154,31 +293,35 @@ def rod(name, frame, start, end, thickness, color=(150, 160, 178), opacity=1.0) 
     """A square bar of side ``thickness`` from ``start`` to ``end`` (points of its frame,
     expressions of the parameters)."""
     if len(tuple(start)) != 3 or len(tuple(end)) != 3:
-        from ..errors import InputError
-
-        raise InputError(f"visuals.{name}", (start, end), "two points of 3 expressions", "bad shape")
-    return Shape("rod", name, frame, (thickness,), tuple(start), end=tuple(end), color=tuple(color), opacity=opacity)
+        _refuse(f"visuals.{name}", (start, end), "two points of 3 expressions", "bad shape")
+    return Rod(
+        name=name,
+        frame=frame,
+        start=tuple(start),
+        end=tuple(end),
+        thickness=thickness,
+        color=tuple(color),
+        opacity=opacity,
+    )
 
 
 def segments(name, pairs, color=(90, 40, 30), thickness=0.0) -> Shape:
     """Line segments between world points: ``pairs`` = [(p, q), ...]; ``thickness`` in pixels."""
     pts = tuple(tuple(p) for pq in pairs for p in pq)
-    return Shape("segments", name, points=pts, color=tuple(color), thickness=float(thickness))
+    return Segments(name=name, points=pts, color=tuple(color), thickness=float(thickness))
 
 
 def polyline(name, points, color=(90, 40, 30), thickness=0.0) -> Shape:
     """A path through world points (a thread over pulleys): segments between neighbours."""
     pts = [tuple(p) for p in points]
     if len(pts) < 2:
-        from ..errors import InputError
-
-        raise InputError(f"visuals.{name}", len(pts), "at least 2 points", "too few points")
+        _refuse(f"visuals.{name}", len(pts), "at least 2 points", "too few points")
     return segments(name, list(itertools.pairwise(pts)), color, thickness)
 
 
 def trace(name, point, color=(214, 48, 39), thickness=0.0) -> Shape:
     """The path of a world point over the run."""
-    return Shape("trace", name, points=(tuple(point),), color=tuple(color), thickness=float(thickness))
+    return Trace(name=name, point=tuple(point), color=tuple(color), thickness=float(thickness))
 
 
 def strip(name, path, width, axis="y", color=(175, 188, 205), opacity=0.65) -> Shape:
@@ -186,27 +329,23 @@ def strip(name, path, width, axis="y", color=(175, 188, 205), opacity=0.65) -> S
     swept by ``width`` along ``axis`` (x|y|z), centred on the path."""
     pts = tuple(tuple(p) for p in path)
     if axis not in AXES or len(pts) < 2:
-        from ..errors import InputError
-
-        raise InputError(f"visuals.{name}", (axis, len(pts)), "axis x | y | z and at least 2 points", "bad strip")
-    return Shape("strip", name, None, (width,), axis=axis, path=pts, color=tuple(color), opacity=opacity)
+        _refuse(f"visuals.{name}", (axis, len(pts)), "axis x | y | z and at least 2 points", "bad strip")
+    return Strip(name=name, path=pts, width=width, axis=axis, color=tuple(color), opacity=opacity)
 
 
 def label(name, text, at=None, frame=None, offset=(0, 0, 0)) -> Shape:
     """A text naming a part: at a world point ``at``, or at ``offset`` in ``frame`` (cheaper
     to draw: it moves with its frame)."""
     if (at is None) == (frame is None):
-        from ..errors import InputError
-
-        raise InputError(f"visuals.{name}", (at, frame), "either a world point at= or a frame=", "where?")
+        _refuse(f"visuals.{name}", (at, frame), "either a world point at= or a frame=", "where?")
     if at is not None:
-        return Shape("label", name, points=(tuple(at),), text=str(text))
-    return Shape("label", name, frame, offset=tuple(offset), text=str(text))
+        return Label(name=name, at=tuple(at), text=str(text))
+    return Label(name=name, frame=frame, offset=tuple(offset), text=str(text))
 
 
 def ground(height=0, color=(232, 236, 226)) -> Shape:
     """The plane z = height, drawn as a grid."""
-    return Shape("ground", "ground", size=(height,), color=tuple(color))
+    return Ground(name="ground", height=height, color=tuple(color))
 
 
 def rot_x(a):

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+from ..errors import InputError
 from ..integrate.methods import INTEGRATORS
 from ..integrate.projection import PRESETS
 from ..kernel.built import built
+from ..kernel.forces import compile_forces
 from ..schema import LIMITS
 from .initial import default_state
 from .registry import get_system, system_names
@@ -43,6 +45,7 @@ def catalog() -> dict:
                 "independent": list(b.independent),
                 "default_initial": default_state(s),
                 "constraint_names": {v: list(b.constraint_names(v)) for v in s.variants},
+                "forces": _forces(s),
                 "what_to_try": s.what_to_try,
                 "stability": None
                 if s.stability is None
@@ -71,3 +74,33 @@ def catalog() -> dict:
         "projections": list(PRESETS),
         "limits": dict(LIMITS),
     }
+
+
+def _forces(system) -> dict:
+    """Variant → the physical forces it declares at points (name, component labels and the
+    reported names NAME.LABEL, route, what they act on, description), and the drawing hints."""
+    out: dict = {}
+    for v in system.variants:
+        try:
+            compiled = compile_forces(system, v)
+        except InputError as e:  # a plug-in's broken declaration: said here, raised by its runs
+            out[v] = [{"error": str(e)}]
+            continue
+        out[v] = (
+            []
+            if compiled is None
+            else [
+                {
+                    "name": f["name"],
+                    "components": list(f["columns"]),
+                    "labels": list(f["labels"]),
+                    "route": f["route"],
+                    "on": f["on"],
+                    "description": f["description"],
+                    "unit": "N",
+                    "shown": compiled.show,
+                }
+                for f in compiled.forces
+            ]
+        )
+    return out

@@ -50,6 +50,15 @@ def first_crossing(t: np.ndarray, values: dict[str, np.ndarray]) -> tuple[str, f
     return best
 
 
+def _max_point_forces(components: dict[str, np.ndarray]) -> dict[str, float]:
+    """The largest |R| of each force over the rows (components NAME.LABEL, orthonormal axes)."""
+    squares: dict[str, np.ndarray] = {}
+    for key, v in components.items():
+        name = key.split(".", 1)[0]
+        squares[name] = squares.get(name, 0.0) + np.asarray(v, float) ** 2
+    return {name: float(np.sqrt(np.max(s))) for name, s in squares.items()}
+
+
 def apply_events(run, system):
     """Cut a finished :class:`~nmkane_core.run.result.Run` at its system's first event, in place,
     and return it (unchanged when no event is declared or none fired).  A failed run's rows
@@ -83,9 +92,12 @@ def apply_events(run, system):
     run.violation = {key: cut(v) for key, v in run.violation.items()}
     run.constraint_forces = {key: cut(v) for key, v in run.constraint_forces.items()}
     run.multipliers = {key: cut(v) for key, v in run.multipliers.items()}
+    run.point_forces = {key: cut(v) for key, v in run.point_forces.items()}
     run.summary["max_abs_violation"] = {key: float(np.max(np.abs(v))) for key, v in run.violation.items()}
     if run.multipliers:
         run.summary["max_abs_multiplier"] = {key: float(np.max(np.abs(v))) for key, v in run.multipliers.items()}
+    if run.point_forces:
+        run.summary["max_abs_point_force"] = _max_point_forces(run.point_forces)
     run.summary["status"] = "event"
     run.summary["event"] = {"name": name, "t": tc}
     run.summary["t_end"] = tc

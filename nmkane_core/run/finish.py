@@ -31,6 +31,7 @@ from ..kernel.constants import (
 from ..schema import LIMITS, RunSummary
 from .endings import OVERFLOW, ending
 from .events import apply_events
+from .forces import add_point_forces
 from .plan import Plan
 from .result import Run
 from .solvelog import inconsistency, robust_summary, solve_switches
@@ -49,7 +50,7 @@ def finish(plan: Plan, out: LoopOutput, wall: float, kernel_load_s: float = 0.0)
     status, message = _ending(plan, out, overflow)
     run = _arrays(plan, out, outputs)
     run.summary = _summary(plan, out, status, message, wall, kernel_load_s)
-    run.summary["warnings"] += notes
+    run.summary["warnings"] += notes + add_point_forces(plan, run, out)
     if plan.system.events is not None:
         apply_events(run, plan.system)  # cut at the first declared event (nmkane_core.run.events)
     run.summary = _validated(run.summary)

@@ -32,11 +32,15 @@ class Run:
     #: F_c = Q u̇ − P by speed name (the generalized constraint force; the run's u̇, stabilization
     #: included), one value per output row; empty when the run was asked not to report it
     constraint_forces: dict[str, np.ndarray] = field(default_factory=dict)
-    #: λ by constraint name with F_c = Jᵀλ, J = ∂[φ; ψ̇]/∂u — the Appell–Chetaev multiplier of a
+    #: λ by constraint name with F_c = Jᵀλ, J = ∂[φ; ψ̇]/∂u — Chetaev's multiplier of a
     #: constraint nonlinear in the speeds.  λ depends on how a constraint is written (scale it by
     #: 2 and its λ halves), F_c does not; with redundant constraints λ is not unique (the basic
     #: solution, zero on the equations found dependent, is reported)
     multipliers: dict[str, np.ndarray] = field(default_factory=dict)
+    #: the physical forces a system declares at points (:mod:`nmkane_core.declare.forces`), by
+    #: ``NAME.LABEL`` (``contact.normal``): each force's components along its declared axes, one
+    #: value per output row; empty when the system declares none or forces were not asked for
+    point_forces: dict[str, np.ndarray] = field(default_factory=dict)
 
     @property
     def status(self) -> str:
@@ -53,6 +57,7 @@ class Run:
             violation={k: v.tolist() for k, v in self.violation.items()},
             constraint_forces={k: v.tolist() for k, v in self.constraint_forces.items()},
             multipliers={k: v.tolist() for k, v in self.multipliers.items()},
+            point_forces={k: v.tolist() for k, v in self.point_forces.items()},
             summary=RunSummary(**self.summary),
         )
 
@@ -63,6 +68,7 @@ class Run:
         cols.update({f"violation_{k}": v for k, v in self.violation.items()})
         cols.update({f"force_{k}": v for k, v in self.constraint_forces.items()})
         cols.update({f"multiplier_{k}": v for k, v in self.multipliers.items()})
+        cols.update(self.point_forces)  # NAME.LABEL: no state, violation or force_ column has a dot
         return cols
 
     def to_csv(self) -> str:
@@ -109,6 +115,7 @@ class Run:
         self.violation = {name: v[idx] for name, v in self.violation.items()}
         self.constraint_forces = {name: v[idx] for name, v in self.constraint_forces.items()}
         self.multipliers = {name: v[idx] for name, v in self.multipliers.items()}
+        self.point_forces = {name: v[idx] for name, v in self.point_forces.items()}
         self.summary["warnings"] = [
             *self.summary.get("warnings", []),
             f"output thinned from {n:,} to {idx.size:,} rows ({limit or f'at most {max_rows:,}'}); "

@@ -139,72 +139,91 @@ def tune(base: dict, *, points: int = 10, energy_factor: float = 10.0, executor=
     ``points``: candidates per gain axis (Γ1 × Γ2 is a ``points`` × ``points`` grid, unstable
     pairs skipped); ``energy_factor``: the allowed energy drift as a multiple of the
     unstabilized run's; ``executor``: a sweep executor (default: this process)."""
-    from ..run.plan import resolve
     from ..run.simulate import simulate
-    from .executors import SerialExecutor, batch_size
 
     if not 2 <= points <= 50:
         raise InputError("--points", points, "an integer in [2, 50]")
     if not (energy_factor >= 1 and math.isfinite(energy_factor)):
         raise InputError("--energy-factor", energy_factor, "a finite number ≥ 1")
-    plan = resolve(base)
-    tab = plan.integrator
-    if not isinstance(tab, Tableau) or tab.adaptive:
-        raise InputError(
-            "integrator",
-            getattr(tab, "name", tab),
-            "a fixed-step method: rk4 | kutta-merson",
-            "the gains are tuned for a fixed step size",
-        )
-    info = plan.info
-    nh, h = list(info.nonholonomic), list(info.holonomic)
-    if not nh and not h:
-        raise InputError("system", base["system"], "a system with constraints", "nothing to stabilize")
-    dt, x = plan.dt, real_stability_interval(tab)
-    ref_settings = {**base, "gamma": 0.0, "gamma1": 0.0, "gamma2": 0.0}
-    ref = simulate(ref_settings, progress=False).summary
-    e_ref = ref["max_abs_energy_drift"]
-    e_limit = energy_factor * e_ref if e_ref is not None and e_ref > 0 else None
-    res = TuneResult(tab.name, dt, x, ref, energy_factor=energy_factor)
-    ex = executor or SerialExecutor()
-    top = abs(x) / dt  # |Γ| at the edge of the real stability interval
-    given = {k: plan.settings.get(k) for k in ("gamma", "gamma1", "gamma2")}
-    current = {"gamma": given["gamma"] or 0.0, "gamma1": given["gamma1"] or 0.0, "gamma2": given["gamma2"] or 0.0}
+    search = _Search(base, energy_factor, executor)
+    if search.nh:
+        search.nonholonomic(points)
+    if search.h:
+        search.holonomic(points)
+    res, current = search.res, search.current
+    res.gains = {k: v for k, v in current.items() if (k == "gamma" and search.nh) or (k != "gamma" and search.h)}
+    res.final = simulate({**base, **current}, progress=False).summary
+    return res
 
-    def run(points_list, names, constraints, stage):
+
+class _Search:
+    """One tuning: the plan, the unstabilized reference run, the gains found so far."""
+
+    def __init__(self, base: dict, energy_factor: float, executor):
+        from ..run.plan import resolve
+        from ..run.simulate import simulate
+        from .executors import SerialExecutor
+
+        plan = resolve(base)
+        tab = plan.integrator
+        if not isinstance(tab, Tableau) or tab.adaptive:
+            raise InputError(
+                "integrator",
+                getattr(tab, "name", tab),
+                "a fixed-step method: rk4 | kutta-merson",
+                "the gains are tuned for a fixed step size",
+            )
+        info = plan.info
+        self.nh, self.h = list(info.nonholonomic), list(info.holonomic)
+        if not self.nh and not self.h:
+            raise InputError("system", base["system"], "a system with constraints", "nothing to stabilize")
+        self.base, self.tab, self.dt = base, tab, plan.dt
+        x = real_stability_interval(tab)
+        ref = simulate({**base, "gamma": 0.0, "gamma1": 0.0, "gamma2": 0.0}, progress=False).summary
+        e_ref = ref["max_abs_energy_drift"]
+        self.e_limit = energy_factor * e_ref if e_ref is not None and e_ref > 0 else None
+        self.res = TuneResult(tab.name, self.dt, x, ref, energy_factor=energy_factor)
+        self.ex = executor or SerialExecutor()
+        self.top = abs(x) / self.dt  # |Γ| at the edge of the real stability interval
+        self.given = {k: plan.settings.get(k) for k in ("gamma", "gamma1", "gamma2")}
+        self.current = {k: self.given[k] or 0.0 for k in ("gamma", "gamma1", "gamma2")}
+
+    def _run(self, points_list, names, constraints, stage):
+        from .executors import batch_size
+
         rows = []
-        for batch in ex.rows({**base, **current}, iter(points_list), batch_size(len(points_list), ex.workers)):
+        start = {**self.base, **self.current}
+        for batch in self.ex.rows(start, iter(points_list), batch_size(len(points_list), self.ex.workers)):
             rows += batch
-        return _candidates(rows, names, constraints, tab, dt, stage, e_limit)
+        return _candidates(rows, names, constraints, self.tab, self.dt, stage, self.e_limit)
 
-    if nh:
-        vals = -np.logspace(-1, math.log10(top), points)
+    def nonholonomic(self, points: int) -> None:
+        vals = -np.logspace(-1, math.log10(self.top), points)
         pts = [{"gamma": float(v)} for v in vals]
-        mine = {"gamma": float(given["gamma"])} if given["gamma"] else None
-        cands = run(pts + ([mine] if mine and mine not in pts else []), ["gamma"], nh, "nonholonomic")
-        _take_given(res, "nonholonomic", cands, mine, mine in pts)
-        res.chosen["nonholonomic"] = best = _pick(cands)
+        mine = {"gamma": float(self.given["gamma"])} if self.given["gamma"] else None
+        cands = self._run(pts + ([mine] if mine and mine not in pts else []), ["gamma"], self.nh, "nonholonomic")
+        _take_given(self.res, "nonholonomic", cands, mine, mine in pts)
+        self.res.chosen["nonholonomic"] = best = _pick(cands)
         if best is not None:
-            current["gamma"] = best.gains["gamma"]
-    if h:
-        g1 = -np.logspace(-1, math.log10(top), points)
-        g2 = -np.logspace(-1, math.log10(top * top), points)
+            self.current["gamma"] = best.gains["gamma"]
+
+    def holonomic(self, points: int) -> None:
+        g1 = -np.logspace(-1, math.log10(self.top), points)
+        g2 = -np.logspace(-1, math.log10(self.top * self.top), points)
         grid = [{"gamma1": float(a), "gamma2": float(b)} for a in g1 for b in g2]
-        pts = [p for p in grid if stable_gains(tab, dt, G1=p["gamma1"], G2=p["gamma2"])]
-        res.outside["holonomic"] = len(grid) - len(pts)
+        pts = [p for p in grid if stable_gains(self.tab, self.dt, G1=p["gamma1"], G2=p["gamma2"])]
+        self.res.outside["holonomic"] = len(grid) - len(pts)
+        given = self.given
         mine = (
             {"gamma1": float(given["gamma1"] or 0.0), "gamma2": float(given["gamma2"] or 0.0)}
             if given["gamma1"] or given["gamma2"]
             else None
         )
-        cands = run(pts + ([mine] if mine and mine not in pts else []), ["gamma1", "gamma2"], h, "holonomic")
-        _take_given(res, "holonomic", cands, mine, mine in pts)
-        res.chosen["holonomic"] = best = _pick(cands)
+        cands = self._run(pts + ([mine] if mine and mine not in pts else []), ["gamma1", "gamma2"], self.h, "holonomic")
+        _take_given(self.res, "holonomic", cands, mine, mine in pts)
+        self.res.chosen["holonomic"] = best = _pick(cands)
         if best is not None:
-            current.update(best.gains)
-    res.gains = {k: v for k, v in current.items() if (k == "gamma" and nh) or (k != "gamma" and h)}
-    res.final = simulate({**base, **current}, progress=False).summary
-    return res
+            self.current.update(best.gains)
 
 
 def _take_given(res: TuneResult, stage: str, cands: list[Candidate], mine: dict | None, on_grid: bool) -> None:

@@ -90,9 +90,8 @@ class MechanicalModel:
     energy : sympy.Expr, optional
         Optional total energy E(q, u, t), reported with its drift (diagnostics only).
     outputs : mapping of str to sympy.Expr, optional
-        Optional extra reported quantities, name → expression of q, u, t (e.g. the
-        minimal formulation of the sliding particle reports y and u2 that it does not
-        integrate).
+        Optional extra reported quantities, name → expression of q, u, t (e.g. a minimal
+        formulation reports the coordinates and speeds it does not integrate).
     monitors : mapping of str to sympy.Expr, optional
         Optional extra named quantities reported beside the constraint values, e.g. the
         surface equation for a minimal formulation that satisfies it by construction.

@@ -51,3 +51,32 @@ def blade_model(name: str, with_offset: bool):
         energy=energy,
         description="a blade that cannot slip sideways (u2 = 0)",
     )
+
+
+def blade_force(on: str):
+    """The blade's constraint force at its contact point P = (x, y, 0), along B.y (sideways).
+
+    The constraint u2 = v_P · B.y = 0 is written on P's velocity: the force on the body at P
+    is R = λ ∂u2/∂v_P = λ B.y, its one component along B.y is λ (the multiplier route).  The
+    model is planar: the ground's normal force (weight) is not part of it."""
+    import sympy as sp
+
+    from ..declare.forces import Forces, PointForce, constraint_force
+    from ..symbolic.model import plain_symbols
+
+    x, y, th = plain_symbols("x y theta")
+    return Forces(
+        forces=(
+            PointForce(
+                "blade",
+                at=(x, y, sp.Float(0.02)),
+                components=constraint_force({"no_side_slip": (1,)}, components=1),
+                frame=sp.Matrix([-sp.sin(th), sp.cos(th), 0]),
+                labels=("lateral",),
+                route="multipliers",
+                on=on,
+                description="the ground's sideways force on the blade, the only force on the body: it keeps the "
+                "blade from slipping and does no work",
+            ),
+        ),
+    )

@@ -35,6 +35,30 @@ PARAMETERS = {
     "z0": Parameter(30.0, -1e6, 1e6, "m", "height of P when φ = 0 (thread constraint (59))"),
 }
 
+WHAT_TO_TRY = (
+    "The load falls and pulls the thread: the wheel spins up (u2 = φ̇ grows) while the frame's turning "
+    "rate u1 = θ̇ dies away, and the load's path on the plane (the red trace, Fig. 7) straightens out. "
+    "Compare with (ghost) → linear: the same mechanism with the rolling constraints linear in the speeds "
+    "(101)–(102); on the constraint manifold both describe the same motion, and with the same step the "
+    "energy error ΔE of the nonlinear model grows less (Fig. 9). Set Γ below 0: the violations drop by "
+    "orders of magnitude. Set u2 = φ̇ to 0: the nonlinear model's J2 is singular where the wheel does not "
+    "roll, and the run switches to the linear model (the status line says when). "
+    "Both models give the same forces: the thread tension (thread.tension, m (g + z̈): below m g = 9.81 N "
+    "while the load speeds up) and the ground's force on the wheel (contact.longitudinal along the rolling "
+    "direction, contact.lateral across it: the sideways force that keeps the wheel from slipping and turns "
+    "the frame); their multipliers differ (the nonlinear model's rolling_speed multiplier is a force "
+    "divided by 2 a φ̇)."
+)
+
+INITIAL_CONTROLS = {  # the sliders of the independent initial values (ranges around the paper's)
+    "theta": (-2.0, 2.0, "θ (frame's heading) [rad]"),
+    "phi": (-2.0, 2.0, "φ (wheel's angle) [rad]"),
+    "x": (-2.0, 2.0, "x [m] (load P on the plane)"),
+    "y": (-2.0, 2.0, "y [m] (load P on the plane)"),
+    "u1": (-2.0, 4.0, "u1 = θ̇ (frame's turning rate) [rad/s]"),
+    "u2": (-2.0, 4.0, "u2 = φ̇ (wheel's spin) [rad/s]"),
+}
+
 COORDINATES = ("theta", "phi", "x", "y", "z")
 SPEEDS = ("u1", "u2", "u3", "u4", "u5")
 
@@ -206,6 +230,66 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The ground's horizontal force on the wheel at its contact point and the thread's pull on
+    the load, both by the multiplier route.
+
+    The wheel's material contact point C (below the centre o) has velocity
+    v_C = v_o − a φ̇ H.x.  ``linear``: (101), (102) are −v_C · N.x, −v_C · N.y, so the force at C
+    is R = −λ_rolling_x N.x − λ_rolling_y N.y.  ``nonlinear``: (57) |v_o|² − a²φ̇² and (58)
+    −v_o · H.y are written on v_o and φ̇; their Appell–Chetaev force is the force at C
+    R = λ_rolling_speed ∂(57)/∂v_o + λ_no_side_slip ∂(58)/∂v_o = 2 λ_rolling_speed v_o − λ_no_side_slip H.y
+    (on the constraints the φ̇ part of (57)'s gradient, −2a²φ̇, is exactly the torque of that force
+    about the axle: a·(2 λ v_o · H.x) with v_o · H.x = a φ̇).  Components along the heading H.x
+    and the axle H.y.  The normal force on the wheel is not reported: how the weight is shared
+    between the wheel and the massless frame's supports is not part of the paper's model.
+
+    The thread (59), ψ = z + bφ − z0, has ψ̇ = ż + b φ̇: the force λ_thread along z on the load
+    (and the torque b λ_thread on the drum) — the thread tension, the same number in both
+    models (it is F_c of ż, and the linear and nonlinear constraints do not involve ż)."""
+    import sympy as sp
+
+    from ..declare.forces import Forces, PointForce, constraint_force, multiplier
+    from ..symbolic.model import plain_symbols
+
+    th, x, y, z = plain_symbols("theta x y z")
+    u1, u3, u4 = plain_symbols("u1 u3 u4")
+    rho = sp.Symbol("rho", real=True)
+    c, s = sp.cos(th), sp.sin(th)
+    Hx, Hy = sp.Matrix([c, s, 0]), sp.Matrix([-s, c, 0])
+    if variant == "nonlinear":
+        v_o = sp.Matrix([u3 + rho * u1 * s, u4 - rho * u1 * c, 0])
+        grads = {"rolling_speed": 2 * v_o, "no_side_slip": sp.Matrix([s, -c, 0])}
+    else:
+        grads = {"rolling_x": sp.Matrix([-1, 0, 0]), "rolling_y": sp.Matrix([0, -1, 0])}
+    R = sp.Matrix(constraint_force({k: tuple(v) for k, v in grads.items()}))  # world components
+    return Forces(
+        forces=(
+            PointForce(
+                "contact",
+                at=(x - rho * c, y - rho * s, 0),
+                components=(sp.simplify(R.dot(Hx)), sp.simplify(R.dot(Hy))),
+                frame=Hx.row_join(Hy),
+                labels=("longitudinal", "lateral"),
+                route="multipliers",
+                on="the wheel, at its contact point",
+                description="the ground's horizontal force on the wheel: along the rolling direction and across it "
+                "(the normal force is not determined by the model)",
+            ),
+            PointForce(
+                "thread",
+                at=(x, y, z + LOAD_RADIUS),
+                components=(multiplier("thread"),),
+                frame=sp.Matrix([0, 0, 1]),
+                labels=("tension",),
+                route="multipliers",
+                on="the load P",
+                description="the thread's pull on the load (its tension): m (g + z̈)",
+            ),
+        ),
+    )
+
+
 def appell_hamel() -> System:
     return System(
         name="appell-hamel",
@@ -233,6 +317,14 @@ def appell_hamel() -> System:
         default_dt=0.01,
         default_t_final=20.0,
         default_integrator="kutta-merson",
-        description="Frame, wheel and hanging load; constraints modeled nonlinear (NC) or linear (LC) in the speeds.",
+        description=(
+            "The paper's Example 1: a frame sliding on the plane carries a wheel W that rolls without "
+            "slipping and two pulleys; a thread from the wheel's drum over the pulleys holds a load P that "
+            "moves along the frame's bar. The rolling constraints are modeled nonlinear (NC, (57)–(58)) or "
+            "linear (LC, (101)–(102)) in the speeds."
+        ),
         visuals=_visuals,
+        forces=_forces,
+        what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

@@ -17,8 +17,18 @@ WHAT_TO_TRY = (
     "Start it spinning (u3) with little forward speed: the spin dies away and the sleigh ends up "
     "sliding straight ahead at the speed √(2E/m) — energy is converted, not lost. Put the mass "
     "centre behind the blade (a < 0): the straight motion backwards is the one that survives. With a "
-    "= 0 it is a knife edge again and turns for ever."
+    "= 0 it is a knife edge again and turns for ever. Watch the blade force (blade.lateral): it is "
+    "m v ω I/(I + m a²), less than the centripetal force of a point mass, and it fades with the spin — "
+    "a sideways push on the blade is what turns spin into forward speed."
 )
+
+INITIAL_CONTROLS = {  # the sliders of the initial values (ranges around the defaults)
+    "x": (-2.0, 2.0, "x [m] (blade's contact point)"),
+    "y": (-2.0, 2.0, "y [m] (blade's contact point)"),
+    "theta": (-2.0, 2.0, "θ (heading) [rad]"),
+    "u1": (-1.9, 2.1, "u1 (forward speed) [m/s]"),
+    "u3": (-4.0, 8.0, "u3 = θ̇ (spin) [rad/s]"),
+}
 
 
 def _model():
@@ -49,6 +59,13 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The blade force on the sleigh, λ B.y at the blade's contact point (the multiplier route)."""
+    from ._planar import blade_force
+
+    return blade_force("the sleigh, at its blade")
+
+
 def chaplygin_sleigh() -> System:
     return System(
         name="chaplygin-sleigh",
@@ -64,5 +81,7 @@ def chaplygin_sleigh() -> System:
         default_t_final=20.0,
         description="A blade behind the mass centre: spin is converted into straight motion.",
         visuals=_visuals,
+        forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

@@ -12,9 +12,19 @@ from ._planar import blade_model
 
 WHAT_TO_TRY = (
     "Set the turning rate u3 to zero: the skate runs straight. Any other value draws a circle of "
-    "radius u1/u3 — change u1 and u3 and watch the radius follow. The constraint force keeps the "
-    "blade from slipping but does no work: the energy drift stays at round-off."
+    "radius u1/u3 — change u1 and u3 and watch the radius follow. The blade force (the arrow at the "
+    "blade, blade.lateral) keeps the blade from slipping: it points to the circle's centre and is "
+    "exactly the centripetal force m v ω (1 × 1 × 0.5 = 0.5 N by default) — double u1 and it doubles. "
+    "It does no work: the energy drift stays at round-off."
 )
+
+INITIAL_CONTROLS = {  # the sliders of the initial values (ranges around the defaults)
+    "x": (-2.0, 2.0, "x [m] (blade's contact point)"),
+    "y": (-2.0, 2.0, "y [m] (blade's contact point)"),
+    "theta": (-2.0, 2.0, "θ (heading) [rad]"),
+    "u1": (-2.0, 4.0, "u1 (forward speed) [m/s]"),
+    "u3": (-1.5, 2.5, "u3 = θ̇ (turning rate) [rad/s]"),
+}
 
 
 def _model():
@@ -40,6 +50,14 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The blade force on the skate: the constraint u2 = v_P · B.y = 0 is written on the contact
+    point's velocity, so the force at P is λ ∂u2/∂v_P = λ B.y (the multiplier route)."""
+    from ._planar import blade_force
+
+    return blade_force("the skate, at its blade")
+
+
 def knife_edge() -> System:
     return System(
         name="knife-edge",
@@ -54,5 +72,7 @@ def knife_edge() -> System:
         default_t_final=20.0,
         description="A blade that cannot slip sideways: it runs on a circle of radius v/ω.",
         visuals=_visuals,
+        forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

@@ -17,8 +17,19 @@ from ..declare.system import Parameter, System
 WHAT_TO_TRY = (
     "With J = 0 the orbit is a fixed ellipse. Raise the flywheel's inertia J: the puck gets heavier "
     "along its path only, so the ellipse precesses and changes shape while the energy stays "
-    "constant. Speeds near zero make the constraint's gradient blow up — start with a good push."
+    "constant. Speeds near zero make the constraint's gradient blow up — start with a good push. "
+    "The measuring wheel's force on the puck (wheel.tangential) acts along the path: it brakes the "
+    "puck where the flywheel speeds up and pushes where it slows down — work goes back and forth "
+    "between them, none is lost."
 )
+
+INITIAL_CONTROLS = {  # the sliders of the initial values (ranges around the defaults)
+    "x": (-2.0, 4.0, "x [m] (puck, from the anchor)"),
+    "y": (-2.0, 2.0, "y [m] (puck, from the anchor)"),
+    "s": (-2.0, 2.0, "s (flywheel angle) [rad]"),
+    "u1": (-2.0, 2.0, "u1 = ẋ (puck's velocity along x) [m/s]"),
+    "u2": (-1.6, 3.2, "u2 = ẏ (puck's velocity along y) [m/s]"),
+}
 
 
 def _model():
@@ -66,6 +77,34 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The measuring wheel's force on the puck, along the path: the constraint
+    φ = ρ u3 − |v| is written on the puck's velocity v = (u1, u2), ∂φ/∂v = −v/|v|, so the force
+    is R = −λ v/|v| — one component along the tangent v/|v| (the multiplier route)."""
+    import sympy as sp
+
+    from ..declare.forces import Forces, PointForce, multiplier
+    from ..symbolic.model import plain_symbols
+
+    x, y, u1, u2 = plain_symbols("x y u1 u2")
+    speed = sp.sqrt(u1**2 + u2**2)
+    return Forces(
+        forces=(
+            PointForce(
+                "wheel",
+                at=(x, y, sp.Float(0.05)),
+                components=(-multiplier("odometer"),),
+                frame=sp.Matrix([u1 / speed, u2 / speed, 0]),
+                labels=("tangential",),
+                route="multipliers",
+                on="the puck, where the measuring wheel touches the plane",
+                description="the force the measuring wheel's constraint puts on the puck, along its path "
+                "(positive: pushing forward)",
+            ),
+        ),
+    )
+
+
 def odometer_puck() -> System:
     return System(
         name="odometer-puck",
@@ -82,5 +121,7 @@ def odometer_puck() -> System:
         default_t_final=30.0,
         description="ṡ = |v|/ρ: a constraint nonlinear in the speeds that does no work.",
         visuals=_visuals,
+        forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

@@ -14,14 +14,40 @@ upright rolling at speed v is stable for v² > g r / 3.
 
 from __future__ import annotations
 
+import math
+
 from ..declare.system import Parameter, System
 
+R0, G0 = 0.3, 9.81  # the default radius (m) and gravity (m/s²): the threshold below is computed from them
+
+
+def upright_threshold(r: float = R0, g: float = G0) -> float:
+    """The spin φ̇ above which upright rolling is stable: v² > g r / 3 with v = r φ̇."""
+    return math.sqrt(g / (3.0 * r))
+
+
 WHAT_TO_TRY = (
-    "Roll it upright (θ = 0) with spin φ̇ and a tiny lean rate θ̇: above the speed √(g r/3) "
-    "(φ̇ > 1.81 rad/s for r = 0.3 m) it wobbles and stays up, below it falls over. Lean it and give "
-    "it a yaw rate: it turns on a circle. The contact point never slips (its violation is round-off) "
-    "and no energy is lost."
+    "Roll it upright: lean θ = 0, yaw rate u3 = ψ̇ = 0, a tiny lean rate u4 = θ̇ (0.05) and the spin "
+    f"u5 = φ̇. Upright rolling is stable above the speed v = √(g r/3), i.e. φ̇ > √(g/(3r)) = "
+    f"{upright_threshold():.2f} rad/s for r = {R0:g} m: just above it the disk wobbles a little and stays "
+    "up; just below it the tiny lean grows into a large wobble. Lean it (θ) and give it a yaw rate u3: "
+    "it turns on a circle. The contact point never slips (its violation is round-off) and no energy is lost. "
+    "Watch the contact force: its friction (contact.lateral, the arrow's sideways part) is what turns "
+    "the coin — it points to the circle's centre — and the normal force (contact.normal) is m g only "
+    "when the coin rolls upright and straight; as it wobbles, it swings above and below m g."
 )
+
+# the sliders of the initial values, with what each one is (ranges around the defaults)
+INITIAL_CONTROLS = {
+    "x": (-2.0, 2.0, "x [m] (contact point)"),
+    "y": (-2.0, 2.0, "y [m] (contact point)"),
+    "psi": (-2.0, 2.0, "ψ (heading) [rad]"),
+    "theta": (-1.8, 2.2, "θ (lean) [rad]"),
+    "phi": (-2.0, 2.0, "φ (spin angle) [rad]"),
+    "u3": (-6.0, 3.0, "u3 = ψ̇ (yaw rate) [rad/s]"),
+    "u4": (-2.0, 2.0, "u4 = θ̇ (lean rate) [rad/s]"),
+    "u5": (-12.0, 24.0, "u5 = φ̇ (spin) [rad/s]"),
+}
 
 
 def _model():
@@ -87,6 +113,43 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The ground's force on the coin at the contact point, in the heading frame A (x: rolling
+    direction, y: sideways, z: up).  Friction (longitudinal, lateral) by the multiplier route:
+    the rolling constraints are written on the contact point's velocity, v_P · N.x = v_P · N.y = 0,
+    so the horizontal force is λ_x N.x + λ_y N.y.  The normal force is non-contributing (the
+    centre's height r cos θ is built into the coordinates: no constraint, no λ), so it comes from
+    Newton's law on the coin: N = m (g + z̈_C), z̈_C = −r (u̇4 sin θ + u4² cos θ)."""
+    import sympy as sp
+
+    from ..declare.forces import Forces, PointForce, multiplier, rate
+    from ..symbolic.model import plain_symbols
+
+    x, y, psi, th, u4 = plain_symbols("x y psi theta u4")
+    m, r, g = sp.symbols("m r g", positive=True)
+    lx, ly = multiplier("roll_x"), multiplier("roll_y")
+    zdd = -r * (rate("u4") * sp.sin(th) + u4**2 * sp.cos(th))
+    return Forces(
+        forces=(
+            PointForce(
+                "contact",
+                at=(x, y, 0),
+                components=(
+                    lx * sp.cos(psi) + ly * sp.sin(psi),
+                    -lx * sp.sin(psi) + ly * sp.cos(psi),
+                    m * (g + zdd),
+                ),
+                frame=sp.Matrix([[sp.cos(psi), -sp.sin(psi), 0], [sp.sin(psi), sp.cos(psi), 0], [0, 0, 1]]),
+                labels=("longitudinal", "lateral", "normal"),
+                route="multipliers + newton",
+                on="the coin, at its contact point",
+                description="friction along and across the rolling direction (from the rolling constraints' λ) and "
+                "the normal force (Newton's law on the coin: non-contributing in these coordinates)",
+            ),
+        ),
+    )
+
+
 def rolling_disk() -> System:
     return System(
         name="rolling-disk",
@@ -94,13 +157,15 @@ def rolling_disk() -> System:
         variants=_model,
         parameters={
             "m": Parameter(1.0, 0.0, 100.0, "kg", "mass"),
-            "r": Parameter(0.3, 0.0, 3.0, "m", "radius"),
-            "g": Parameter(9.81, 0.0, 30.0, "m/s²", "gravitational acceleration", min_inclusive=True),
+            "r": Parameter(R0, 0.0, 3.0, "m", "radius"),
+            "g": Parameter(G0, 0.0, 30.0, "m/s²", "gravitational acceleration", min_inclusive=True),
         },
         default_initial={"x": 0.0, "y": 0.0, "psi": 0.0, "theta": 0.2, "phi": 0.0, "u3": -1.5, "u4": 0.0, "u5": 6.0},
         default_dt=0.005,
         default_t_final=10.0,
         description="A coin rolling without slipping: steady turning, wobbling, falling.",
         visuals=_visuals,
+        forces=_forces,
         what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
     )

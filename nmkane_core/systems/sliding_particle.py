@@ -24,6 +24,20 @@ PARAMETERS = {
 }
 
 
+WHAT_TO_TRY = (
+    "The page opens on the paper's Fig. 16 comparison: the damped nonminimal run (DN: Γ1 = −20, Γ2 = −100) "
+    "with two ghosts, the minimal solution (M, Kane's equation (137)) and the same nonminimal run without "
+    "stabilization (N: Γ = 0). Watch log₁₀|φ|: undamped, the particle drifts off the parabola; damped, it "
+    "stays on it; the minimal equation has no constraint to violate. Make Δt smaller: the undamped drift "
+    "shrinks (Figs. 11–12). Positive gains make the constraint error grow."
+)
+
+INITIAL_CONTROLS = {  # the sliders of the independent initial values (y and u2 follow from the parabola)
+    "x": (-2.0, 4.0, "x [m] (y follows)"),
+    "u1": (-2.0, 2.0, "u1 = ẋ [m/s] (u2 follows)"),
+}
+
+
 def _nonminimal():
     import sympy as sp
 
@@ -100,6 +114,49 @@ def _visuals():
     )
 
 
+def _forces(variant: str):
+    """The surface's normal force on the particle, along the parabola's tangent and normal.
+
+    The axes are drawn in the visuals' world ((x, y) at (x, 0, −y)): t̂ along increasing x,
+    n̂ out of the bowl (the concave side).  ``nonminimal``: R = λ ∇ψ, the multiplier route
+    (the constraint is written on the position, ψ̇ = ∇ψ · v: ∂ψ̇/∂v = ∇ψ); ``minimal``: Newton's
+    law on the particle, R = m a − m g ŷ with a = (u̇1, d(u2)/dt), u2 = −2x u1/l0 on the curve.
+    The tangential component is zero (no friction): a check of either route."""
+    import sympy as sp
+
+    from ..declare.forces import Forces, PointForce, multiplier, rate
+    from ..symbolic.model import plain_symbols
+
+    x, y, u1 = plain_symbols("x y u1")
+    l0, m, g = sp.symbols("l0 m g", real=True)
+    slope = 2 * x / l0  # |∇ψ|² = 1 + slope²
+    s = sp.sqrt(1 + slope**2)
+    t_model, n_model = sp.Matrix([1, -slope]) / s, sp.Matrix([-slope, -1]) / s
+    if variant == "nonminimal":
+        R = multiplier("surface") * sp.Matrix([slope, 1])  # λ ∇ψ
+        route = "multipliers"
+    else:
+        a = sp.Matrix([rate("u1"), -2 * (u1**2 + x * rate("u1")) / l0])
+        R = m * a - sp.Matrix([0, m * g])
+        route = "newton"
+    world = sp.Matrix([[1, 0], [0, 0], [0, -1]])  # model (x, y) → world (x, 0, −y)
+    return Forces(
+        forces=(
+            PointForce(
+                "normal",
+                at=(x, 0, -y),
+                components=(sp.simplify(R.dot(t_model)), R.dot(n_model)),
+                frame=(world * t_model).row_join(world * n_model),
+                labels=("tangential", "normal"),
+                route=route,
+                on="the particle",
+                description="the surface's force on the particle: m g cos α + m v² κ along the normal, none along "
+                "the tangent",
+            ),
+        ),
+    )
+
+
 def sliding_particle() -> System:
     return System(
         name="sliding-particle",
@@ -113,8 +170,15 @@ def sliding_particle() -> System:
         default_dt=0.01,
         default_t_final=20.0,
         default_integrator="kutta-merson",
-        description="Holonomic constraint in acceleration form with Baumgarte stabilization (Γ1, Γ2).",
+        description=(
+            "The paper's Example 2: a particle sliding without friction on the parabola ψ = y + x²/l0 − l0 = 0 "
+            "(114), gravity along +y (y points down: the parabola is a bowl). The holonomic constraint is used "
+            "in acceleration form; its drift is damped by the Baumgarte gains Γ1, Γ2 (112)."
+        ),
         visuals=_visuals,
+        forces=_forces,
+        what_to_try=WHAT_TO_TRY,
+        initial_controls=INITIAL_CONTROLS,
         # the paper's Fig. 16-like comparison: DN shown, M and N (Γ = 0) as ghosts
         showcase={"gamma1": -20.0, "gamma2": -100.0, "dt": 0.05, "t_final": 300.0, "compare": "all", "speed": 5.0},
     )

@@ -340,6 +340,60 @@ def _events():
     return {"handlebar_touches_ground": -sp.Min(*heights)}
 
 
+def _forces(variant: str):
+    """The ground's force on each tyre at its contact point, in the yaw frame A of the
+    constraints (x forward, y to the right in Moore's axes; components: longitudinal, lateral,
+    normal = up).
+
+    Rear and front friction by the multiplier route: the rolling constraints are written on the
+    material contact points' velocities (v · A.x, v · A.y), so the horizontal forces are
+    λ_longitudinal A.x + λ_lateral A.y.  The front normal force too: the holonomic contact
+    constraint's rate is ψ̇ = v_F · A.z (the geometric contact point moves along the rim's
+    horizontal tangent), so the front wheel gets λ_front_contact A.z — its upward component is
+    −λ_front_contact.  The rear normal force is non-contributing (the rear wheel's height is built
+    into the coordinates), so it comes from Newton's law on the whole bicycle, vertically:
+    N_R = g Σm + Σ m_i z̈_i − N_F (z up), the z̈_i of the four mass centres from q, u and u̇."""
+    import sympy as sp
+    from sympy.physics import mechanics as me
+
+    from ..declare.forces import Forces, PointForce, multiplier
+
+    d = _drawn()
+    world, flip, fr, pt, P, q = d["world"], d["flip"], d["frames"], d["points"], d["par"], d["q"]
+    N, A = fr["N"], fr["A"]
+    t = me.dynamicsymbols._t
+    u = me.dynamicsymbols("u1:9")
+    qd = {qi.diff(t): ui for qi, ui in zip(q, u, strict=True)}
+    g = P["g"]
+    masses = ((pt["do"], P["mR"]), (pt["bo"], P["mB"]), (pt["ho"], P["mH"]), (pt["fo"], P["mF"]))
+    # heights (z up) of the mass centres above the ground; their second derivatives in q, u, u̇
+    zdd = [(-p.pos_from(pt["dn"]).dot(N.z)).diff(t).xreplace(qd).diff(t).xreplace(qd) for p, _ in masses]
+    total = sum(m for _, m in masses)
+    front_up = -multiplier("front_contact")
+    rear_up = g * total + sum(m * a for (_, m), a in zip(masses, zdd, strict=True)) - front_up
+    axes = sp.Matrix.hstack(flip * A.x.to_matrix(N), flip * A.y.to_matrix(N), sp.Matrix([0, 0, 1]))
+
+    def tyre(name, point, wheel, up, route):
+        return PointForce(
+            f"{name}_tyre",
+            at=world(pt[point]),
+            components=(multiplier(f"{name}_longitudinal"), multiplier(f"{name}_lateral"), up),
+            frame=axes,
+            labels=("longitudinal", "lateral", "normal"),
+            route=route,
+            on=f"the {wheel} wheel, at its contact point",
+            description=f"the ground's force on the {wheel} tyre: friction along and across the heading (yaw "
+            "frame), and the normal force (up)",
+        )
+
+    return Forces(
+        forces=(
+            tyre("rear", "dn", "rear", rear_up, "multipliers + newton"),
+            tyre("front", "fn", "front", front_up, "multipliers"),
+        ),
+    )
+
+
 def _stability_state(speed, params):
     return {"u6": -speed / params["rR"]}
 
@@ -353,12 +407,12 @@ WEAVE_SPEED, CAPSIZE_SPEED = 4.29238253634111, 6.02426201538837
 
 #: the initial values offered as sliders (range, label)
 INITIAL_CONTROLS = {
-    "u6": (-40.0, 0.0, "rear wheel rate u6 = −speed/rR [rad/s] (−16.7: 5 m/s)"),
-    "q4": (-0.6, 0.6, "roll q4 [rad]"),
-    "q7": (-0.6, 0.6, "steer q7 [rad]"),
-    "u4": (-2.0, 2.0, "roll rate u4 [rad/s]"),
-    "u7": (-2.0, 2.0, "steer rate u7 [rad/s]"),
-    "q3": (-3.2, 3.2, "heading q3 [rad]"),
+    "u6": (-40.0, 0.0, "u6 = q̇6 (rear wheel rate = −speed/rR; −16.7: 5 m/s) [rad/s]"),
+    "q4": (-0.6, 0.6, "q4 (roll) [rad]"),
+    "q7": (-0.6, 0.6, "q7 (steer) [rad]"),
+    "u4": (-2.0, 2.0, "u4 = q̇4 (roll rate) [rad/s]"),
+    "u7": (-2.0, 2.0, "u7 = q̇7 (steer rate) [rad/s]"),
+    "q3": (-3.2, 3.2, "q3 (heading) [rad]"),
 }
 
 WHAT_TO_TRY = (
@@ -383,6 +437,7 @@ def whipple_bicycle() -> System:
         "rolling without slip (nonholonomic), front wheel ground contact (holonomic).",
         visuals=_visuals,
         events=_events,
+        forces=_forces,
         what_to_try=WHAT_TO_TRY,
         initial_controls=INITIAL_CONTROLS,
         stability=Stability(

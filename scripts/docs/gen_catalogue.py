@@ -89,6 +89,15 @@ def facts(s: dict) -> str:
         for v in variants
     ]
     out += [f"### {option.capitalize()}s and their constraints", "", table((option, "constraints"), vrows)]
+    frows = [
+        (code(v), code(f["name"]), ", ".join(code(c) for c in f["components"]), f["route"], f["on"])
+        for v in variants
+        for f in s.get("forces", {}).get(v, [])
+        if "error" not in f
+    ]
+    if frows:
+        out += ["### Forces at points", "", "Reported by every run: see [Constraint forces](../forces.md).", ""]
+        out += [table((option, "force", "components (N)", "route", "acts on"), frows)]
     prows = [(code(p["name"]), number(p["default"]), _range(p), p["unit"], p["description"]) for p in s["parameters"]]
     out += ["### Parameters", "", "Set with `--set NAME=VALUE` or `params` in the run settings.", ""]
     out += [table(("name", "default", "allowed", "unit", "meaning"), prows)]

@@ -61,7 +61,15 @@ def test_create_fetch_list_and_csv(client):
     text = client.get(f"/api/runs/{doc['id']}.csv")
     assert text.status_code == 200 and text.headers["content-type"].startswith("text/csv")
     rows = list(csv.reader(io.StringIO(text.text)))
-    assert rows[0] == ["t", *doc["state"], "energy", *(f"violation_{k}" for k in doc["violation"])]
+    forces = [*(f"force_{k}" for k in doc["constraint_forces"]), *(f"multiplier_{k}" for k in doc["multipliers"])]
+    assert rows[0] == [
+        "t",
+        *doc["state"],
+        "energy",
+        *(f"violation_{k}" for k in doc["violation"]),
+        *forces,
+        *doc["point_forces"],
+    ]
     assert len(rows) == 2002 and float(rows[-1][0]) == 20.0
     assert [float(v) for v in rows[1:][1000][1:3]] == [doc["state"]["theta"][1000], doc["state"]["phi"][1000]]
 

@@ -17,6 +17,7 @@ def test_run_prints_readable_summary(capsys):
     assert main(["run", "appell-hamel", "--dt", "0.05", "--t-final", "2", "--no-progress"]) == 0
     out = capsys.readouterr().out
     assert "status   ok" in out and "max |ΔE|" in out and "rolling_speed" in out
+    assert "max |λ|" in out and "max |F|  contact " in out and "thread " in out and "thread.tension" in out
 
 
 @pytest.mark.parametrize("ext", ["json", "csv", "npz"])
@@ -52,6 +53,7 @@ def test_run_writes_files(tmp_path, ext):
     else:
         data = np.load(path)
         assert data["t"].shape == (101,) and "violation_surface" in data
+        assert data["normal.normal"].shape == (101,) and data["normal.normal"][0] == pytest.approx(9.81 / 5**0.5)
 
 
 @pytest.mark.parametrize(

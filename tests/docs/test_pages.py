@@ -13,7 +13,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
 FENCE = re.compile(r"^```python\n(.*?)^```", re.MULTILINE | re.DOTALL)
-PAGES = ["README.md", "docs/getting-started.md", "docs/your-own-system.md"]
+PAGES = ["README.md", "docs/getting-started.md", "docs/your-own-system.md", "docs/forces.md"]
 
 
 def python_blocks(page: str) -> list[str]:

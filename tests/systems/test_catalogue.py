@@ -138,7 +138,7 @@ def test_catalogue_systems_declare_visuals_that_compile_to_pose_functions(name):
     for pos, rot in frames.values():
         assert pos.shape == (len(r.t), 3) and np.all(np.isfinite(pos))
         np.testing.assert_allclose(rot @ np.swapaxes(rot, 1, 2), np.broadcast_to(np.eye(3), rot.shape), atol=1e-12)
-    kinds = {s["kind"] for s in cv.shapes}
+    kinds = {s.kind for s in cv.shapes}
     assert "ground" in kinds and "trace" in kinds
     assert np.all(np.isfinite(cv.sizes(r.settings["params"])))
 

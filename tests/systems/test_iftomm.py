@@ -17,6 +17,8 @@ import pytest
 from nmkane_core import get_system, simulate
 from nmkane_core.errors import SingularMatrix
 from nmkane_core.integrate.methods import KUTTA_MERSON
+from nmkane_core.kernel.built import built
+from nmkane_core.run.initial import default_state
 from nmkane_core.symbolic.derivation import derive
 from nmkane_core.symbolic.reference import (
     ConstraintsInconsistent,
@@ -229,8 +231,8 @@ def test_a05_flyball_governor_conserves_axial_momentum_and_only_dissipates():
     r = simulate({"system": "iftomm-a05"}, progress=False)
     assert r.summary["status"] == "ok", r.summary["message"]
     system = get_system("iftomm-a05")
-    md = system.model()
-    ref = ReferenceKernel(system.derivation())
+    md = built(system).model()
+    ref = ReferenceKernel(built(system).derivation())
     p = np.array([system.parameter(str(s)).default for s in md.params])
     x = np.column_stack([r.state[str(s)] for s in md.q + md.u])
     out = np.array([ref.outputs(0.0, xi, p) for xi in x[::50]])  # Hz, stretch1, stretch2
@@ -255,12 +257,12 @@ def test_iftomm_declarations_carry_their_published_parameters():
 # ------------------------------------------------------------------------------- the scenes
 @pytest.mark.parametrize("name", ["iftomm-a01", "iftomm-a03", "iftomm-a05"])
 def test_catalogue_benchmarks_have_scenes_that_compile(name):
-    from nmkane_core.declare.visuals import compile_visuals
+    from nmkane_core.kernel.visuals import compile_visuals
 
     system = get_system(name)
     assert system.what_to_try and system.title.startswith("IFToMM")
     cv = compile_visuals(system)
-    x = system.default_initial
+    x = default_state(system)
     params = {p.name: p.default for p in system.parameters}
     poses = cv.poses({k: np.array([v]) for k, v in x.items()}, params)
     assert poses and all(np.all(np.isfinite(v)) for v in poses)
@@ -273,7 +275,7 @@ def test_reference_path_benchmarks_declare_scenes_of_their_names(build):
     catalogue: their scenes name only state values and parameters."""
     system = build()
     assert system.what_to_try
-    md = system.model()
+    md = built(system).model()
     vis = system.visuals()
     names = {str(s) for s in (*md.q, *md.u, *md.params)}
     for shape in vis.shapes:

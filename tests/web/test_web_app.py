@@ -13,7 +13,7 @@ from nmkane_core.systems.appell_hamel import LOAD_RADIUS
 from web import geometry as geo
 from web import matrices as mx
 from web import plots as pl
-from web.app import MechanismApp, dt_of, launch
+from web.app import MechanismApp, launch
 from web.worker import LatestWorker
 
 AH, PT = "appell-hamel", "sliding-particle"
@@ -54,7 +54,7 @@ def test_slider_changes_resimulate_with_those_settings(app):
     app.control("gamma2").value = -100.0
     app.control("variant").value = "linear"
     app.control("integrator").value = "rk4"
-    app.control("log_dt").value = -2.5
+    app.control("dt").value = 0.0032
     app.control("t_final").value = 12.0
     last = app.sim_log[-1]
     assert (last["gamma"], last["gamma1"], last["gamma2"], last["model"], last["integrator"]) == (
@@ -64,7 +64,7 @@ def test_slider_changes_resimulate_with_those_settings(app):
         "linear",
         "rk4",
     )
-    assert last["dt"] == dt_of(-2.5) == 0.0032 and last["t_final"] == 12.0
+    assert last["dt"] == 0.0032 and last["t_final"] == 12.0
     run = app.traj.main  # the trajectory shown is the one just computed
     assert run.settings["model"] == "linear" and run.settings["gamma"] == -7.5
     assert run.settings["gamma1"] == -20.0 and run.settings["integrator"] == "rk4"
@@ -72,9 +72,43 @@ def test_slider_changes_resimulate_with_those_settings(app):
     assert app.time.max == pytest.approx(12.0)
 
 
+def test_typed_values_reach_the_run_exactly_and_bad_ones_are_refused_beside_the_box(app):
+    """The teacher's item 1: what is typed is what the run uses, in the quantity's own units."""
+    for field, text, value in (
+        ("dt", "1e-3", 0.001),
+        ("gamma", "-1e1", -10.0),
+        ("t_final", "2.5E+1", 25.0),
+        ("initial.u1", "5e-1", 0.5),
+        ("params.M", "1e1", 10.0),  # a log slider: typed in kg
+        ("initial.u2", "0.001", 0.001),
+    ):
+        app.control(field).text.value = text
+        s = app.sim_log[-1]
+        got = s[field] if "." not in field else s[field.split(".")[0]][field.split(".")[1]]
+        assert got == value, (field, text, got)
+        assert not app.control(field).message.visible
+    runs = len(app.sim_log)
+    for field, text, why in (
+        ("initial.u1", "1,5", "decimal point as a point"),
+        ("gamma", "1e9", "outside the allowed range -50 … 10"),
+        ("t_final", "abc", "is not a number"),
+        ("t_final", "1e6", "outside the allowed range 1 … 100 s"),
+    ):
+        h = app.control(field)
+        before = h.value
+        h.text.value = text
+        assert h.value == before and h.message.visible and why in h.message.content, h.message.content
+        assert why in app.status.content and "input refused" in app.status.content
+    assert len(app.sim_log) == runs  # nothing ran with a refused value
+    app.control("t_final").text.value = "7"  # good again: its message and its status line go
+    assert app.sim_log[-1]["t_final"] == 7.0 and not app.control("t_final").message.visible
+    assert "is not a number" not in app.status.content and "1e6" not in app.status.content
+    assert "decimal point" in app.status.content  # the box still refused keeps its line
+
+
 def test_physical_parameters_reach_the_run_and_reshape_the_scene(app):
-    app.control("logparams.rho").value = math.log10(8.0)
-    app.control("logparams.a").value = math.log10(1.5)
+    app.control("params.rho").value = 8.0
+    app.control("params.a").value = 1.5
     p = app.traj.main.settings["params"]
     assert p["rho"] == pytest.approx(8.0) and p["a"] == pytest.approx(1.5)
     app.seek(0.0)
@@ -167,7 +201,7 @@ def test_singular_start_shows_status_and_a_moving_scene(app):
 
 
 def test_unstable_gain_result_is_reported_in_the_panel(app):
-    app.control("log_dt").value = math.log10(0.2)
+    app.control("dt").value = 0.2
     app.control("gamma").value = 10.0  # positive Γ: unstable constraint error dynamics
     run = app.traj.main
     assert run.settings["gamma"] == 10.0
@@ -229,7 +263,7 @@ def test_playback_advances_time_and_pause_holds_it(app):
 
 def test_reset_restores_the_papers_values_in_one_run(app):
     app.control("gamma").value = -3.0
-    app.control("logparams.m").value = math.log10(2.0)
+    app.control("params.m").value = 2.0
     n = len(app.sim_log)
     app.reset.value = True
     assert len(app.sim_log) == n + 1
@@ -262,7 +296,7 @@ def test_particle_shows_minimal_undamped_and_damped_solutions_as_ghosts(app):
     s = {lab: r.summary["max_abs_violation"]["surface"] for lab, r in app.traj.runs.items()}
     assert s["minimal"] == 0.0 and s["nonminimal"] < 1e-2 * s["nonminimal, Γ = 0"]
     labels = [x["label"] for x in app.plot_handles[(PT, "violation")].series[1:]]
-    assert labels == ["surface", "surface (minimal)", "surface (nonminimal, Γ = 0)"]
+    assert labels == ["surface — nonminimal", "surface — minimal, dashed", "surface — nonminimal, Γ = 0, dotted"]
 
 
 def test_background_worker_latest_wins_and_is_fast(server):

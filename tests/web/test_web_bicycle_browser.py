@@ -52,7 +52,7 @@ def test_bicycle_scene_sliders_and_eigenvalue_plot():
                     Path(SHOTS, "whipple-bicycle.png").write_bytes(data)
                 text = page.inner_text("body")
                 assert "Eigenvalues against speed" in text
-                assert "roll q4 [rad]" in text and "rear wheel rate u6" in text
+                assert "q4 (roll) [rad]" in text and "u6 = q̇6 (rear wheel rate" in text
                 assert "q8(0)" not in text  # only the declared initial values get sliders
             finally:
                 browser.close()

@@ -68,15 +68,15 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
         "Γ (nonholonomic)",
         "Γ1 (holonomic)",
         "Γ2 (holonomic)",
-        "log₁₀ Δt [s]",
+        "Δt [s]",
         "Final time [s]",
-        "u1(0)",
-        "u2(0)",
+        "u1 = θ̇ (frame's turning rate) [rad/s]",
+        "u2 = φ̇ (wheel's spin) [rad/s]",
         "Physical parameters",
         "Reset to the defaults",
         "Energy drift ΔE(t)",
         "log₁₀ |constraint violation|",
-        "Plotted coordinate",
+        "Plotted quantity",
         "Derived matrices",
         "max |ΔE|",
     ):
@@ -110,10 +110,10 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     session.control("option.plot").value = "theta"
     assert session.wait_idle(30)
     time.sleep(0.6)
-    plot = page.locator(".uplot").filter(has_text="Plotted coordinate").first
+    plot = page.locator(".uplot").filter(has_text="Plotted quantity").first
     before = _png(plot.screenshot())
     n = session._installs
-    box = input_of(page, "u1(0)")
+    box = input_of(page, "u1 = θ̇")
     box.fill("0.4")
     t0 = time.perf_counter()
     box.press("Enter")

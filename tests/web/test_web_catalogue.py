@@ -2,7 +2,6 @@
 from its declaration, its declared scene follows the state, a plugged-in system works, and
 ``scene=`` opens a browser on a system.  Also the performance targets (server side)."""
 
-import math
 import time
 from pathlib import Path
 
@@ -81,10 +80,10 @@ def test_controls_come_from_the_declaration(app):
     assert "gamma" in fields and "gamma1" not in fields and "gamma2" not in fields  # nonholonomic only
     assert {"initial.x", "initial.y", "initial.theta", "initial.u1", "initial.u3"} <= fields
     assert "initial.u2" not in fields  # dependent speed
-    assert {"integrator", "projection", "log_dt", "t_final", "option.plot"} <= fields
+    assert {"integrator", "projection", "dt", "t_final", "option.plot"} <= fields
     # a parameter spanning decades gets a log slider, and its value reaches the run
-    h = handle(app, "logparams.m")
-    h.value = math.log10(4.0)
+    h = handle(app, "params.m")
+    h.value = 4.0
     assert app.traj.request["settings"]["params"]["m"] == pytest.approx(4.0)
     assert app.traj.main.settings["params"]["m"] == pytest.approx(4.0)
     handle(app, "initial.u3").value = 0.0  # no turning: a straight line
@@ -100,7 +99,8 @@ def test_parameter_sliders_linear_or_log():
     lin = parameter_control(Parameter(9.81, 0.0, 30.0, "m/s²", min_inclusive=True, name="g"), "x_")
     assert lin.field == "params.g" and (lin.min, lin.max) == (0.0, 30.0)
     log = parameter_control(Parameter(1.0, 0.0, 100.0, "kg", name="m"), "x_")
-    assert log.field == "logparams.m" and (log.min, log.max) == (-2.0, 2.0) and log.default == 0.0
+    assert log.field == "params.m" and log.log and (log.min, log.max) == (0.01, 100.0) and log.default == 1.0
+    assert log.label == "m [kg]"  # typed and shown in kg, not as an exponent
 
 
 def test_a_plugged_in_system_gets_the_generic_page(server):

@@ -79,28 +79,50 @@ def served():
 def test_non_finite_or_out_of_range_slider_values_are_refused(served):
     _, client, s = served
     runs = len(s.sim_log)
-    h_dt, h_gamma = s.control("log_dt"), s.control("gamma")
-    log_dt, gamma = h_dt.value, h_gamma.value
-    for handle, bad, good in (
-        (h_dt, math.nan, log_dt),
-        (h_dt, math.inf, log_dt),
-        (h_gamma, -math.inf, gamma),
-        (h_gamma, 1e6, gamma),
-    ):
-        client.set_value(handle, bad)
+    dt, gamma = s.control("dt"), s.control("gamma")
+    good = {id(dt): dt.value, id(gamma): gamma.value}
+    for field, bad in ((dt, math.nan), (dt, math.inf), (gamma, -math.inf), (gamma, 1e6)):
+        client.set_value(field.slider, bad)
         assert _until(lambda b=bad: repr(b) in s.status.content), s.status.content  # not a stale panel
-        assert "input refused" in s.status.content and handle.label in s.status.content
-        assert _until(lambda h=handle, g=good: h.value == g)  # back to the last good value
+        assert "input refused" in s.status.content and field.label in s.status.content
+        assert _until(lambda f=field, b=bad: f.message.visible and repr(b) in f.message.content)  # beside it
+        assert field.value == good[id(field)]
+        assert _until(lambda f=field: abs(f.slider.value - f._to_slider(f.value)) < 1e-12)  # the slider back
     assert s.wait_idle(10) and len(s.sim_log) == runs  # no run with a bad value
 
-    client.set_value(s.speed, math.nan)  # playback sliders too
+    client.set_value(s.speed.slider, math.nan)  # playback sliders too
     assert _until(lambda: s.speed.value == 1.0 and "Speed" in s.status.content)
     s.tick(0.1, refresh=True)
     assert math.isfinite(s.t_now)
 
-    client.set_value(h_dt, -2.5)  # a good value still runs
+    client.set_value(dt.slider, -2.5)  # a good value still runs, and its refusal goes
     assert _until(lambda: "Δt = 0.0032 s · update" in s.status.content, 30), s.status.content
     assert s.traj.main.settings["dt"] == dt_of(-2.5) == 0.0032
+    assert not dt.message.visible and dt.text.value == "0.0032"
+
+
+def test_typed_text_over_the_websocket_is_read_exactly_or_refused_beside_the_box(served):
+    """What the page sends for a text box: applied once the typing pauses, never reinterpreted."""
+    _, client, s = served
+    gamma, t_final = s.control("gamma"), s.control("t_final")
+    for field, text, why in (
+        (gamma, "1e9", "outside the allowed range -50 … 10"),
+        (gamma, "abc", "is not a number"),
+        (t_final, "1,5", "decimal point as a point (1.5)"),
+        (t_final, "1e6", "outside the allowed range"),
+        (t_final, "2 s", "is not a number"),
+    ):
+        before, runs = field.value, len(s.sim_log)
+        client.set_value(field.text, text)
+        assert _until(lambda f=field, w=why: f.message.visible and w in f.message.content), field.message.content
+        assert field.value == before and f"the run keeps {before:g}" in field.message.content
+        assert field.text.value == text  # left as typed, with the reason beside it
+        assert s.wait_idle(10) and len(s.sim_log) == runs
+    client.set_value(gamma.text, "-1e1")
+    client.set_value(t_final.text, "2.5E+1")
+    assert _until(lambda: s.traj.main.settings["gamma"] == -10.0 and s.traj.main.settings["t_final"] == 25.0, 30)
+    assert not gamma.message.visible and not t_final.message.visible
+    assert "input refused" not in s.status.content  # no stale refusal
 
 
 class SlowDisconnect(WebApp):
@@ -128,7 +150,7 @@ def test_nothing_is_sent_to_a_browser_that_left_mid_run():
         assert session.wait_idle(90)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            client.set_value(session.control("gamma"), -2.0)
+            client.set_value(session.control("gamma").slider, -2.0)
             assert _until(lambda: session.sim_log[-1].get("gamma") == -2.0)
             client.close()
             assert _until(lambda: not app.sessions, 10)

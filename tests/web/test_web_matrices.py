@@ -31,7 +31,19 @@ def test_the_short_matrices_are_typeset_in_full():
 
     p = mx._build("sliding-particle", "nonminimal")
     assert "too long" not in p.intro
-    assert all(v.startswith(mx.TITLES[k]) for k, v in p.latex.items())
+    assert all(v.startswith(mx.TITLES[k]) for k, v in p.latex.items() if k != "where")
+
+
+def test_the_latex_is_the_simplified_form_and_nothing_is_elided():
+    """The nonlinear Appell–Hamel model (the teacher's A1 was 4,359 characters unsimplified):
+    simplified, with the denominators' sums named n_k and defined, and no entry drawn as ⋯."""
+    from web import matrices as mx
+
+    p = mx._build("appell-hamel", "nonlinear")
+    assert "too long" not in p.intro and set(p.images) == {"A1", "A2", "T"}
+    assert len(p.latex["A1"]) < 1000, len(p.latex["A1"])
+    assert "n_{1}" in p.latex["A1"] and p.latex["where"].startswith(r"\text{where } n_{1} =")
+    assert all(r"\cdots" not in v for v in p.latex.values())
 
 
 def _alive(pid: int) -> bool:

@@ -9,7 +9,7 @@ import pytest
 import viser
 
 from nmkane_core.run.simulate import simulate
-from web.controls import LOG_DT_RANGE, Control, dt_of
+from web.controls import DT_RANGE, Control, dt_of
 from web.session import MechanismApp
 from web.study import GAIN_FIELDS, METRICS, N_DT, N_GAIN, study_axes
 
@@ -56,7 +56,7 @@ def test_study_axes_stay_on_the_sliders():
     gains, log_dts = study_axes((c,), "gamma", -2.0)
     assert gains == (-50.0, -40.0, -30.0, -20.0, -10.0, 0.0) and len(gains) == N_GAIN
     assert log_dts == (-3.0, -2.5, -2.0, -1.5, -1.0) and len(log_dts) == N_DT
-    lo, hi, _ = LOG_DT_RANGE
+    lo, hi = (math.log10(v) for v in DT_RANGE)
     for edge in (-4.0, hi):  # at an end of the Δt slider the window shifts inside it
         _, ld = study_axes((c,), "gamma", edge)
         assert lo - 1e-9 <= min(ld) and max(ld) <= hi + 1e-9 and len(ld) == N_DT
@@ -65,7 +65,7 @@ def test_study_axes_stay_on_the_sliders():
 
 
 def test_map_equals_direct_simulate_runs_and_a_cell_loads_into_the_sliders(app):
-    app.control("log_dt").value = -2.0
+    app.control("dt").value = 0.01
     app.control("gamma1").value = -20.0  # the other gains stay as the sliders say
     st = _computed(app)
     g = st.grid
@@ -88,7 +88,7 @@ def test_map_equals_direct_simulate_runs_and_a_cell_loads_into_the_sliders(app):
     label = g.label(cell, st.metric.value)
     st.cell.value = label
     st.load_button._impl.update_cb[0](None)  # the button's click
-    assert app.control("gamma").value == g.gains[4] and app.control("log_dt").value == g.log_dts[2]
+    assert app.control("gamma").value == g.gains[4] and app.control("dt").value == g.dts[2]
     last = app.sim_log[-1]
     assert last["gamma"] == g.gains[4] and last["dt"] == g.dts[2] and last["gamma1"] == -20.0
     assert app.traj.main.settings["gamma"] == g.gains[4]
@@ -101,7 +101,7 @@ def test_map_equals_direct_simulate_runs_and_a_cell_loads_into_the_sliders(app):
 
     assert st.load_best()  # the smallest value on the map
     j, i = np.unravel_index(np.nanargmin(zv), zv.shape)
-    assert app.control("gamma").value == g.gains[i] and app.control("log_dt").value == g.log_dts[j]
+    assert app.control("gamma").value == g.gains[i] and app.control("dt").value == g.dts[j]
     assert st.cell.value == g.label((int(j), int(i)), st.metric.value)
 
 

@@ -1,0 +1,175 @@
+"""The browser page's own side of a session: its address bar and its clipboard.
+
+viser 1.1 gives the server no view of the page's address (its websocket URL drops the
+query) and no public way to run script in the page, but its client runs the source of a
+``RunJavascriptMessage`` (the message viser itself uses to load plotly) and exposes
+``window.__viserMutable.sendMessage``.  :class:`PageBridge` uses both: a small script asks
+the page for ``location.search`` or copies ``location.href`` to the clipboard and answers
+through a hidden text box of the session (a ``GuiUpdateMessage`` to its uuid, exactly what
+typing in a box sends), and another writes the address with ``history.replaceState`` (no
+reload, no history entry).  Everything sent to the page is JSON-encoded data in a fixed
+script, so nothing typed by a person or read from a link becomes code.
+
+Without a browser (a test's shared server, or a viser whose internals differ) the bridge
+does nothing and says so: ``active`` is False.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from typing import Any
+
+_SEND = (
+    "const m = window.__viserMutable; if (!m || !m.sendMessage) return;"
+    "const send = (o) => m.sendMessage({type: 'GuiUpdateMessage', uuid: UUID, updates: {value: JSON.stringify(o)}});"
+)
+
+_ASK = "send({kind: 'address', search: window.location.search});"
+
+_WRITE = """
+const cur = new URLSearchParams(window.location.search);
+const keep = [];
+for (const [k, v] of cur) if (!OURS.includes(k) && !PREFIXES.some((p) => k.startsWith(p))) keep.push([k, v]);
+const enc = (s) => encodeURIComponent(s).replace(/%2F/g, '/').replace(/%3A/g, ':');
+const parts = keep.concat(PAIRS).map(([k, v]) => (v === '' ? enc(k) : enc(k) + '=' + enc(v)));
+const here = window.location;
+const url = here.pathname + (parts.length ? '?' + parts.join('&') : '') + here.hash;
+if (url !== here.pathname + here.search + here.hash) history.replaceState(null, '', url);
+send({kind: 'written', search: window.location.search});
+"""
+
+_COPY = """
+const href = window.location.href;
+const done = (ok) => send({kind: 'copied', href: href, ok: ok});
+const fallback = () => {
+  try {
+    const t = document.createElement('textarea');
+    t.value = href; t.style.position = 'fixed'; t.style.opacity = '0';
+    document.body.appendChild(t); t.select();
+    const ok = document.execCommand('copy'); t.remove(); done(ok);
+  } catch (e) { done(false); }
+};
+if (navigator.clipboard && window.isSecureContext) navigator.clipboard.writeText(href).then(() => done(true), fallback);
+else fallback();
+"""
+
+
+_PLOTS = """
+if (window.__nmkPlots) return;
+window.__nmkPlots = true;
+let hovered = false;
+const zoomed = new Set();
+const tip = document.createElement('div');
+tip.className = 'nmk-tip';
+tip.style.cssText = 'position:fixed;pointer-events:none;z-index:10000;display:none;white-space:pre;' +
+  'background:rgba(255,255,255,0.96);border:1px solid #aaa;border-radius:4px;padding:3px 6px;' +
+  'font:11px/1.35 sans-serif;color:#222;box-shadow:0 1px 4px rgba(0,0,0,0.2)';
+document.body.appendChild(tip);
+const report = () => send({kind: 'plots', busy: hovered || zoomed.size > 0});
+const plotOf = (el) => (el && el.closest ? el.closest('.uplot') : null);
+document.addEventListener('mousemove', (e) => {
+  const over = e.target && e.target.closest ? e.target.closest('.u-over') : null;
+  const plot = plotOf(over);
+  if (!plot) {
+    if (hovered) { hovered = false; tip.style.display = 'none'; report(); }
+    return;
+  }
+  if (!hovered) { hovered = true; report(); }
+  requestAnimationFrame(() => {  // after uPlot has written the values under the cursor
+    const rows = Array.from(plot.querySelectorAll('.u-legend .u-series'));
+    const text = rows.filter((r) => !r.classList.contains('u-off')).map((r) => {
+      const l = r.querySelector('.u-label'), v = r.querySelector('.u-value');
+      return (l ? l.innerText : '') + ' = ' + (v ? v.innerText : '');
+    }).join('\\n');
+    tip.textContent = text;
+    tip.style.display = text ? 'block' : 'none';
+    const w = tip.offsetWidth, h = tip.offsetHeight;
+    tip.style.left = Math.max(4, e.clientX - w - 14) + 'px';  // left of the cursor: the panel is at the right
+    tip.style.top = Math.min(window.innerHeight - h - 4, e.clientY + 12) + 'px';
+  });
+});
+let dragged = null;  // the plot a drag started on: uPlot zooms it on mouseup when a stretch was selected
+document.addEventListener('mousedown', (e) => { dragged = plotOf(e.target); }, true);
+document.addEventListener('mouseup', () => {
+  const plot = dragged;
+  dragged = null;
+  if (!plot) return;
+  const sel = plot.querySelector('.u-select');  // read before uPlot clears it (this runs first: capture)
+  if (sel && sel.offsetWidth > 2) { zoomed.add(plot); report(); }
+}, true);
+setInterval(() => {  // a chart rebuilt (a new run, another system) has lost its zoom
+  let gone = false;
+  for (const p of zoomed) if (!p.isConnected) { zoomed.delete(p); gone = true; }
+  if (gone) report();
+}, 1000);
+document.addEventListener('dblclick', (e) => {
+  const plot = plotOf(e.target);
+  if (plot && zoomed.delete(plot)) report();
+});
+"""
+
+
+class PageBridge:
+    """Scripts for one browser's page, answered through a hidden text box.
+
+    ``on_answer(dict)`` gets each answer: ``{"kind": "address", "search": "?…"}``,
+    ``{"kind": "written", "search": …}``, ``{"kind": "copied", "href": …, "ok": bool}``,
+    ``{"kind": "plots", "busy": bool}``."""
+
+    def __init__(self, gui, client, on_answer: Callable[[dict], None]):
+        self.client = client
+        self._on_answer = on_answer
+        self.inbox = gui.add_text("page", "", visible=False)
+        self.inbox.on_update(lambda _: self._received())
+        self.active = client is not None and _queue(client) is not None
+
+    def _received(self) -> None:
+        try:
+            answer = json.loads(self.inbox.value)
+        except (TypeError, ValueError):
+            return
+        if isinstance(answer, dict):
+            self._on_answer(answer)
+
+    def run(self, body: str, **data: Any) -> bool:
+        """Run a script in the page: ``body`` with the names of ``data`` bound to their values
+        (JSON) and ``send(obj)`` answering; False when there is no page to run it in."""
+        queue = _queue(self.client) if self.client is not None else None
+        if queue is None:
+            return False
+        from viser import _messages
+
+        binds = "".join(f"const {k} = {json.dumps(v)};" for k, v in data.items())
+        source = "(function () {" + _SEND.replace("UUID", json.dumps(self.inbox._impl.uuid)) + binds + body + "})();"
+        queue(_messages.RunJavascriptMessage(source=source))
+        return True
+
+    def ask_address(self) -> bool:
+        return self.run(_ASK)
+
+    def write_address(self, pairs: list[tuple[str, str]], ours: tuple[str, ...], prefixes: tuple[str, ...]) -> bool:
+        """Put ``pairs`` in the address bar, keeping the page's other parameters (viser's own:
+        ``websocket``, ``hideViserLogo``, …) and dropping the ones named ``ours``/``prefixes``."""
+        return self.run(_WRITE, PAIRS=[list(p) for p in pairs], OURS=list(ours), PREFIXES=list(prefixes))
+
+    def copy_address(self) -> bool:
+        return self.run(_COPY)
+
+    def help_plots(self) -> bool:
+        """Values under the cursor at the cursor (read from uPlot's live legend), and the
+        viewer's pointing and zooming reported: ``{"kind": "plots", "busy": bool}``."""
+        return self.run(_PLOTS)
+
+
+def _queue(client) -> Callable[[Any], None] | None:
+    """The client's message queue (viser 1.1's ``_websock_connection.queue_message``), or None."""
+    conn = getattr(client, "_websock_connection", None)
+    queue = getattr(conn, "queue_message", None)
+    try:
+        from viser import _messages
+
+        _messages.RunJavascriptMessage  # noqa: B018
+    except (ImportError, AttributeError):
+        return None
+    return queue
