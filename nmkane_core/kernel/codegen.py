@@ -104,8 +104,8 @@ def _block(
     for i, s in enumerate(ps):
         if s.name in used:
             lines.append(f"    {s.name} = p[{i}]")
-    for a, b in zero_fill:
-        lines.append(f"    for _k in range({a}, {b}):")
+    for lo, hi in zero_fill:
+        lines.append(f"    for _k in range({lo}, {hi}):")
         lines.append("        w[_k] = 0.0")
     for sym, e in repl:
         lines.append(f"    {sym} = {printer.doprint(e)}")
@@ -150,7 +150,7 @@ def _zero_fill(assignments: list[tuple]) -> tuple[list[tuple], list[tuple[int, i
     zeros = [a for a in assignments if where.match(a[0]) and sp.sympify(a[1]) == 0]
     if len(zeros) <= ZERO_FILL_MIN:
         return assignments, []
-    index = sorted(int(where.match(a[0]).group(1)) for a in assignments if where.match(a[0]))
+    index = sorted(int(hit.group(1)) for a in assignments if (hit := where.match(a[0])) is not None)
     ranges: list[list[int]] = []
     for k in index:
         if ranges and k == ranges[-1][1]:

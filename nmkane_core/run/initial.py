@@ -321,7 +321,8 @@ def _project(system: System, variant: str, params, given, full: dict, correction
     module, info = b.kernel(variant)
     xc = np.array([full[s] for s in info.state_names], float)
     try:
-        y = project_onto_manifold(module, info, xc, b.param_vector(variant, params), max_rank(system, variant))
+        rank = max_rank(system, variant, default_state(system))
+        y = project_onto_manifold(module, info, xc, b.param_vector(variant, params), rank)
     except ConvergenceError as e:
         raise InputError("initial", given, "a state that can be projected onto the constraints", str(e)) from None
     for s, a, c in zip(info.state_names, xc, y, strict=True):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import threading
 import weakref
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -53,7 +54,7 @@ def _cached(system: System, variant: str, kind: str, make):
     return value
 
 
-def _state_vector(info, values: dict[str, float]) -> np.ndarray:
+def _state_vector(info, values: Mapping[str, float]) -> np.ndarray:
     return np.array([float(values.get(s, 0.0)) for s in info.state_names], float)
 
 
@@ -86,19 +87,18 @@ def _make_partition(system: System, variant: str) -> Partition:
     return part
 
 
-def constraint_report(system: System, variant: str | None = None) -> dict:
-    """The constraints' rank at the system's default state (the kernel's J, its columns
+def constraint_report(system: System, variant: str | None, state: dict[str, float]) -> dict:
+    """The constraints' rank at the system's default state ``state`` (completed:
+    :func:`~nmkane_core.run.initial.default_state`) (the kernel's J, its columns
     equilibrated, Householder QR with column pivoting at :data:`DECLARATION_RANK_TOL`):
     ``rank``, ``m``, ``independent_speeds`` = n − rank, ``redundant`` (the equations found
     dependent there, by name), the partition (``u_independent``, ``q_dependent``, whether it
     is ``declared``) and ``rcond`` (the smallest kept pivot: how far from losing rank)."""
     variant = system.check_variant(variant)
-    return _cached(system, variant, "report", lambda: _make_report(system, variant))
+    return _cached(system, variant, "report", lambda: _make_report(system, variant, state))
 
 
-def _make_report(system: System, variant: str) -> dict:
-    from .initial import default_state
-
+def _make_report(system: System, variant: str, state: dict[str, float]) -> dict:
     b = built(system)
     module, info = b.kernel(variant)
     part = partition(system, variant)
@@ -114,7 +114,7 @@ def _make_report(system: System, variant: str) -> dict:
     }
     if not info.m:
         return out
-    x = _state_vector(info, default_state(system))
+    x = _state_vector(info, state)
     p = b.param_vector(variant, system.resolve_params({}))
     J = np.asarray(module.state_terms(0.0, x, p)[0])
     sol = robust_solve(np.eye(info.n), np.zeros(info.n), J, np.zeros(info.m), DECLARATION_RANK_TOL)
@@ -127,12 +127,12 @@ def _make_report(system: System, variant: str) -> dict:
     return out
 
 
-def check_rank(system: System, variant: str | None = None) -> dict:
+def check_rank(system: System, variant: str | None, state: dict[str, float]) -> dict:
     """The report of :func:`constraint_report`, after checking that a declared partition leaves
     as many independent speeds as the constraints do at the default state; raises
     :class:`InputError` saying both numbers and the redundant equations otherwise."""
     variant = system.check_variant(variant)
-    rep = constraint_report(system, variant)
+    rep = constraint_report(system, variant, state)
     info = built(system).info(variant)
     declared = len(info.u_independent)
     if info.m and declared and declared != rep["independent_speeds"]:
@@ -150,13 +150,13 @@ def check_rank(system: System, variant: str | None = None) -> dict:
     return rep
 
 
-def max_rank(system: System, variant: str | None = None) -> int:
+def max_rank(system: System, variant: str | None, state: dict[str, float]) -> int:
     """The number of independent constraint equations a run's robust solve may keep: n − p for
-    a declared partition, else the rank at the default state."""
+    a declared partition, else the rank at the default state ``state``."""
     variant = system.check_variant(variant)
     info = built(system).info(variant)
     if not info.m:
         return 0
     if info.u_independent:
         return info.n - len(info.u_independent)
-    return int(constraint_report(system, variant)["rank"])
+    return int(constraint_report(system, variant, state)["rank"])

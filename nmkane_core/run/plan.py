@@ -25,7 +25,7 @@ from ..kernel import precompile
 from ..kernel.built import built
 from ..kernel.info import ModelInfo
 from ..schema import LIMITS, RunSettings
-from .initial import initial_state
+from .initial import default_state, initial_state
 from .partition import max_rank, partition
 from .registry import get_system, system_names
 from .settings import raise_all, shown, validate_settings
@@ -297,7 +297,7 @@ def _solve(s: RunSettings, system: System, variant: str, where: str) -> tuple[in
                 "no rank-robust solve in this kernel",
             )
         return 0, -1, ()
-    rank = max_rank(system, variant)
+    rank = max_rank(system, variant, default_state(system))
     if s.solve == "paper" and rank < module.M:
         raise InputError(
             "solve",
@@ -312,8 +312,8 @@ def _solve(s: RunSettings, system: System, variant: str, where: str) -> tuple[in
 def _projection(
     s: RunSettings, system: System, method, info: ModelInfo, where: str, warnings: list[str]
 ) -> ProjectionOptions:
-    name = s.projection
-    if name is None:  # the system's default — one a scipy solver cannot use is left out
+    name: str = "none" if s.projection is None else s.projection
+    if s.projection is None:  # the system's default — one a scipy solver cannot use is left out
         name = system.default_projection
         if name != "none" and isinstance(method, ScipyMethod):
             warnings.append(f"{where} projects after each step by default ({name}); scipy integrators cannot: none")

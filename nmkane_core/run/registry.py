@@ -47,9 +47,9 @@ def check_system(system: System, variants: tuple[str, ...] | None = None) -> Non
     variants = variants or tuple(dict.fromkeys((system.default_variant, system.completion_variant)))
     for v in variants:
         built(system).check_params(v)
-    default_state(system)
+    state = default_state(system)
     for v in variants:
-        check_rank(system, v)  # a declared partition against the constraints' rank at the default state
+        check_rank(system, v, state)  # a declared partition against the constraints' rank at the default state
 
 
 def _add(system: System, check: bool) -> System:
