@@ -32,11 +32,19 @@ from .interface import LOOPS, PROJECTION_SCRATCH, WORKSPACE, layout, parameter_l
 __all__ = ["GENERIC_FILES", "generate_source"]
 
 #: the generic compiled code appended to every generated kernel (not imported as modules)
-GENERIC_FILES = ("source/loops.py", "source/state.py", "source/projection.py", "source/robust.py")
+GENERIC_FILES = (
+    "source/loops.py",
+    "source/paper.py",
+    "source/state.py",
+    "source/projection.py",
+    "source/robust.py",
+    "source/robust_linalg.py",
+    "source/robust_projection.py",
+)
 
 #: expression trees larger than this (nodes, summed over one function) skip cse's pre-optimizations
-#: (factoring, which costs time that grows fast with the size; every built-in model's functions
-#: but the bicycle's terms are below it, those of large closed loops above)
+#: (factoring, which costs time that grows fast with the size; the functions of most built-in
+#: models are below it, the largest terms and those of large closed loops above)
 CSE_BASIC_MAX_NODES = 3_000
 #: a function writing more zeros than this into the work array writes them with one loop over each
 #: block first (a large model's J, Q, ∂ψ/∂q and C are mostly zeros: thousands of statements less
