@@ -9,6 +9,7 @@ request and response models and the CLI writes ``RunResult`` as its JSON.
 from __future__ import annotations
 
 import math
+import typing
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
@@ -22,6 +23,7 @@ __all__ = [
     "LIMITS",
     "REST_DEFAULT_LIMITS",
     "Gain",
+    "PROJECTIONS",
     "allowed",
     "field_range",
 ]
@@ -44,6 +46,10 @@ REST_DEFAULT_LIMITS: dict[str, int] = {
 }
 
 Gain = float | list[list[float]]
+
+#: the post-step projections a run can ask for (nmkane_core.integrate.projection.PRESETS)
+ProjectionName = Literal["none", "blajer", "yoon"]
+PROJECTIONS: tuple[str, ...] = typing.get_args(ProjectionName)
 
 
 class RunSettings(BaseModel):
@@ -83,10 +89,19 @@ class RunSettings(BaseModel):
     gamma2: Gain | None = Field(
         None, description="Γ2 for holonomic constraints (112), s⁻²: a scalar (Γ2·I) or a matrix; e.g. -100"
     )
-    projection: Literal["none", "blajer", "yoon"] = Field(
-        "none",
+    projection: ProjectionName | None = Field(
+        None,
         description="post-step constraint correction (geometric elimination): none | blajer "
-        "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.integrate.projection",
+        "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.integrate.projection; "
+        "default: the system's (none for most; yoon for mechanisms that pass singular positions)",
+    )
+    solve: Literal["auto", "paper", "robust"] = Field(
+        "auto",
+        description="the constraint solve, for models whose kernel has the rank-robust one (no declared "
+        "partition, redundant equations, or singular positions declared): auto (the paper's T u̇ = V̂ where "
+        "J2 is well-conditioned, another partition or the robust solve elsewhere) | paper (the declared "
+        "partition only: a singular J2 stops the run) | robust (Gauss's principle in the mass metric "
+        "everywhere); the paper's systems always use the paper's solve",
     )
     projection_weight: Literal["identity", "mass"] | None = Field(
         None, description="override the projection's weighting matrix W"
@@ -247,6 +262,12 @@ class RunSummary(BaseModel):
         default_factory=dict, description="change made by project_initial, per state"
     )
     switches: list[Switch] = Field(default_factory=list)
+    robust_solve: dict[str, Any] | None = Field(
+        None,
+        description="what the rank-robust constraint solve did (models whose kernel has it): evaluations that "
+        "used it, its smallest kept pivot and rank, the largest kinetic-energy share of a projection's speed "
+        "correction, changes of solve beyond those listed in switches",
+    )
     event: Event | None = Field(None, description="the declared event that ended the run (status 'event'), if any")
 
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
-from ..schema import LIMITS, allowed, field_range
+from ..schema import LIMITS, PROJECTIONS, allowed, field_range
 from .parameter import Parameter
 
 if TYPE_CHECKING:
@@ -89,6 +89,10 @@ class System:
         Variant → a sentence appended to a ``singular`` run's message (why it happens).
     default_dt, default_t_final, default_integrator, default_gamma, default_gamma1, default_gamma2:
         Run settings used when a request leaves them out.
+    default_projection:
+        The post-step projection of runs that do not choose one (``none``, ``blajer``, ``yoon``):
+        a mechanism that passes singular positions needs the mass-metric projection (``yoon``)
+        to stay on its branch (docs/closed-loops.md §5); scipy integrators run without it.
     visuals:
         A zero-argument function returning :class:`~nmkane_core.declare.visuals.Visuals` (shapes on
         frames and points, sympy expressions of the state and parameters), or None: the web
@@ -140,6 +144,7 @@ class System:
     default_gamma: float = 0.0
     default_gamma1: float = 0.0
     default_gamma2: float = 0.0
+    default_projection: str = "none"
     source_files: tuple[str, ...] = ()
     visuals: Callable[[], Any] | None = None
     what_to_try: str = ""
@@ -181,6 +186,10 @@ class System:
         }
         for label, setting in (("default_dt", "dt"), ("default_t_final", "t_final")):
             self._in_range(label, setting)
+        if self.default_projection not in PROJECTIONS:
+            raise InputError(
+                f"{self.name}: default_projection", self.default_projection, " | ".join(PROJECTIONS), "unknown"
+            )
         for gain in ("default_gamma", "default_gamma1", "default_gamma2"):
             g = self._finite(gain, getattr(self, gain))
             if abs(g) > LIMITS["max_gain"]:

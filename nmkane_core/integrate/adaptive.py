@@ -12,7 +12,7 @@ import numpy as np
 
 from ..kernel.constants import STATUS_BUDGET, STATUS_FAILED, STATUS_J2_SINGULAR, STATUS_OK, STATUS_T_SINGULAR
 from ..schema import LIMITS
-from .calls import Rows, Stopper, adaptive_args, forces_at, initial_stats, rows_for
+from .calls import Rows, SolveState, Stopper, adaptive_args, forces_at, initial_stats, rows_for
 from .job import Job, LoopOutput
 from .switching import Switcher
 
@@ -53,8 +53,9 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
     stats, E0, V0 = initial_stats(job, job.module, job.p)
     first = rows_for(job, job.module, 1)
     first.t[0], first.x[0], first.E[0], first.V[0] = 0.0, job.x0, E0, V0
+    solve = SolveState(job, job.module)
     if job.forces:
-        forces_at(job, job.module, job.p, 0.0, job.x0, first, 0)
+        forces_at(job, job.module, job.p, 0.0, job.x0, first, 0, solve)
     chunks = _Chunks(job, first)
     x = job.x0.copy()
     t, h = 0.0, min(job.dt, job.t_final)
@@ -66,12 +67,23 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
         budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ATTEMPTS_PER_CALL, LIMITS["max_steps"] - attempts))
         rows = rows_for(job, sw.module, size)
         args = adaptive_args(
-            job, sw.p, x, rows, stats, t=t, h=h, max_steps=budget, accepted=accepted, rcond_min=sw.threshold
+            job,
+            sw.p,
+            x,
+            rows,
+            stats,
+            t=t,
+            h=h,
+            max_steps=budget,
+            accepted=accepted,
+            rcond_min=sw.threshold,
+            solve=solve,
         )
         status, t, h, nrow, accepted, att, pending = sw.module.integrate_adaptive(*args)
+        solve.collect(stats)
         sw.h = h
         if pending >= 0:  # the call's last row: no step of this call started from it
-            forces_at(job, sw.module, sw.p, float(rows.t[pending]), rows.x[pending], rows, pending)
+            forces_at(job, sw.module, sw.p, float(rows.t[pending]), rows.x[pending], rows, pending, solve)
         attempts += att
         chunks.add(rows, nrow)
         bar.update(t)
@@ -93,7 +105,7 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
         if stop and t < job.t_final:
             break
         stop = None
-    _keep_last(job, chunks, t, x)
+    _keep_last(job, chunks, t, x, solve)
     out = chunks.rows()
     sw.finish(chunks.count, out, stats)
     return LoopOutput(
@@ -111,15 +123,17 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
         t_end=t,
         switches=sw.switches,
         unknown_multipliers=sw.unknown_multipliers,
+        solve_log=solve.records,
+        solve_log_dropped=solve.dropped,
     )
 
 
-def _keep_last(job: Job, chunks: _Chunks, t: float, x: np.ndarray) -> None:
+def _keep_last(job: Job, chunks: _Chunks, t: float, x: np.ndarray, solve: SolveState) -> None:
     """Keep the last good state as a row even when thinning (``every``) skipped it."""
     if chunks.last_t() < t - 1e-12 * max(1.0, t):
         rows = rows_for(job, job.module, 1)
         rows.t[0], rows.x[0] = t, x
         job.module.diagnostics_rows(rows.t, rows.x, job.p, rows.E, rows.V)
         if job.forces:
-            forces_at(job, job.module, job.p, t, x, rows, 0)
+            forces_at(job, job.module, job.p, t, x, rows, 0, solve)
         chunks.add(rows, 1)

@@ -15,14 +15,25 @@ from collections.abc import Callable
 import numpy as np
 
 from ..kernel import precompile
-from ..kernel.constants import STATS_E0, STATS_RCOND_J2, STATS_RCOND_T, STATS_VIOL
+from ..kernel.constants import (
+    LOG_HEAD,
+    STATS_E0,
+    STATS_MIN_PIVOT,
+    STATS_MIN_RANK,
+    STATS_RCOND_J2,
+    STATS_RCOND_T,
+    STATS_SOLVE_LOG,
+    STATS_VIOL,
+)
 from ..kernel.interface import AdaptiveArgs, FixedArgs
+from ..symbolic.robust import CONSISTENCY_TOL, RANK_TOL, RCOND_ROBUST
 from .job import Job
 from .methods import ScipyMethod, Tableau
 
 __all__ = [
     "HMIN_REL",
     "Rows",
+    "SolveState",
     "forces_at",
     "rows_for",
     "Stopper",
@@ -56,6 +67,47 @@ def rows_for(job: Job, module, size: int) -> Rows:
     room for the multipliers of any model the run may switch to)."""
     m = max([job.module.M, *(a.module.M for a in job.alternatives)])
     return Rows(size, job.x0.size, module.NV, (module.N, m) if job.forces else None)
+
+
+class SolveState:
+    """The rank-robust solve's state over a run's loop calls (kernels generated with it): the
+    partition — J's column order [u_I, u_D], then the solve in use (−1: none yet) — that the
+    loops advance in place, and the records of its changes the loops write (``solve_log``)."""
+
+    LOG_ROWS = 64  # records one loop call keeps (more are counted)
+
+    def __init__(self, job: Job, module, rows: int | None = None):
+        n = module.N
+        self.order = np.empty(n + 1, dtype=np.int64)
+        given = job.order if module is job.module and len(job.order) == n else tuple(range(n))
+        self.order[:n] = given
+        self.order[n] = -1
+        self.max_rank = job.max_rank if job.max_rank >= 0 and module is job.module else int(module.MAX_RANK_DEFAULT)
+        self.log = np.zeros((self.LOG_ROWS if rows is None else rows, LOG_HEAD + max(n, module.M)))
+        self.records: list[np.ndarray] = []
+        self.dropped = 0
+
+    def trial(self) -> SolveState:
+        """A copy for a trial step (nothing it records or changes reaches the run)."""
+        other = object.__new__(SolveState)
+        other.order, other.max_rank = self.order.copy(), self.max_rank
+        other.log, other.records, other.dropped = np.zeros((0, self.log.shape[1])), [], 0
+        return other
+
+    def collect(self, stats: np.ndarray) -> None:
+        """The records of the last loop call, kept; the loops' count reset."""
+        k = int(stats[STATS_SOLVE_LOG])
+        kept = min(k, self.log.shape[0])
+        self.records.extend(row.copy() for row in self.log[:kept])
+        self.dropped += k - kept
+        stats[STATS_SOLVE_LOG] = 0.0
+
+
+def solve_state(job: Job, module, state: SolveState | None) -> SolveState:
+    """``state`` when it belongs to ``module``, else a fresh one for a trial step of it."""
+    if state is not None and state.order.size == module.N + 1:
+        return state
+    return SolveState(job, module, rows=0)
 
 
 class Stopper:
@@ -96,6 +148,7 @@ def fixed_args(
     pending: int = -1,
     t0: float = 0.0,
     steps: tuple[float, float, int] | None = None,
+    solve: SolveState,
 ) -> FixedArgs:
     """``integrate_fixed``'s arguments: steps k0 … k1−1 of the job's fixed-step run (or, with
     ``steps = (dt, t_final, nsteps)`` from ``t0``, of another grid: a trial step)."""
@@ -119,6 +172,13 @@ def fixed_args(
         TB=tab.b,
         TC=tab.c,
         rcond_min=rcond_min,
+        solve=job.solve,
+        rank_tol=RANK_TOL,
+        max_rank=solve.max_rank,
+        consistency_tol=CONSISTENCY_TOL,
+        rcond_robust=RCOND_ROBUST,
+        order=solve.order,
+        solve_log=solve.log,
         proj=job.proj,
         out_t=rows.t,
         out_x=rows.x,
@@ -146,6 +206,7 @@ def adaptive_args(
     rcond_min: float,
     pending: int = -1,
     t_final: float | None = None,
+    solve: SolveState,
 ) -> AdaptiveArgs:
     """``integrate_adaptive``'s arguments: from ``t`` with first step ``h``, at most ``max_steps``
     attempts and as many rows as ``rows`` holds."""
@@ -173,6 +234,13 @@ def adaptive_args(
         TC=tab.c,
         err_exp=1.0 / (tab.error_order + 1),
         rcond_min=rcond_min,
+        solve=job.solve,
+        rank_tol=RANK_TOL,
+        max_rank=solve.max_rank,
+        consistency_tol=CONSISTENCY_TOL,
+        rcond_robust=RCOND_ROBUST,
+        order=solve.order,
+        solve_log=solve.log,
         proj=job.proj,
         out_t=rows.t,
         out_x=rows.x,
@@ -198,6 +266,7 @@ def initial_stats(job: Job, module, p: np.ndarray) -> tuple[np.ndarray, float, n
     stats = np.zeros(STATS_VIOL + nv)
     stats[STATS_E0] = E0[0]
     stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    stats[STATS_MIN_PIVOT], stats[STATS_MIN_RANK] = 1.0, module.M
     stats[STATS_VIOL:] = np.abs(V0[0])
     return stats, float(E0[0]), V0[0]
 
@@ -232,48 +301,76 @@ def _prime(job: Job, module, p: np.ndarray) -> None:
             module.forces_rows(np.zeros(1), x[None, :], p, job.G, job.G1, job.G2, F, L)
         return
     rows = rows_for(job, module, 1)
+    solve = solve_state(job, module, None)
     if job.method.adaptive:
-        args = adaptive_args(job, p, x, rows, stats, t=0.0, h=job.dt, max_steps=0, accepted=0, rcond_min=0.0)
+        args = adaptive_args(
+            job, p, x, rows, stats, t=0.0, h=job.dt, max_steps=0, accepted=0, rcond_min=0.0, solve=solve
+        )
         module.integrate_adaptive(*args)
     else:
-        module.integrate_fixed(*fixed_args(job, p, x, rows, stats, k0=0, k1=0, row=0, rcond_min=0.0))
+        module.integrate_fixed(*fixed_args(job, p, x, rows, stats, k0=0, k1=0, row=0, rcond_min=0.0, solve=solve))
 
 
-def conditioning(job: Job, module, p: np.ndarray, t: float, x: np.ndarray, h: float) -> float:
+def _trial_stats(module) -> np.ndarray:
+    stats = np.zeros(STATS_VIOL + module.NV)
+    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = stats[STATS_MIN_PIVOT] = 1.0
+    stats[STATS_MIN_RANK] = module.M
+    return stats
+
+
+def conditioning(
+    job: Job, module, p: np.ndarray, t: float, x: np.ndarray, h: float, solve: SolveState | None = None
+) -> float:
     """The smallest reciprocal-condition estimate of J2 and T over one trial step of size ``h``
     from (t, x) with ``module``'s loop (on copies: nothing of the run changes).  The switcher
     asks this of a model before it switches to it or back (no other compiled function needed)."""
     rows = Rows(2, x.size, module.NV)
-    stats = np.zeros(STATS_VIOL + module.NV)
-    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    stats = _trial_stats(module)
     y = x.copy()
+    trial = solve_state(job, module, solve).trial()
     if job.method.adaptive:
         module.integrate_adaptive(
-            *adaptive_args(job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0)
+            *adaptive_args(job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, solve=trial)
         )
     else:
-        args = fixed_args(job, p, y, rows, stats, k0=0, k1=1, row=0, rcond_min=0.0, t0=t, steps=(h, t + h, 1))
+        args = fixed_args(
+            job, p, y, rows, stats, k0=0, k1=1, row=0, rcond_min=0.0, t0=t, steps=(h, t + h, 1), solve=trial
+        )
         module.integrate_fixed(*args)
     return float(min(stats[STATS_RCOND_J2], stats[STATS_RCOND_T]))
 
 
-def forces_at(job: Job, module, p: np.ndarray, t: float, x: np.ndarray, rows: Rows, row: int) -> None:
+def forces_at(
+    job: Job, module, p: np.ndarray, t: float, x: np.ndarray, rows: Rows, row: int, solve: SolveState | None = None
+) -> None:
     """The constraint forces of the state (t, x) into ``rows.F[row]``, ``rows.L[row]``: the first
     stage of a trial step of ``module``'s loop (on copies: nothing of the run changes; no other
     compiled function needed).  For a row no step of the run started from: its last."""
-    trial = rows_for(job, module, 2)
-    stats = np.zeros(STATS_VIOL + module.NV)
-    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    out = rows_for(job, module, 2)
+    stats = _trial_stats(module)
     y = x.copy()
     h = job.dt
+    trial = solve_state(job, module, solve).trial()
     if job.method.adaptive:
         adaptive = adaptive_args(
-            job, p, y, trial, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, pending=0, t_final=t + h
+            job,
+            p,
+            y,
+            out,
+            stats,
+            t=t,
+            h=h,
+            max_steps=1,
+            accepted=0,
+            rcond_min=0.0,
+            pending=0,
+            t_final=t + h,
+            solve=trial,
         )
         module.integrate_adaptive(*adaptive)
     else:
         fixed = fixed_args(
-            job, p, y, trial, stats, k0=0, k1=1, row=1, rcond_min=0.0, pending=0, t0=t, steps=(h, t + h, 1)
+            job, p, y, out, stats, k0=0, k1=1, row=1, rcond_min=0.0, pending=0, t0=t, steps=(h, t + h, 1), solve=trial
         )
         module.integrate_fixed(*fixed)
-    rows.F[row], rows.L[row] = trial.F[0], trial.L[0]
+    rows.F[row], rows.L[row] = out.F[0], out.L[0]

@@ -13,7 +13,7 @@ import time
 import numpy as np
 
 from ..kernel.constants import STATUS_J2_SINGULAR, STATUS_OK, STATUS_T_SINGULAR
-from .calls import Rows, Stopper, fixed_args, fixed_steps, forces_at, initial_stats, rows_for
+from .calls import Rows, SolveState, Stopper, fixed_args, fixed_steps, forces_at, initial_stats, rows_for
 from .job import Job, LoopOutput
 from .switching import Switcher
 
@@ -36,11 +36,15 @@ def run_fixed(job: Job, bar, stopper: Stopper) -> LoopOutput:
     pending = 0 if job.forces else -1  # the initial row's forces come with the first step
     chunk = FIRST_CHUNK
     sw = Switcher(job, stopper)
+    solve = SolveState(job, job.module)
     while k < nsteps:
         t_call = time.perf_counter()
         k_end = min(nsteps, k + (sw.SWITCHED_CHUNK if sw.switched else chunk))
-        args = fixed_args(job, sw.p, x, rows, stats, k0=k, k1=k_end, row=row, rcond_min=sw.threshold, pending=pending)
+        args = fixed_args(
+            job, sw.p, x, rows, stats, k0=k, k1=k_end, row=row, rcond_min=sw.threshold, pending=pending, solve=solve
+        )
         status, k, row, pending = sw.module.integrate_fixed(*args)
+        solve.collect(stats)
         if not sw.switched:
             chunk = _next_chunk(chunk, time.perf_counter() - t_call)
         bar.update(min(k * job.dt, job.t_final))
@@ -56,7 +60,7 @@ def run_fixed(job: Job, bar, stopper: Stopper) -> LoopOutput:
     t_last = job.t_final if k >= nsteps and status == STATUS_OK else k * job.dt
     row, pending = _keep_last(job, rows, row, t_last, x, pending)
     if pending >= 0:  # the last row: no step started from it
-        forces_at(job, job.module, job.p, float(rows.t[pending]), rows.x[pending], rows, pending)
+        forces_at(job, job.module, job.p, float(rows.t[pending]), rows.x[pending], rows, pending, solve)
     sw.finish(row, rows, stats)
     return LoopOutput(
         status=status,
@@ -73,6 +77,8 @@ def run_fixed(job: Job, bar, stopper: Stopper) -> LoopOutput:
         t_end=t_last,
         switches=sw.switches,
         unknown_multipliers=sw.unknown_multipliers,
+        solve_log=solve.records,
+        solve_log_dropped=solve.dropped,
     )
 
 

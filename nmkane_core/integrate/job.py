@@ -49,6 +49,9 @@ class Job:
     proj: np.ndarray | None  # the loops' projection options (ProjectionOptions.as_array), None: none
     alternatives: tuple[Alternative, ...] = ()
     forces: bool = True  # report the constraint forces and multipliers of every output row
+    solve: int = 2  # kernels with the rank-robust solve: 0 the paper's, 1 robust, 2 auto (others: the paper's)
+    max_rank: int = -1  # the model's independent equations (n − p, or the rank found); −1: the kernel's default
+    order: tuple[int, ...] = ()  # the partition to start with, as J's column order [u_I, u_D] (): J's own
 
 
 @dataclass
@@ -70,3 +73,5 @@ class LoopOutput:
     switches: list[dict] = field(default_factory=list)
     fail_msg: str | None = None
     unknown_multipliers: list[tuple[float, float]] = field(default_factory=list)  # switched rows (t from, to)
+    solve_log: list[np.ndarray] = field(default_factory=list)  # the rank-robust solve's records (constants LOG_*)
+    solve_log_dropped: int = 0  # records beyond the loops' buffers (counted, not kept)

@@ -27,7 +27,8 @@ from ..kernel.constants import (
     STATUS_T_SINGULAR,
 )
 from ..schema import LIMITS
-from .calls import Stopper, initial_stats
+from ..symbolic.robust import CONSISTENCY_TOL, RANK_TOL, RCOND_ROBUST
+from .calls import SolveState, Stopper, initial_stats
 from .job import Job, LoopOutput
 from .methods import ScipyMethod
 
@@ -40,18 +41,38 @@ class _NonFinite(ArithmeticError):
     """The right-hand side is not finite at a state a scipy solver asked for."""
 
 
+class _Stopped(ArithmeticError):
+    """The rank-robust solve ended the run (a ``STATUS_*`` code: Q singular, inconsistent)."""
+
+    def __init__(self, code: int):
+        super().__init__(code)
+        self.code = code
+
+
 class _RightHandSide:
     """f(t, x) for scipy from the compiled kernel, with the smallest condition estimates seen."""
 
-    def __init__(self, job: Job):
+    def __init__(self, job: Job, stats: np.ndarray):
         self.job, self.mod = job, job.module
         self.w = self.mod.make_workspace()
         self.K = np.empty((1, job.x0.size))
         self.rcmin = [1.0, 1.0]
+        self.stats = stats
+        self.solve = SolveState(job, job.module)
+        if self.mod.ROBUST:
+            s = self.solve
+            self.mod.solve_setup(
+                self.w, job.solve, RANK_TOL, s.max_rank, CONSISTENCY_TOL, RCOND_ROBUST, job.rcond_min, s.order
+            )
 
     def __call__(self, t, x):
         job, mod, w = self.job, self.mod, self.w
         mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), job.p, job.G, job.G1, job.G2, self.K, 0, w)
+        if mod.ROBUST:  # the loops' bookkeeping of the rank-robust solve (kernel/source/loops.py)
+            code = mod._robust_outcome(t, 0.0, w, self.stats, self.solve.order, self.solve.log)
+            self.solve.collect(self.stats)
+            if code != STATUS_OK:
+                raise _NonFinite(t) if code == STATUS_DIVERGED else _Stopped(code)
         rc0, rc1 = w[mod.ORC], w[mod.ORC + 1]
         if not (np.all(np.isfinite(w[: mod.ORC])) and np.all(np.isfinite(self.K[0]))):
             # the model's expressions are not defined here (√ of a negative number, a zero denominator):
@@ -72,8 +93,8 @@ def run_scipy(job: Job, bar, stopper: Stopper) -> LoopOutput:
     import scipy.integrate as si
 
     assert isinstance(job.method, ScipyMethod)
-    fun = _RightHandSide(job)
     stats, _, _ = initial_stats(job, job.module, job.p)
+    fun = _RightHandSide(job, stats)
     ts, xs = [0.0], [job.x0.copy()]
     status, stop, nfev, fail_msg = STATUS_OK, None, 0, None
     count = [0]  # accepted steps, kept when the solver raises
@@ -87,6 +108,8 @@ def run_scipy(job: Job, bar, stopper: Stopper) -> LoopOutput:
         status = STATUS_J2_SINGULAR if e.matrix == "J2" else STATUS_T_SINGULAR
     except _NonFinite:
         status = STATUS_DIVERGED
+    except _Stopped as e:
+        status = e.code
     except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:  # raised inside scipy's solver
         status = STATUS_FAILED
         fail_msg = f"{job.method.name} failed after t = {ts[-1]:.6g} s: {e}"
@@ -112,6 +135,8 @@ def run_scipy(job: Job, bar, stopper: Stopper) -> LoopOutput:
         evals=nfev,
         t_end=float(t_arr[-1]),
         fail_msg=fail_msg,
+        solve_log=fun.solve.records,
+        solve_log_dropped=fun.solve.dropped,
     )
 
 

@@ -44,6 +44,9 @@ class Built:
         self._derivations: dict[str, Derivation] = {}
         self._kernels: dict[str, tuple[Any, ModelInfo]] = {}
         self._lock = threading.RLock()
+        #: variant → (q_dependent, u_independent) picked numerically for a model that declares no
+        #: partition (set by the run layer: nmkane_core.run.partition)
+        self.partitions: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {}
 
     # ------------------------------------------------------------------ models, derivations, kernels
     def model(self, variant: str | None = None) -> MechanicalModel:
@@ -162,9 +165,12 @@ class Built:
 
     @property
     def independent(self) -> tuple[str, ...]:
-        """The values a user sets: coordinates not solved from holonomic constraints and u_I."""
-        info = self.info(self.system.completion_variant)
-        return tuple(q for q in info.q if q not in info.q_dependent) + (info.u_independent if info.m else info.u)
+        """The values a user sets: coordinates not solved from holonomic constraints and u_I (of
+        the declared partition, or of the one picked numerically: ``partitions``)."""
+        variant = self.system.completion_variant
+        info = self.info(variant)
+        q_dep, u_ind = self.partitions.get(variant, (info.q_dependent, info.u_independent))
+        return tuple(q for q in info.q if q not in q_dep) + (u_ind if info.m else info.u)
 
     @property
     def state_names(self) -> tuple[str, ...]:

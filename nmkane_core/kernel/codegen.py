@@ -32,10 +32,24 @@ from .interface import LOOPS, PROJECTION_SCRATCH, WORKSPACE, layout, parameter_l
 __all__ = ["GENERIC_FILES", "generate_source"]
 
 #: the generic compiled code appended to every generated kernel (not imported as modules)
-GENERIC_FILES = ("source/loops.py", "source/state.py", "source/projection.py")
+GENERIC_FILES = (
+    "source/loops.py",
+    "source/paper.py",
+    "source/state.py",
+    "source/projection.py",
+    "source/robust.py",
+    "source/robust_linalg.py",
+    "source/robust_projection.py",
+)
 
 #: expression trees larger than this (nodes, summed over one function) skip cse's pre-optimizations
-CSE_BASIC_MAX_NODES = 20_000
+#: (factoring, which costs time that grows fast with the size; the functions of most built-in
+#: models are below it, the largest terms and those of large closed loops above)
+CSE_BASIC_MAX_NODES = 3_000
+#: a function writing more zeros than this into the work array writes them with one loop over each
+#: block first (a large model's J, Q, ∂ψ/∂q and C are mostly zeros: thousands of statements less
+#: for numba to compile), then only the nonzero entries
+ZERO_FILL_MIN = 200
 #: a model's ``terms`` with more statements than this is called by the right-hand side, not pasted
 #: into it: numba then compiles it once (~10 s for a thousand statements) and every loop links that
 #: compiled code (~1 s), where a pasted copy is compiled again in each loop that uses it; the call
@@ -76,6 +90,7 @@ def _block(
     sub = dict(zip(kt.args_x, xs, strict=True))
     sub.update(zip(kt.args_p, ps, strict=True))
     sub[kt.args_t] = tt
+    assignments, zero_fill = _zero_fill(assignments)
     exprs = [sp.sympify(a[1]).xreplace(sub) for a in assignments]
     # cse's "basic" pre-optimizations (factoring) save a few percent of operations but cost
     # time that grows fast with the size: the terms of a model with 8 coordinates and 5
@@ -97,6 +112,9 @@ def _block(
     for i, s in enumerate(ps):
         if s.name in used:
             lines.append(f"    {s.name} = p[{i}]")
+    for lo, hi in zero_fill:
+        lines.append(f"    for _k in range({lo}, {hi}):")
+        lines.append("        w[_k] = 0.0")
     for sym, e in repl:
         lines.append(f"    {sym} = {printer.doprint(e)}")
     for a, e in zip(assignments, reduced, strict=True):
@@ -109,15 +127,59 @@ def _block(
     return "\n".join(lines) + "\n"
 
 
+def needs_robust(derivation) -> bool:
+    """Whether a model's kernel gets the rank-robust solve (``ROBUST``): it has constraints and
+    either no declared partition, more equations than dependent speeds (redundant ones), or
+    the declaration that its motion may pass singular positions.  Other kernels (the paper's
+    systems) are generated and compiled without it: numba prunes every ``if ROBUST:``."""
+    d = derivation
+    md = d.model
+    return bool(d.m) and (d.p == 0 or md.n - d.p != d.m or bool(getattr(md, "singular_positions", False)))
+
+
+def kernel_dims(kt, robust: bool) -> dict[str, int]:
+    """The dimensions the work-array tables and the generic source use: the model's (N, M, MNH,
+    MH, NV, NO), PI = N − M the paper's solve's independent speeds, and NR, MR, RB — N, M and 1
+    in kernels with the rank-robust solve, else 0."""
+    d = dict(kt.dims)
+    if robust:
+        d["PI"] = max(d["N"] - d["M"], 0)
+    d.update(NR=d["N"] if robust else 0, MR=d["M"] if robust else 0, RB=1 if robust else 0)
+    return d
+
+
+def _zero_fill(assignments: list[tuple]) -> tuple[list[tuple], list[tuple[int, int]]]:
+    """(the assignments to make one by one, ranges of the work array to fill with zeros first):
+    with more than :data:`ZERO_FILL_MIN` zeros written into ``w``, every contiguous range of
+    ``w`` entries the function writes is zeroed by a loop and only the nonzero ones are assigned."""
+    import sympy as sp
+
+    where = re.compile(r"^w\[(\d+)\]$")
+    zeros = [a for a in assignments if where.match(a[0]) and sp.sympify(a[1]) == 0]
+    if len(zeros) <= ZERO_FILL_MIN:
+        return assignments, []
+    index = sorted(int(hit.group(1)) for a in assignments if (hit := where.match(a[0])) is not None)
+    ranges: list[list[int]] = []
+    for k in index:
+        if ranges and k == ranges[-1][1]:
+            ranges[-1][1] = k + 1
+        else:
+            ranges.append([k, k + 1])
+    kept = [a for a in assignments if not (where.match(a[0]) and sp.sympify(a[1]) == 0)]
+    return kept, [(a, b) for a, b in ranges]
+
+
 def generate_source(derivation) -> str:
     """The whole kernel module for one model, as text."""
     from ..symbolic.terms import kernel_terms
 
     kt = kernel_terms(derivation)
-    off, wsize = layout(WORKSPACE, kt.dims)
+    robust = needs_robust(derivation)
+    dims = kernel_dims(kt, robust)
+    off, wsize = layout(WORKSPACE, dims)
     terms = _block("terms", "t, x, p, w", kt, _terms_assignments(kt, off))
     parts = [
-        _head(kt, derivation.model.name, off, wsize),
+        _head(kt, dims, derivation, off, wsize, robust),
         terms,
         _block("constraint_terms", "t, x, p, w", kt, _constraint_assignments(kt, off)),
         _block("positions", "t, x, p, w", kt, _position_assignments(kt, off)),
@@ -132,12 +194,18 @@ def generate_source(derivation) -> str:
         _projection_layout_source(),
     ]
     large = terms.count("\n") > INLINE_TERMS_MAX_STATEMENTS
-    return inline_marked("\n\n".join(parts) + _generic_source(), keep_calls={"terms"} if large else ())
+    keep = {"terms"} if large else set()
+    keep.add("_rhs_paper" if robust else "_rhs_robust")  # the branch numba prunes stays a call
+    return inline_marked("\n\n".join(parts) + _generic_source(), keep_calls=keep)
 
 
-def _head(kt, model_name: str, off: dict[str, int], wsize: int) -> str:
+def _head(kt, d: dict[str, int], derivation, off: dict[str, int], wsize: int, robust: bool) -> str:
     """Imports, dimensions, constants and work-array offsets of the generated module."""
-    d = kt.dims
+    import sympy as sp
+
+    from ..symbolic import robust as rb
+
+    model_name = derivation.model.name
     head = [
         f"# Generated by nmkane_core.kernel.codegen for model {model_name!r}. Do not edit.",
         f"# state: {', '.join(map(str, kt.args_x))}; params: {', '.join(map(str, kt.args_p))}",
@@ -153,6 +221,15 @@ def _head(kt, model_name: str, off: dict[str, int], wsize: int) -> str:
         "FM = {'contract'}",
     ]
     head += [f"{k} = {v}" for k, v in d.items()]
+    p = derivation.p
+    head += [
+        f"ROBUST = {robust}  # the rank-robust constraint solve (codegen.needs_robust; source/robust.py)",
+        f"C_IS_I = {sp.eye(d['N']) == derivation.C}  # q̇ = u",
+        f"RANK_TOL_DEFAULT = {rb.RANK_TOL!r}",
+        f"CONSISTENCY_TOL_DEFAULT = {rb.CONSISTENCY_TOL!r}",
+        f"RCOND_ROBUST_DEFAULT = {rb.RCOND_ROBUST!r}",
+        f"MAX_RANK_DEFAULT = {d['N'] - p if p else min(d['N'], d['M'])}  # n − p (declared), else at most min(n, m)",
+    ]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")
     head.append(
         f"ROWDEG = np.array({(kt.row_degree or [1])!r}, dtype=np.int64)  # degree in u of each row of J"

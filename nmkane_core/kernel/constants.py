@@ -14,14 +14,37 @@ STATUS_DIVERGED = 3  # the state (or a diagnostic) stopped being finite
 STATUS_FAILED = 4  # step size underflow (adaptive); Python drivers: any other failure
 STATUS_BUDGET = 5  # the step budget of this call is used up (adaptive): call again
 STATUS_PROJECTION_FAILED = 6  # a projection's correction matrix was singular
+# the rank-robust solve (kernels generated with it: kernel.codegen ROBUST) — each ends a run "singular"
+STATUS_INCONSISTENT = 7  # J u̇ = c has no solution: the dependent equations miss (solve log: rank, names, residual)
+STATUS_Q_SINGULAR = 8  # Q is not positive definite (its Cholesky factorization failed)
+STATUS_LEFT_CONSTRAINTS = 9  # a step's constraint correction (the projection's, or the Baumgarte terms') carried
+# more than ROBUST_LEAVE_KE of the kinetic energy: the motion left its branch near a singular position
 
-# stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, max|viol_i| for each violation]
+# stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, the robust solve's counters,
+#          max|viol_i| for each violation]
 STATS_E0 = 0
 STATS_MAX_DRIFT = 1
 STATS_FINAL_DRIFT = 2
 STATS_RCOND_J2 = 3
 STATS_RCOND_T = 4
-STATS_VIOL = 5  # first of the NV running maxima of |violation|
+STATS_ROBUST_EVALS = 5  # evaluations that used the rank-robust solve
+STATS_MIN_PIVOT = 6  # smallest kept pivot |R_kk| of those (the constraint normals' conditioning)
+STATS_MIN_RANK = 7  # smallest rank of J they found
+STATS_SOLVE_LOG = 8  # solve-log records written by this call (the driver reads and resets it)
+STATS_MAX_LEAVE = 9  # largest kinetic-energy share of a projection's speed correction
+STATS_MAX_STAB = 10  # largest kinetic-energy share of the velocity change the Baumgarte terms make in a step
+STATS_VIOL = 11  # first of the NV running maxima of |violation|
+
+# the solve log (the loops' ``solve_log`` argument): one row per change of the constraint solve,
+# [t, kind, value, rank, entries...] with entries the column order (kind paper) or 1.0 for each
+# dropped equation (kinds robust, inconsistent); the last row is kept for an inconsistent stop
+LOG_PAPER = 0  # the paper's solve with a partition (value: its J2 estimate; entries: the column order)
+LOG_ROBUST = 1  # the rank-robust solve (value: smallest kept pivot; entries: the dropped equations)
+LOG_INCONSISTENT = 2  # the robust solve found J u̇ = c inconsistent (value: relative residual)
+LOG_HEAD = 4  # t, kind, value, rank
+
+# the rank-robust solve's run-time decisions (docs/closed-loops.md)
+ROBUST_LEAVE_KE = 1e-6  # a step's constraint correction above this share of T: the run left the constraints
 
 # adaptive step control: h ← h · clamp(STEP_SAFETY · err^(−1/(q+1)), STEP_FAC_MIN, STEP_FAC_MAX)
 STEP_SAFETY = 0.9
@@ -30,4 +53,4 @@ STEP_FAC_MAX = 5.0  # the most a step grows at once (also after a zero error)
 STEP_LAST_REL = 1e-12  # a remainder below this fraction of t_final joins the current step
 
 #: every name above, for the generated kernels' import line
-NAMES = tuple(k for k in tuple(globals()) if k.startswith(("STATUS_", "STATS_", "STEP_")))
+NAMES = tuple(k for k in tuple(globals()) if k.startswith(("STATUS_", "STATS_", "STEP_", "LOG_", "ROBUST_")))

@@ -78,7 +78,12 @@ def inline_marked(source: str, keep_calls=()) -> str:
     changed: dict[str, bool] = {}
     count = [0]
 
+    def marked(fn: ast.FunctionDef) -> bool:
+        return any("# INLINE" in line for line in lines[fn.lineno - 1 : fn.end_lineno or fn.lineno])
+
     def expand(fn: ast.FunctionDef) -> ast.FunctionDef:
+        if fn.name not in expanded and not marked(fn):  # nothing to expand: no copy (large generated bodies)
+            changed[fn.name], expanded[fn.name] = False, fn
         if fn.name not in expanded:
 
             class Expander(ast.NodeTransformer):

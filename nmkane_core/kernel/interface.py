@@ -43,6 +43,7 @@ VEC = "float64[::1]"
 MAT = "float64[:, ::1]"
 FLOAT = "float64"
 INT = "int64"
+IVEC = "int64[::1]"
 PROJ = "proj"  # int64[::1] with a projection, None without (see ProjectionOptions)
 
 
@@ -65,6 +66,13 @@ class FixedArgs(NamedTuple):
     TB: Annotated[np.ndarray, VEC]
     TC: Annotated[np.ndarray, VEC]
     rcond_min: Annotated[float, FLOAT]  # stop threshold of the rcond estimates
+    solve: Annotated[int, INT]  # the constraint solve: 0 the paper's, 1 rank-robust, 2 auto (kernels with ROBUST)
+    rank_tol: Annotated[float, FLOAT]  # the robust solve's rank threshold (symbolic.robust.RANK_TOL)
+    max_rank: Annotated[int, INT]  # the model's number of independent equations (n − p, or the rank found)
+    consistency_tol: Annotated[float, FLOAT]  # above this relative residual J u̇ = c is inconsistent
+    rcond_robust: Annotated[float, FLOAT]  # "auto" leaves a partition whose J2 estimate falls below this
+    order: Annotated[np.ndarray, IVEC]  # the partition as a column order [u_I, u_D] of J, advanced in place
+    solve_log: Annotated[np.ndarray, MAT]  # records of the solve's changes (kernel.constants LOG_*)
     proj: Annotated[np.ndarray | None, PROJ]
     out_t: Annotated[np.ndarray, VEC]  # output rows
     out_x: Annotated[np.ndarray, MAT]
@@ -102,6 +110,13 @@ class AdaptiveArgs(NamedTuple):
     TC: Annotated[np.ndarray, VEC]
     err_exp: Annotated[float, FLOAT]  # step-control exponent 1/(q+1)
     rcond_min: Annotated[float, FLOAT]
+    solve: Annotated[int, INT]  # the constraint solve: 0 the paper's, 1 rank-robust, 2 auto (kernels with ROBUST)
+    rank_tol: Annotated[float, FLOAT]  # the robust solve's rank threshold (symbolic.robust.RANK_TOL)
+    max_rank: Annotated[int, INT]  # the model's number of independent equations (n − p, or the rank found)
+    consistency_tol: Annotated[float, FLOAT]  # above this relative residual J u̇ = c is inconsistent
+    rcond_robust: Annotated[float, FLOAT]  # "auto" leaves a partition whose J2 estimate falls below this
+    order: Annotated[np.ndarray, IVEC]  # the partition as a column order [u_I, u_D] of J, advanced in place
+    solve_log: Annotated[np.ndarray, MAT]  # records of the solve's changes (kernel.constants LOG_*)
     proj: Annotated[np.ndarray | None, PROJ]
     out_t: Annotated[np.ndarray, VEC]  # output buffer (its length caps the rows of a call)
     out_x: Annotated[np.ndarray, MAT]
@@ -131,6 +146,7 @@ def loop_signature(args: type[NamedTuple], projected: bool = False) -> tuple:
         MAT: types.float64[:, ::1],
         FLOAT: types.float64,
         INT: types.int64,
+        IVEC: types.int64[::1],
         PROJ: types.int64[::1] if projected else types.none,
     }
     hints = typing.get_type_hints(args, include_extras=True)
@@ -144,7 +160,9 @@ def fixed_loop_signature() -> tuple:
 
 # ---------------------------------------------------------------------------- work arrays
 # Each table lists named blocks in order with their sizes as expressions in the model's
-# dimensions: N speeds, M constraints (MNH nonholonomic, MH holonomic), PI independent speeds.
+# dimensions: N speeds, M constraints (MNH nonholonomic, MH holonomic), PI independent speeds of
+# the paper's solve (N − M); NR, MR = N, M in kernels with the rank-robust solve (else 0), RB = 1
+# there (else 0).
 # A block's name is the offset of its first entry; the generator writes every offset (and the
 # total, WSIZE / PS_SIZE) into the kernel as a constant.
 
@@ -158,11 +176,11 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OQ", "N * N", "Q (42), [u_I, u_D] order"),
     ("OP", "N", "P (42)"),
     ("OQD", "N", "q̇ = C u + D (1)"),
-    ("OR", "M * (PI + 1)", "R = [−J1 | −b + s] → [A | B̂] (20), (108), (113)"),
+    ("OR", "M * (PI + 1 + RB)", "R = [−J1 | −b + s] → [A | B̂] (20), (108), (113) (with ROBUST: and | s → J2⁻¹s)"),
     ("OW", "N * PI", "W = Q A2ᵀ"),
     ("OMR", "PI * PI", "A2 Q A2ᵀ"),
-    ("OY", "N", "P − Q_{·D} B̂"),
-    ("OUI", "PI", "A2 (P − Q_{·D} B̂) → u̇_I"),
+    ("OY", "N * (1 + RB)", "P − Q_{·D} B̂ (with ROBUST: and −Q_{·D} J2⁻¹s, by rows)"),
+    ("OUI", "PI * (1 + RB)", "A2 (P − Q_{·D} B̂) → u̇_I (with ROBUST: and the Baumgarte terms' part, by rows)"),
     ("ORC", "2", "(rcond J2, rcond T)"),
     ("OPSQ", "MH * N", "∂ψ/∂q (positions)"),
     ("OC", "N * N", "C (positions)"),
@@ -170,6 +188,28 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OJ2C", "M * M", "a copy of J2 made before its LU, for the multipliers"),
     ("OFC", "N", "F_c = Q u̇ − P, the generalized constraint force, in the order [u_I, u_D]"),
     ("OLAM", "M", "λ, the multipliers: F_c = Jᵀλ"),
+    # the rank-robust solve (kernels with ROBUST; docs/closed-loops.md §7)
+    ("OSV", "RB * 16", "the solve's settings and state (source/robust.py: SV_*)"),
+    ("OORD", "NR", "the current partition: J's columns in the order [u_I, u_D]"),
+    ("OORD2", "NR", "a partition being tried; the pivot columns of Wehage & Haug's elimination"),
+    ("OROWS", "MR", "row indices of that elimination"),
+    ("ORN", "MR", "|J_i|∞, the row norms (equilibration)"),
+    ("OCV", "MR", "c = −b + s, the right-hand side of J u̇ = c"),
+    ("OSS", "MR", "s = [Γφ; Γ1ψ̇ + Γ2ψ], the Baumgarte terms"),
+    ("OUS", "NR", "the Baumgarte terms' part of u̇ (J u̇_s = s, P = 0)"),
+    ("OJE", "MR * NR", "the equilibrated J2 and its LU, or J for the elimination"),
+    ("OLL", "NR * NR", "L, the Cholesky factor of Q (or of the projection's weight)"),
+    ("OKK", "NR * MR", "K = L⁻¹Jᵀ and its Householder QR (R above the diagonal, the reflectors below)"),
+    ("OAH", "NR", "â = L⁻¹P"),
+    ("OEE", "MR", "e = c − Kᵀâ, equilibrated"),
+    ("ONRM", "MR", "the column norms of K"),
+    ("OPIV", "MR", "the QR's column order (the first rank ones kept)"),
+    ("OBETA", "MR", "the reflectors' coefficients"),
+    ("OYY", "MR", "y: R11ᵀ y = e"),
+    ("OZZ", "NR", "z = Z_r y"),
+    ("OQM", "NR * NR", "Q in the model's order (projections)"),
+    ("ODX", "2 * NR", "an error estimate projected on the tangent space (adaptive steps)"),
+    ("ODROP", "MR", "1.0 for each equation the last robust solve dropped"),
 )
 
 #: the post-step projections' scratch array (``make_projection_scratch``); the projections take

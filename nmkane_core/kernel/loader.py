@@ -108,9 +108,10 @@ def model_fingerprint(system_name: str, variant: str, model) -> str:
         "outputs",
         "q_dependent",
         "monitors",
+        "singular_positions",
         "t",
     )
-    text = "\0".join(sp.srepr(getattr(model, f)) for f in fields)
+    text = "\0".join(sp.srepr(getattr(model, f, None)) for f in fields)
     h = hashlib.sha256(_tools_key(system_name, variant).encode())
     h.update(text.encode())
     return h.hexdigest()[:24]

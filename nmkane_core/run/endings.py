@@ -11,11 +11,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..kernel.constants import (
+    ROBUST_LEAVE_KE,
     STATUS_DIVERGED,
     STATUS_FAILED,
+    STATUS_INCONSISTENT,
     STATUS_J2_SINGULAR,
+    STATUS_LEFT_CONSTRAINTS,
     STATUS_OK,
     STATUS_PROJECTION_FAILED,
+    STATUS_Q_SINGULAR,
     STATUS_T_SINGULAR,
 )
 
@@ -57,6 +61,25 @@ ENDINGS: dict[tuple[int, str | None], Ending] = {
         "the state or its derivative stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "
         "the last finite state (an unstable step: try a smaller dt or gains of smaller magnitude; or the motion "
         "reached " + _UNDEFINED + ")",
+    ),
+    (STATUS_INCONSISTENT, None): Ending(
+        "singular",
+        "the acceleration constraints are inconsistent after t = {t_end:.6g} s: rank {rank} of {m}, the dependent "
+        "equations ({dropped}) miss by {residual:.3g} (relative) — the motion cannot continue on the constraints "
+        "there (a lock-up, or a state the redundant equations disagree on); the run keeps the last good state",
+    ),
+    (STATUS_Q_SINGULAR, None): Ending(
+        "singular",
+        "Q, the mass matrix, is not positive definite after t = {t_end:.6g} s (its Cholesky factorization failed): "
+        "the model's inertia degenerates there; the run keeps the last good state",
+    ),
+    (STATUS_LEFT_CONSTRAINTS, None): Ending(
+        "singular",
+        "the motion left the constraints after t = {t_end:.6g} s: {correction} carried {share:.3g} of the kinetic "
+        "energy in one step (more than "
+        + f"{ROBUST_LEAVE_KE:g}"
+        + ") — near a singular position the equations amplify any drift off the branch; {cure}; the run keeps "
+        "the last good state",
     ),
     (STATUS_PROJECTION_FAILED, None): Ending(
         "failed",

@@ -18,7 +18,10 @@ import numpy as np
 from ..integrate.job import LoopOutput
 from ..kernel.built import built
 from ..kernel.constants import (
+    ROBUST_LEAVE_KE,
     STATS_MAX_DRIFT,
+    STATS_MAX_LEAVE,
+    STATS_MAX_STAB,
     STATS_RCOND_J2,
     STATS_RCOND_T,
     STATS_VIOL,
@@ -31,6 +34,7 @@ from .events import apply_events
 from .forces import add_point_forces
 from .plan import Plan
 from .result import Run
+from .solvelog import inconsistency, robust_summary, solve_switches
 
 __all__ = ["finish"]
 
@@ -137,11 +141,30 @@ def _ending(plan: Plan, out: LoopOutput, overflow: bool) -> tuple[str, str]:
         "projection": plan.projection.name,
         "max_steps": LIMITS["max_steps"],
         "max_rows": LIMITS["max_rows"],
+        **_left_constraints(plan, out),
+        **inconsistency(plan.info, out),
     }
     if overflow:
         return OVERFLOW.status, OVERFLOW.message.format(**facts)
     hint = plan.system.singular_hints.get(plan.variant, "")
     return ending(out.status, out.stop, facts, out.fail_msg, hint)
+
+
+def _left_constraints(plan: Plan, out: LoopOutput) -> dict:
+    """What carried the motion off its constraints (STATUS_LEFT_CONSTRAINTS): the projection's
+    speed correction, or the Baumgarte terms' velocity change in a step."""
+    leave, stab = out.stats[STATS_MAX_LEAVE], out.stats[STATS_MAX_STAB]
+    if leave > ROBUST_LEAVE_KE:
+        return {
+            "correction": f"the {plan.projection.name} projection's speed correction",
+            "share": leave,
+            "cure": "try a smaller dt",
+        }
+    return {
+        "correction": "the velocity change the Baumgarte terms (Γ, Γ1, Γ2) made",
+        "share": stab,
+        "cure": "the post-step projection keeps the state on its branch (projection yoon), or try another dt",
+    }
 
 
 def _arrays(plan: Plan, out: LoopOutput, O: np.ndarray) -> Run:
@@ -167,6 +190,9 @@ def _arrays(plan: Plan, out: LoopOutput, O: np.ndarray) -> Run:
 def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float, load: float) -> dict:
     md, stats = plan.info, out.stats
     E = out.E if md.has_energy else None
+    mod = built(plan.system).module(plan.variant)
+    paper_first = plan.solve != 1 and plan.max_rank == mod.M and mod.M <= mod.N
+    switches = sorted(out.switches + solve_switches(mod, md, plan.order, paper_first, out), key=lambda s: s["t"])
     return {
         "status": status,
         "message": message,
@@ -185,8 +211,9 @@ def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float
             else {}
         ),
         "warnings": list(plan.warnings),
-        "switches": out.switches,
+        "switches": switches,
         "initial_correction": dict(plan.initial_correction),
+        "robust_solve": robust_summary(mod, out),
     }
 
 

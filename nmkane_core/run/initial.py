@@ -19,6 +19,7 @@ import numpy as np
 from ..declare.system import System
 from ..errors import ConvergenceError, InconsistentStateError, InputError
 from ..kernel.built import built
+from .partition import max_rank, partition
 
 __all__ = ["initial_state", "default_state", "complete_state", "CHECK_TOL"]
 
@@ -68,10 +69,7 @@ def _damped_newton(residual, x, idx, label, names, tol, maxit):
             )
         if norm <= tol * (1.0 + np.abs(x[idx]).max(initial=0.0)):
             return x
-        try:
-            step = np.linalg.solve(jac, r)
-        except np.linalg.LinAlgError:
-            step = None
+        step = _newton_step(jac, r)
         if step is None or not np.all(np.isfinite(step)):
             raise ConvergenceError(
                 f"{label}: the constraint Jacobian is singular at {_at(x, idx)} ({_report(names, r)})"
@@ -94,6 +92,20 @@ def _damped_newton(residual, x, idx, label, names, tol, maxit):
     raise ConvergenceError(f"{label}: Newton did not converge in {maxit} iterations ({_report(names, r)})")
 
 
+def _newton_step(jac: np.ndarray, r: np.ndarray) -> np.ndarray | None:
+    """The Newton step J⁻¹r; the least-squares, smallest step when J is not square or is
+    singular (redundant equations: more constraints than unknowns, consistent on the manifold)."""
+    if jac.shape[0] == jac.shape[1]:
+        try:
+            return np.linalg.solve(jac, r)
+        except np.linalg.LinAlgError:
+            pass
+    if not (np.all(np.isfinite(jac)) and np.all(np.isfinite(r))):
+        return None
+    step, _, rank, _ = np.linalg.lstsq(jac, r, rcond=1e-10)
+    return step if rank > 0 else None
+
+
 def _report(names, r) -> str:
     return "residual " + ", ".join(f"{k} = {v:.3g}" for k, v in zip(names, r, strict=True))
 
@@ -102,27 +114,29 @@ def _at(x, idx) -> str:
     return "the guess (" + ", ".join(f"{x[i]:.6g}" for i in idx) + ")"
 
 
-def complete_state(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+def complete_state(module, info, x: np.ndarray, p: np.ndarray, partition=None) -> np.ndarray:
     """Solve the dependent coordinates and speeds of ``x`` (model order) from the constraints.
 
     ``module`` is the compiled kernel, ``info`` its :class:`~nmkane_core.kernel.info.ModelInfo`, ``x`` the
     state with the independent values set and the dependent ones holding starting guesses (which
-    pick the branch of a constraint nonlinear in the speeds), ``p`` the parameter vector.
+    pick the branch of a constraint nonlinear in the speeds), ``p`` the parameter vector;
+    ``partition`` = (q_dependent, u_independent) when the model declares none
+    (:mod:`nmkane_core.run.partition`).  Redundant equations are solved in the least-squares
+    sense (consistent at a solution).
     Raises :class:`ConvergenceError` (naming the constraints left unsatisfied) when Newton fails.
     """
     n = info.n
-    if info.holonomic:
-        qi = [info.q.index(s) for s in info.q_dependent]
+    q_dep, u_ind = partition if partition is not None else (info.q_dependent, info.u_independent)
+    if info.holonomic and q_dep:
+        qi = [info.q.index(s) for s in q_dep]
 
         def holo(z):
             _, _, psi, psi_q, _ = module.state_terms(0.0, z, p)
             return psi, psi_q[:, qi]
 
-        x = _newton(
-            holo, x, qi, f"holonomic constraints ψ(q) = 0 solved for {', '.join(info.q_dependent)}", info.holonomic
-        )
+        x = _newton(holo, x, qi, f"holonomic constraints ψ(q) = 0 solved for {', '.join(q_dep)}", info.holonomic)
     if info.m:
-        ud = [s for s in info.u if s not in info.u_independent]
+        ud = [s for s in info.u if s not in u_ind]
         ui = [n + info.u.index(s) for s in ud]
 
         def vel(z):
@@ -139,7 +153,7 @@ def complete_state(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
     return x
 
 
-def project_onto_manifold(module, info, x: np.ndarray, p: np.ndarray) -> np.ndarray:
+def project_onto_manifold(module, info, x: np.ndarray, p: np.ndarray, max_rank: int = 0) -> np.ndarray:
     """The nearest consistent state (Euclidean metric): positions onto ψ = 0, then speeds onto
     [φ; ψ̇] = 0 at the corrected positions (the kernel's post-step projection, iterated)."""
     from ..integrate.projection import ProjectionOptions
@@ -147,7 +161,10 @@ def project_onto_manifold(module, info, x: np.ndarray, p: np.ndarray) -> np.ndar
     proj = ProjectionOptions(
         "onto-manifold", weight="identity", iterations=20, jacobian="updated", energy=False
     ).as_array(info)
-    y, code = module.project_state(0.0, x, p, proj)
+    if module.ROBUST:
+        y, code = module.project_state_robust(0.0, x, p, proj, max_rank)
+    else:
+        y, code = module.project_state(0.0, x, p, proj)
     if code != 0 or not np.all(np.isfinite(y)):
         raise ConvergenceError("the projection onto the constraint manifold met a singular matrix")
     return y
@@ -189,6 +206,8 @@ def default_state(system: System) -> dict[str, float]:
         if entry is not None and entry[0]() is system:
             return dict(entry[1])
     b = built(system)
+    for v in dict.fromkeys((system.completion_variant, system.default_variant)):
+        partition(system, v)  # a model without a declared partition: picked before anything is completed
     names = b.state_names
     declared = dict(system.default_initial)
     for k, val in declared.items():
@@ -280,7 +299,7 @@ def _complete(system: System, variant: str, params, given, full: dict) -> None:
     module, info = b.kernel(variant)
     xc = np.array([full.get(s, 0.0) for s in info.state_names], float)
     try:
-        xc = complete_state(module, info, xc, b.param_vector(variant, params))
+        xc = complete_state(module, info, xc, b.param_vector(variant, params), b.partitions.get(variant))
     except ConvergenceError as e:
         dep = [k for k in b.state_names if k not in b.independent]
         raise InputError(
@@ -302,7 +321,8 @@ def _project(system: System, variant: str, params, given, full: dict, correction
     module, info = b.kernel(variant)
     xc = np.array([full[s] for s in info.state_names], float)
     try:
-        y = project_onto_manifold(module, info, xc, b.param_vector(variant, params))
+        rank = max_rank(system, variant, default_state(system))
+        y = project_onto_manifold(module, info, xc, b.param_vector(variant, params), rank)
     except ConvergenceError as e:
         raise InputError("initial", given, "a state that can be projected onto the constraints", str(e)) from None
     for s, a, c in zip(info.state_names, xc, y, strict=True):

@@ -25,7 +25,8 @@ from ..kernel import precompile
 from ..kernel.built import built
 from ..kernel.info import ModelInfo
 from ..schema import LIMITS, RunSettings
-from .initial import initial_state
+from .initial import default_state, initial_state
+from .partition import max_rank, partition
 from .registry import get_system, system_names
 from .settings import raise_all, shown, validate_settings
 
@@ -59,6 +60,9 @@ class Plan:
     warnings: list[str] = field(default_factory=list)
     initial_correction: dict[str, float] = field(default_factory=dict)
     forces: bool = True  # report constraint forces and multipliers
+    solve: int = 2  # the constraint solve (kernels with the rank-robust one): 0 paper, 1 robust, 2 auto
+    max_rank: int = -1  # independent constraint equations (n − p, or the rank at the default state)
+    order: tuple[int, ...] = ()  # the partition to start with, as the kernel's column order
 
     @property
     def info(self) -> ModelInfo:
@@ -91,6 +95,9 @@ class Plan:
             proj=self.projection.as_array(self.info),
             alternatives=alternatives,
             forces=self.forces,
+            solve=self.solve,
+            max_rank=self.max_rank,
+            order=self.order,
         )
 
 
@@ -108,8 +115,9 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     info = b.info(variant)
     where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
     warnings: list[str] = []
-    proj = _projection(s, method, info, where, warnings)
+    proj = _projection(s, system, method, info, where, warnings)
     _compile_ahead(b.module(variant), method, proj)
+    solve, rank, order = _solve(s, system, variant, where)
     G, G1, G2 = _gains(s, system, info, where, warnings)
     correction: dict[str, float] = {}
     x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial, correction=correction)
@@ -144,6 +152,9 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         warnings=warnings,
         initial_correction=correction,
         forces=s.constraint_forces,
+        solve=solve,
+        max_rank=rank,
+        order=order,
     )
 
 
@@ -268,9 +279,47 @@ def _warn_unstable(G, G1, G2, warnings):
             )
 
 
-def _projection(s: RunSettings, method, info: ModelInfo, where: str, warnings: list[str]) -> ProjectionOptions:
+SOLVES = {"paper": 0, "robust": 1, "auto": 2}
+
+
+def _solve(s: RunSettings, system: System, variant: str, where: str) -> tuple[int, int, tuple[int, ...]]:
+    """(solve code, the rank the robust solve may keep, the partition to start with as the
+    kernel's column order) — checked against what the variant's kernel can do."""
+    module = built(system).module(variant)
+    if not module.ROBUST:
+        if s.solve == "robust":
+            raise InputError(
+                "solve",
+                s.solve,
+                f"auto | paper for {where} (its kernel has the paper's solve only: it declares a partition "
+                "with one dependent speed per constraint; declare singular_positions=True in its model for the "
+                "rank-robust one)",
+                "no rank-robust solve in this kernel",
+            )
+        return 0, -1, ()
+    rank = max_rank(system, variant, default_state(system))
+    if s.solve == "paper" and rank < module.M:
+        raise InputError(
+            "solve",
+            s.solve,
+            f"auto | robust for {where}: its {module.M} constraint equations have rank {rank} (redundant ones), "
+            "so no partition has a square, invertible J2",
+            "no partition for the paper's solve",
+        )
+    return SOLVES[s.solve], rank, partition(system, variant).order
+
+
+def _projection(
+    s: RunSettings, system: System, method, info: ModelInfo, where: str, warnings: list[str]
+) -> ProjectionOptions:
+    name: str = "none" if s.projection is None else s.projection
+    if s.projection is None:  # the system's default — one a scipy solver cannot use is left out
+        name = system.default_projection
+        if name != "none" and isinstance(method, ScipyMethod):
+            warnings.append(f"{where} projects after each step by default ({name}); scipy integrators cannot: none")
+            name = "none"
     proj = projection_options(
-        s.projection, s.projection_weight, s.projection_iterations, s.projection_jacobian, s.projection_energy
+        name, s.projection_weight, s.projection_iterations, s.projection_jacobian, s.projection_energy
     )
     if proj.name != "none" and isinstance(method, ScipyMethod):
         raise InputError(
@@ -301,6 +350,7 @@ def _resolved(s: RunSettings, system: System, variant, method, dt, t_final, para
             "gamma": system.default_gamma if s.gamma is None else s.gamma,
             "gamma1": system.default_gamma1 if s.gamma1 is None else s.gamma1,
             "gamma2": system.default_gamma2 if s.gamma2 is None else s.gamma2,
+            "projection": proj.name,
         }
     )
     if proj.name != "none":

@@ -20,6 +20,7 @@ from ..declare.system import System
 from ..errors import InputError
 from ..kernel.built import built
 from .initial import default_state
+from .partition import check_rank
 
 __all__ = ["register", "unregister", "get_system", "system_names", "generation", "check_system"]
 
@@ -38,13 +39,17 @@ def check_system(system: System, variants: tuple[str, ...] | None = None) -> Non
     Each checked variant builds and derives (or loads from the cache); its parameter symbols
     must be exactly the declared parameters; the default initial state must name only state
     values and be consistent with the constraints (independent values are completed:
-    :func:`~nmkane_core.run.initial.default_state`).  ``variants``: which to check (default:
+    :func:`~nmkane_core.run.initial.default_state`); the constraints' rank there must leave as
+    many independent speeds as a declared partition has
+    (:func:`~nmkane_core.run.partition.check_rank`).  ``variants``: which to check (default:
     the default and the completion variant; the others are checked at their first use).
     The declaration itself is not changed."""
     variants = variants or tuple(dict.fromkeys((system.default_variant, system.completion_variant)))
     for v in variants:
         built(system).check_params(v)
-    default_state(system)
+    state = default_state(system)
+    for v in variants:
+        check_rank(system, v, state)  # a declared partition against the constraints' rank at the default state
 
 
 def _add(system: System, check: bool) -> System:

@@ -35,6 +35,38 @@ def _column(exprs) -> sp.Matrix:
     return sp.Matrix(len(exprs), 1, exprs)
 
 
+def _jacobian(f: sp.Matrix, syms) -> sp.Matrix:
+    """∂f/∂syms, differentiating each entry only by the symbols it contains (the same matrix
+    as ``f.jacobian(syms)``; a large model's constraints each involve a few coordinates)."""
+    syms = list(syms)
+    if not f.shape[0] or not syms:
+        return sp.zeros(f.shape[0], len(syms))
+    where = {s: j for j, s in enumerate(syms)}
+    flat = [sp.S.Zero] * (f.shape[0] * len(syms))
+    for i, e in enumerate(f):
+        for s in e.free_symbols:
+            j = where.get(s)
+            if j is not None:
+                flat[i * len(syms) + j] = e.diff(s)
+    return sp.Matrix(f.shape[0], len(syms), flat)
+
+
+def _product(A: sp.Matrix, B: sp.Matrix) -> sp.Matrix:
+    """A B, with the products of the identity and of zero matrices made without arithmetic (the
+    kinematics q̇ = u of most mechanisms: C = I, D = 0) and other ones entry by entry over the
+    nonzero terms only (the same sums as ``A * B``)."""
+    if B.is_square and sp.eye(B.shape[0]) == B:
+        return sp.Matrix(A)
+    if B.is_zero_matrix:
+        return sp.zeros(A.shape[0], B.shape[1])
+    rows = [[k for k in range(A.shape[1]) if A[i, k] != 0] for i in range(A.shape[0])]
+    flat = []
+    for i in range(A.shape[0]):
+        for j in range(B.shape[1]):
+            flat.append(sp.Add(*[A[i, k] * B[k, j] for k in rows[i] if B[k, j] != 0]))
+    return sp.Matrix(A.shape[0], B.shape[1], flat)
+
+
 class Derivation:
     """Symbolic results of the procedure for one model (all ``sympy.Matrix``).
 
@@ -84,14 +116,14 @@ class Derivation:
         # (1) kinematical differential equations
         self.C = md.C
         self.D = md.D
-        self.qdot = md.C * self.u + md.D
+        self.qdot = _product(md.C, self.u) + md.D
 
         # constraint functions: φ (nonholonomic), ψ and ψ̇ (holonomic)
         # column vectors even when empty (0×1): a model may have only one kind of constraint
         self.phi_nh = _column(md.nonholonomic.values())
         self.psi = _column(md.holonomic.values())
         if self.psi.shape[0]:
-            self.psi_dot = self.psi.jacobian(self.q) * self.qdot + self.psi.diff(self.t)
+            self.psi_dot = _product(_jacobian(self.psi, self.q), self.qdot) + self.psi.diff(self.t)
         else:
             self.psi_dot = sp.zeros(0, 1)
         self.m_nh = self.phi_nh.shape[0]
@@ -102,14 +134,14 @@ class Derivation:
 
         # (17)–(18) J1 = ∂φ/∂u_I, J2 = ∂φ/∂u_D
         if self.m:
-            self.J1 = self.phi.jacobian(self.u_I)
-            self.J2 = self.phi.jacobian(self.u_D)
+            self.J1 = _jacobian(self.phi, self.u_I)
+            self.J2 = _jacobian(self.phi, self.u_D)
             # (14)–(15) B1 = ∂φ/∂q C,  B2 = ∂φ/∂q D + ∂φ/∂t
-            phi_q = self.phi.jacobian(self.q)
-            self.B1 = phi_q * self.C
-            self.B2 = phi_q * self.D + self.phi.diff(self.t)
+            phi_q = _jacobian(self.phi, self.q)
+            self.B1 = _product(phi_q, self.C)
+            self.B2 = _product(phi_q, self.D) + self.phi.diff(self.t)
             # the velocity-dependent part of (19):  φ̇ = J1 u̇_I + J2 u̇_D + b
-            self.b = self.B1 * self.u + self.B2
+            self.b = _product(self.B1, self.u) + self.B2
         else:
             self.J1 = sp.zeros(0, self.p)
             self.J2 = sp.zeros(0, 0)
@@ -117,20 +149,34 @@ class Derivation:
             self.B2 = sp.zeros(0, 1)
             self.b = sp.zeros(0, 1)
 
-        # Baumgarte gains as symbols (the numeric kernels take them as runtime matrices)
-        self.Gamma = sp.Matrix(self.m_nh, self.m_nh, lambda i, j: sp.Symbol(f"Gamma_{i + 1}{j + 1}", real=True))
-        self.Gamma1 = sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma1_{i + 1}{j + 1}", real=True))
-        self.Gamma2 = sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma2_{i + 1}{j + 1}", real=True))
-        # stabilization vector s: (104) Γ φ for nonholonomic rows, (112) Γ1 ψ̇ + Γ2 ψ for holonomic
-        self.s = (
-            sp.Matrix.vstack(self.Gamma * self.phi_nh, self.Gamma1 * self.psi_dot + self.Gamma2 * self.psi)
-            if self.m
-            else sp.zeros(0, 1)
-        )
-
         # the holonomic system (42), speeds in the order [u_I, u_D]
         self.Q = md.Q.extract(self.perm, self.perm)
         self.P = md.P.extract(self.perm, [0])
+
+    # ------------------------------------------------------------ the Baumgarte terms (for display)
+    # symbols, made when first asked for: the numeric kernels take the gains as runtime matrices
+    # (a large model's Γ1 of symbols is m² of them)
+    @cached_property
+    def Gamma(self) -> sp.Matrix:
+        """(104) Γ as a matrix of symbols."""
+        return sp.Matrix(self.m_nh, self.m_nh, lambda i, j: sp.Symbol(f"Gamma_{i + 1}{j + 1}", real=True))
+
+    @cached_property
+    def Gamma1(self) -> sp.Matrix:
+        """(112) Γ1 as a matrix of symbols."""
+        return sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma1_{i + 1}{j + 1}", real=True))
+
+    @cached_property
+    def Gamma2(self) -> sp.Matrix:
+        """(112) Γ2 as a matrix of symbols."""
+        return sp.Matrix(self.m_h, self.m_h, lambda i, j: sp.Symbol(f"Gamma2_{i + 1}{j + 1}", real=True))
+
+    @cached_property
+    def s(self) -> sp.Matrix:
+        """The stabilization vector: (104) Γ φ for nonholonomic rows, (112) Γ1 ψ̇ + Γ2 ψ for holonomic."""
+        if not self.m:
+            return sp.zeros(0, 1)
+        return sp.Matrix.vstack(self.Gamma * self.phi_nh, self.Gamma1 * self.psi_dot + self.Gamma2 * self.psi)
 
     # ------------------------------------------------------------ (20)–(44)
     @cached_property

@@ -98,6 +98,12 @@ class MechanicalModel:
     q_dependent : tuple of sympy.Symbol, optional
         Coordinates solved from the holonomic constraints when completing an initial
         state (one per holonomic constraint); chosen by pivoting on ∂ψ/∂q when not given.
+    singular_positions : bool, optional
+        Declare that the motion may pass positions where the constraints lose rank (a
+        mechanism through a dead centre or a bifurcation: the N-four-bar at its horizontal
+        position).  The kernel then gets the rank-robust solve even with a declared,
+        non-redundant partition (models without a partition or with redundant equations get
+        it anyway; ``docs/closed-loops.md``).
     name : str, optional
         Optional short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``), shown in
         generated code and messages; a system names its variants itself.
@@ -127,6 +133,7 @@ class MechanicalModel:
     outputs: Mapping[str, sp.Expr] = field(default_factory=dict)
     q_dependent: tuple[sp.Symbol, ...] = ()
     monitors: Mapping[str, sp.Expr] = field(default_factory=dict)
+    singular_positions: bool = False
     t: sp.Symbol = sp.Symbol("t", real=True)  # noqa: RUF009 (an immutable symbol, shared on purpose)
     description: str = ""
 
@@ -249,6 +256,7 @@ class MechanicalModel:
         outputs: Mapping[str, sp.Expr] | None = None,
         q_dependent: Iterable = (),
         monitors: Mapping[str, sp.Expr] | None = None,
+        singular_positions: bool = False,
         description: str = "",
     ) -> MechanicalModel:
         """Build a model from sympy.physics.mechanics bodies, particles and loads.
@@ -274,7 +282,7 @@ class MechanicalModel:
             The inertial frame.
         params : sequence of sympy.Symbol
             The parameter symbols.
-        nonholonomic, holonomic, u_independent, energy, outputs, q_dependent, monitors, description
+        nonholonomic, holonomic, u_independent, energy, outputs, q_dependent, monitors, singular_positions, description
             As for the model (see the class's parameters).
 
         Returns
@@ -326,6 +334,7 @@ class MechanicalModel:
             outputs={k: plain(v) for k, v in dict(outputs or {}).items()},
             q_dependent=tuple(qdep),
             monitors={k: plain(v) for k, v in dict(monitors or {}).items()},
+            singular_positions=singular_positions,
             t=ts,
             description=description,
         )

@@ -135,6 +135,10 @@ def iftomm_a01() -> System:
         },
         parameters=PARAMETERS,
         default_initial={"x": 1.0, "y": 0.0, "u1": 0.0, "u2": 0.0},
+        initial_controls={
+            "y": (-1.0, 1.0, "y [m] (the mass's height; x follows from the bar)"),
+            "u2": (-5.0, 5.0, "u2 = ẏ (the mass's vertical speed) [m/s]"),
+        },
         default_dt=1e-3,
         default_t_final=2000.0,
         default_integrator="kutta-merson",

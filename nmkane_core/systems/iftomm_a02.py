@@ -142,6 +142,7 @@ def model(
         holonomic=closures,
         u_independent=(u[0],) if partition else (),
         q_dependent=tuple(q[1:]) if partition else (),
+        singular_positions=True,
         energy=T + V,
         outputs=_outputs(th[0], u[0], L),
         description=f"{N} parallelogram windows: {2 * N + 1} rods, {2 * N} loop-closure equations",
@@ -187,6 +188,7 @@ def _model_relative(N: int, name: str, partition: bool):
         holonomic=closures,
         u_independent=(u[0],) if partition else (),
         q_dependent=tuple(q[1:]) if partition else (),
+        singular_positions=True,
         energy=T + V,
         outputs=_outputs(q[0], u[0], L),
         description=f"{N} windows in the OpenSim tree's relative pin angles",
@@ -277,6 +279,7 @@ def _model_mechanics(N: int, name: str, partition: bool):
         holonomic=closures,
         u_independent=(dth[0],) if partition else (),
         q_dependent=tuple(q[1:]) if partition else (),
+        singular_positions=True,
         energy=energy,
         outputs=_outputs(th[0], dth[0], L),
         description=f"{N} parallelogram windows: {2 * N + 1} rods, {2 * N} loop-closure equations",
@@ -391,6 +394,7 @@ def iftomm_a02(N: int = 2) -> System:
         default_integrator="kutta-merson",
         default_gamma1=-20.0,
         default_gamma2=-100.0,
+        default_projection="yoon",
         description=(
             "IFToMM benchmark A02: 2N+1 rods of 1 m and 1 kg in N parallelogram windows under gravity; "
             "the constraint Jacobian loses rank at the horizontal position."

@@ -251,6 +251,10 @@ def iftomm_a03() -> System:
         variants=model,
         parameters=PARAMETERS,
         default_initial=initial_state(),
+        initial_controls={
+            "beta": (-0.2, 0.1, "β [rad] (the driven crank's angle; the others follow from the loops)"),
+            "dbeta": (-10.0, 10.0, "dbeta = β̇ (the driven crank's rate) [rad/s]"),
+        },
         default_dt=1e-5,
         default_t_final=0.03,
         default_integrator="kutta-merson",

@@ -279,6 +279,6 @@ def test_reference_path_benchmarks_declare_scenes_of_their_names(build):
     vis = system.visuals()
     names = {str(s) for s in (*md.q, *md.u, *md.params)}
     for shape in vis.shapes:
-        for pt in shape.points:
-            for e in pt:
-                assert {str(s) for s in getattr(e, "free_symbols", set())} <= names
+        for f in (*shape.PARAM_FIELDS, *shape.STATE_FIELDS):
+            for e in np.ravel(np.array(getattr(shape, f), dtype=object)):
+                assert {str(s) for s in getattr(e, "free_symbols", set())} <= names, (shape, f)

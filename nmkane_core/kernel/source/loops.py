@@ -1,5 +1,6 @@
 # ruff: noqa: F821
-"""Generic compiled kernel: the paper's numeric solve and the integrator loops.
+"""Generic compiled kernel: the right-hand side and the integrator loops (the paper's numeric
+solve itself is in source/paper.py, appended with it).
 
 This file is *not imported*.  :mod:`nmkane_core.kernel.codegen` appends its source to every
 generated kernel module, after the model-specific part that defines the dimensions
@@ -34,66 +35,6 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
-def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
-    """Solve A X = B in place in the flat work array ``w`` (LU with partial pivoting).
-
-    A is n×n at offset ``oa`` with row stride ``lda``; B is n×k at ``ob`` with row
-    stride ``ldb`` and receives X.  Returns min|pivot|/max|pivot| (0 when singular): the
-    reciprocal-condition estimate the kernels compare with ``rcond_min``.  One return, at
-    the end, so that the right-hand side can inline it (``# INLINE``, kernel.inline.inline_marked);
-    cold paths call it.
-    """
-    pmax = 0.0
-    pmin = 1e308
-    singular = False
-    for c in range(n):
-        piv = c
-        big = abs(w[oa + c * lda + c])
-        for i in range(c + 1, n):
-            v = abs(w[oa + i * lda + c])
-            if v > big:
-                big = v
-                piv = i
-        if not (big > 0.0):  # zero or NaN pivot
-            singular = True
-            break
-        if piv != c:
-            for j in range(n):
-                tmp = w[oa + c * lda + j]
-                w[oa + c * lda + j] = w[oa + piv * lda + j]
-                w[oa + piv * lda + j] = tmp
-            for j in range(k):
-                tmp = w[ob + c * ldb + j]
-                w[ob + c * ldb + j] = w[ob + piv * ldb + j]
-                w[ob + piv * ldb + j] = tmp
-        if big > pmax:
-            pmax = big
-        if big < pmin:
-            pmin = big
-        inv = 1.0 / w[oa + c * lda + c]
-        for i in range(c + 1, n):
-            f = w[oa + i * lda + c] * inv
-            if f != 0.0:
-                for j in range(c + 1, n):
-                    w[oa + i * lda + j] -= f * w[oa + c * lda + j]
-                for j in range(k):
-                    w[ob + i * ldb + j] -= f * w[ob + c * ldb + j]
-    rc = 1.0
-    if singular:
-        rc = 0.0
-    elif n > 0:
-        for c in range(n - 1, -1, -1):
-            inv = 1.0 / w[oa + c * lda + c]
-            for j in range(k):
-                acc = w[ob + c * ldb + j]
-                for l in range(c + 1, n):
-                    acc -= w[oa + c * lda + l] * w[ob + l * ldb + j]
-                w[ob + c * ldb + j] = acc * inv
-        rc = pmin / pmax
-    return rc
-
-
-@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def terms_call(t, x, p, w):
     """``terms`` compiled once as a function, for cold paths (projection, completion)."""
     terms(t, x, p, w)
@@ -112,123 +53,26 @@ def make_workspace():
     w = np.zeros(WSIZE)
     w[ORC] = 1.0
     w[ORC + 1] = 1.0
+    if ROBUST:
+        _solve_defaults(w)
     return w
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T.
-    With w[OFLAG] set, J2 is copied to w[OJ2C] before its LU (for :func:`_forces`)."""
-    terms(t, x, p, w)  # INLINE: the generator pastes the body of ``terms`` here (kernel.inline.inline_marked)
-    for i in range(N):
-        K[row, i] = w[OQD + i]
-    w[ORC] = 1.0
-    if M > 0 and w[OFLAG] != 0.0:
-        for i in range(M):
-            for j in range(M):
-                w[OJ2C + i * M + j] = w[OJ + i * N + PI + j]
-    if M > 0:
-        # R = [−J1 | −b + s], s = [Γφ; Γ1ψ̇ + Γ2ψ]   (105), (112)
-        for i in range(M):
-            for j in range(PI):
-                w[OR + i * (PI + 1) + j] = -w[OJ + i * N + j]
-            s = 0.0
-            if i < MNH:
-                for k in range(MNH):
-                    s += G[i, k] * w[OPHIN + k]
-            else:
-                ih = i - MNH
-                for k in range(MH):
-                    s += G1[ih, k] * w[OPSID + k] + G2[ih, k] * w[OPSI + k]
-            w[OR + i * (PI + 1) + PI] = -w[OB + i] + s
-        if SCALE_ROWS or NORM_ROWS:
-            # rows of J (and R: same solution) scaled for the condition estimate (kernel_terms.row_degrees):
-            # degree k > 1 in u: by 1/max(1, |u|∞)^(k−1); not polynomial (ROWDEG 0): by 1/max_j |J_ij|,
-            # and the estimate is at most the row's share on u_D, max_j |J2_ij| / max_j |J_ij|
-            un = 1.0
-            for j in range(N):
-                un = max(un, abs(x[N + j]))
-            inv = 1.0 / un
-            share = 1.0
-            for i in range(M):
-                sc = 1.0
-                if ROWDEG[i] > 1:
-                    sc = inv
-                    for _ in range(ROWDEG[i] - 2):
-                        sc *= inv
-                elif ROWDEG[i] == 0:
-                    big = 0.0
-                    big_d = 0.0
-                    for j in range(N):
-                        a = abs(w[OJ + i * N + j])
-                        if a > big:
-                            big = a
-                        if j >= PI and a > big_d:
-                            big_d = a
-                    if big > 0.0 and big < math.inf:  # a zero row is left to the LU (zero pivot), a
-                        sc = 1.0 / big  # non-finite one to the loops' finiteness checks
-                        share = min(share, big_d * sc)
-                if sc != 1.0:
-                    for j in range(N):
-                        w[OJ + i * N + j] *= sc
-                    for j in range(PI + 1):
-                        w[OR + i * (PI + 1) + j] *= sc
-        # J2 X = R  ->  X = [A | B̂]   (20), (108), (113)
-        w[ORC] = lu_solve_flat(w, OJ + PI, N, OR, PI + 1, M, PI + 1)  # INLINE
-        if NORM_ROWS:
-            if share < w[ORC]:
-                w[ORC] = share
-    if w[ORC] == 0.0:  # J2 singular: no u̇ (the loops stop on the rcond)
-        w[ORC + 1] = 0.0
+    With w[OFLAG] set, J2 is copied to w[OJ2C] before its LU (for :func:`_forces`).
+    Kernels with the rank-robust solve run ``_rhs_robust`` (source/robust.py) instead."""
+    if ROBUST:
+        _rhs_robust(t, x, p, G, G1, G2, K, row, w)  # INLINE
     else:
-        _reduced_solve(w, K, row)  # INLINE
+        _rhs_paper(t, x, p, G, G1, G2, K, row, w)  # INLINE
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
-def _reduced_solve(w, K, row):
-    """The rest of ``rhs_ws`` once [A | B̂] is known (pasted into it by the generator)."""
-    # T u̇ = V̂ with T = [A1; A2 Q], V̂ = [B̂; A2 P]  (22), (40), (44), (110), solved by block
-    # elimination on the identity block of A1 = [−A  I]:  u̇_D = A u̇_I + B̂  (106), then
-    # (A2 Q A2ᵀ) u̇_I = A2 (P − Q [0; B̂])  with A2ᵀ = [I; A]  — exact, allocation-free,
-    # and p×p instead of n×n.  (With no constraints this is Q u̇ = P.)
-    # W = Q A2ᵀ  (n×p)
-    for i in range(N):
-        for r in range(PI):
-            acc = w[OQ + i * N + r]
-            for k in range(M):
-                acc += w[OQ + i * N + PI + k] * w[OR + k * (PI + 1) + r]
-            w[OW + i * PI + r] = acc
-    # Mr = A2 W  (p×p),  y = P − Q_{·D} B̂,  rhs = A2 y
-    for r in range(PI):
-        for c in range(PI):
-            acc = w[OW + r * PI + c]
-            for k in range(M):
-                acc += w[OR + k * (PI + 1) + r] * w[OW + (PI + k) * PI + c]
-            w[OMR + r * PI + c] = acc
-    for i in range(N):
-        acc = w[OP + i]
-        for k in range(M):
-            acc -= w[OQ + i * N + PI + k] * w[OR + k * (PI + 1) + PI]
-        w[OY + i] = acc
-    for r in range(PI):
-        acc = w[OY + r]
-        for k in range(M):
-            acc += w[OR + k * (PI + 1) + r] * w[OY + PI + k]
-        w[OUI + r] = acc
-    # (111): u̇_I from the reduced system; its pivot ratio is the T condition estimate
-    w[ORC + 1] = lu_solve_flat(w, OMR, PI, OUI, 1, PI, 1)  # INLINE
-    for r in range(PI):
-        K[row, N + PERM[r]] = w[OUI + r]
-    for k in range(M):
-        acc = w[OR + k * (PI + 1) + PI]
-        for r in range(PI):
-            acc += w[OR + k * (PI + 1) + r] * w[OUI + r]
-        K[row, N + PERM[PI + k]] = acc
-
-
-@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
-def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
-    """Fill the stage derivatives K[i] of one explicit RK step; return a status code."""
+def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log):
+    """Fill the stage derivatives K[i] of one explicit RK step; return a status code.
+    (``order``, ``solve_log``: the rank-robust solve's partition and records, kernels with ROBUST.)"""
     S = TC.shape[0]
     n2 = 2 * N
     for i in range(S):
@@ -245,6 +89,10 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
         if not math.isfinite(total):  # a stage left the finite numbers: divergence
             return STATUS_DIVERGED
         rhs_ws(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)  # INLINE
+        if ROBUST:
+            code = _robust_outcome(t + TC[i] * h, h, w, stats, order, solve_log)
+            if code != STATUS_OK:
+                return code
         rc0 = w[ORC]
         rc1 = w[ORC + 1]
         if rc0 <= rcond_min or rc1 <= rcond_min:
@@ -262,6 +110,37 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats):
             _forces(w, K, 0)
             w[OFLAG] = 0.0
     return STATUS_OK
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _robust_outcome(t, h, w, stats, order, solve_log):
+    """After an evaluation of a kernel with the rank-robust solve (a stage of a step ``h``): its
+    counters into ``stats``, a change of solve or partition into the solve log, and the status
+    it ends a run with (Q not positive definite, J u̇ = c inconsistent, the Baumgarte terms
+    carrying more than ROBUST_LEAVE_KE of the kinetic energy in a step; not finite terms:
+    diverged)."""
+    st = w[OSV + SV_STATUS]
+    if st != 0.0 and not _finite_work(w):
+        return STATUS_DIVERGED
+    share = h * h * w[OSV + SV_STAB]
+    if share > stats[STATS_MAX_STAB]:
+        stats[STATS_MAX_STAB] = share
+    if w[OSV + SV_USED] == 1.0:
+        stats[STATS_ROBUST_EVALS] += 1.0
+        if w[OSV + SV_PIVOT] < stats[STATS_MIN_PIVOT]:
+            stats[STATS_MIN_PIVOT] = w[OSV + SV_PIVOT]
+        if w[OSV + SV_RANK] < stats[STATS_MIN_RANK]:
+            stats[STATS_MIN_RANK] = w[OSV + SV_RANK]
+    if w[OSV + SV_CHANGED] != 0.0 or st == 2.0:
+        _log_solve(t, w, stats, order, solve_log)
+    code = STATUS_OK
+    if st == 1.0:
+        code = STATUS_Q_SINGULAR
+    elif st == 2.0:
+        code = STATUS_INCONSISTENT
+    elif share > ROBUST_LEAVE_KE:
+        code = STATUS_LEFT_CONSTRAINTS
+    return code
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -302,24 +181,10 @@ def _forces(w, K, krow):
     F_c = Jᵀλ into w[OLAM], from the dependent rows (F_c)_D = J2ᵀλ (exact: the independent
     rows (F_c)_I = J1ᵀλ follow from A2 F_c = 0, the nonminimal equations).  u̇ is the run's
     own, the Baumgarte terms included."""
-    for r in range(N):
-        acc = -w[OP + r]
-        for c in range(N):
-            acc += w[OQ + r * N + c] * K[krow, N + PERM[c]]
-        w[OFC + r] = acc
-    if M > 0:
-        for i in range(M):  # J2ᵀ, in place
-            for j in range(i + 1, M):
-                a = w[OJ2C + i * M + j]
-                w[OJ2C + i * M + j] = w[OJ2C + j * M + i]
-                w[OJ2C + j * M + i] = a
-        for a in range(M):
-            w[OLAM + a] = w[OFC + PI + a]
-        # runtime integers, not the module's constants: lu_solve_flat keeps one compiled copy
-        # (numba compiles one per literal value; the projections call it the same way)
-        zero = krow - krow
-        one, m = zero + 1, zero + M
-        lu_solve_flat(w, zero + OJ2C, m, zero + OLAM, one, m, one)
+    if ROBUST:
+        _forces_robust(w, K, krow)
+    else:
+        _forces_paper(w, K, krow)
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -329,6 +194,22 @@ def _store_forces(w, row, out_F, out_L):
         out_F[row, PERM[r]] = w[OFC + r]
     for a in range(M):
         out_L[row, a] = w[OLAM + a]
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _project_step(t, x, p, w, ps, proj, stats, viol, perm):
+    """The post-step projection of an accepted state; its status (a singular correction
+    matrix; with the rank-robust solve also: the motion left the constraints)."""
+    code = project(t, x, p, w, ps, proj, stats[STATS_E0], viol, perm)
+    if ROBUST:
+        if w[OSV + SV_LEAVE] > stats[STATS_MAX_LEAVE]:
+            stats[STATS_MAX_LEAVE] = w[OSV + SV_LEAVE]
+    status = STATUS_OK
+    if code == 1:
+        status = STATUS_PROJECTION_FAILED
+    elif code == 2:
+        status = STATUS_LEFT_CONSTRAINTS
+    return status
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -348,6 +229,8 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
+    if ROBUST:
+        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order)
     ps = make_projection_scratch()
     perm = PERM.copy()
     forces = out_F.shape[0] > 0
@@ -355,7 +238,7 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
         t = t0 + k * dt
         h = dt if k < nsteps - 1 else t_final - t
         w[OFLAG] = 1.0 if pending >= 0 else 0.0
-        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log)
         if code != STATUS_OK:
             return code, k, row, pending
         if pending >= 0:
@@ -375,8 +258,9 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
             return STATUS_DIVERGED, k, row, pending
         tn = t0 + (k + 1) * dt if k < nsteps - 1 else t_final
         if proj is not None:
-            if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
-                return STATUS_PROJECTION_FAILED, k, row, pending
+            code = _project_step(tn, xn, p, w, ps, proj, stats, viol, perm)
+            if code != STATUS_OK:
+                return code, k, row, pending
         E = _record(tn, xn, p, viol, stats, NV)
         if not math.isfinite(E):
             return STATUS_DIVERGED, k, row, pending
@@ -412,6 +296,8 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
     xn = np.empty(n2)
     viol = np.empty(NV)
     w = make_workspace()
+    if ROBUST:
+        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order)
     ps = make_projection_scratch()
     perm = PERM.copy()
     cap = out_t.shape[0]
@@ -427,7 +313,7 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
             h = t_final - t
             last = True
         w[OFLAG] = 1.0 if pending >= 0 else 0.0
-        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats)
+        code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log)
         if pending >= 0 and w[OFLAG] == 0.0:  # the first stage came through: the row's forces
             _store_forces(w, pending, out_F, out_L)
             pending = -1
@@ -438,7 +324,26 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
         if code != STATUS_OK and code != STATUS_DIVERGED:
             return code, t, h, row, accepted, attempts, pending
         errsum = 0.0
-        if finite:
+        if finite and ROBUST and proj is not None:
+            # the error estimate without its components along the constraint normals (the
+            # projection's business): source/robust.py _tangent
+            for j in range(n2):
+                acc = 0.0
+                accE = 0.0
+                for i in range(S):
+                    acc += TB[i] * K[i, j]
+                    accE += TE[i] * K[i, j]
+                xn[j] = x[j] + h * acc
+                w[ODX + j] = h * accE
+                if not math.isfinite(xn[j]):
+                    finite = False
+            if finite:
+                _tangent(t + h, xn, p, w, proj)
+                for j in range(n2):
+                    sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
+                    e = w[ODX + j] / sc
+                    errsum += e * e
+        elif finite:
             for j in range(n2):
                 acc = 0.0
                 accE = 0.0
@@ -456,8 +361,9 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
         if err <= 1.0:
             tn = t_final if last else t + h
             if proj is not None:
-                if project(tn, xn, p, w, ps, proj, stats[STATS_E0], viol, perm) != 0:
-                    return STATUS_PROJECTION_FAILED, t, h, row, accepted, attempts, pending
+                code = _project_step(tn, xn, p, w, ps, proj, stats, viol, perm)
+                if code != STATUS_OK:
+                    return code, t, h, row, accepted, attempts, pending
             E = _record(tn, xn, p, viol, stats, NV)
             if not math.isfinite(E):
                 return STATUS_DIVERGED, t, h, row, accepted, attempts, pending

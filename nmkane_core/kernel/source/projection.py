@@ -76,6 +76,18 @@ def _weighted_correction(w, ps, mrows, metric, N, M, perm):
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def project(t, x, p, w, ps, proj, E0, viol, perm):
+    """Post-step correction of positions, then speeds (geometric elimination): 0, or 1 when a
+    correction matrix was singular.  Kernels with the rank-robust solve use its pseudo-inverse
+    (``_project_robust`` in source/robust.py; 2: the motion left the constraints)."""
+    if ROBUST:
+        code = _project_robust(t, x, p, w, proj, E0, viol)
+    else:
+        code = _project_paper(t, x, p, w, ps, proj, E0, viol, perm)
+    return code
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _project_paper(t, x, p, w, ps, proj, E0, viol, perm):
     """Post-step correction of positions, then speeds (geometric elimination).
 
     (P) ψ(q) = 0: q ← q − W⁻¹Ψ_qᵀ(Ψ_q W⁻¹ Ψ_qᵀ)⁻¹ψ, up to ``pos_iters`` Newton steps, the
@@ -150,6 +162,20 @@ def project(t, x, p, w, ps, proj, E0, viol, perm):
 def project_state(t, x, p, proj):
     """Project one state onto the constraint manifold (initial states); returns (x, code)."""
     w = make_workspace()
+    ps = make_projection_scratch()
+    perm = PERM.copy()
+    viol = np.empty(NV)
+    y = x.copy()
+    code = project(t, y, p, w, ps, proj, 0.0, viol, perm)
+    return y, code
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def project_state_robust(t, x, p, proj, max_rank):
+    """``project_state`` with the rank of the model's constraints (kernels with ROBUST)."""
+    w = make_workspace()
+    if ROBUST:
+        w[OSV + SV_MAX_RANK] = max_rank
     ps = make_projection_scratch()
     perm = PERM.copy()
     viol = np.empty(NV)

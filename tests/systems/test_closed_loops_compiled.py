@@ -1,0 +1,104 @@
+"""The compiled loops' rank-robust constraint solve on closed-loop mechanisms: the IFToMM
+N-four-bar (A02, N = 2) through its singular horizontal position, the over-constrained
+parallelogram (all four closure equations declared), and the ``solve`` setting's errors.
+The numpy reference's solve is tested in test_iftomm.py; these run ``simulate``."""
+
+import numpy as np
+import pytest
+
+from nmkane_core import register, simulate, unregister
+from nmkane_core.declare.system import System
+from nmkane_core.errors import InputError
+from nmkane_core.systems import iftomm_a02, iftomm_a04
+
+PARALLELOGRAM = "test-redundant-parallelogram"
+
+
+@pytest.fixture(scope="module")
+def a02():
+    system = register(iftomm_a02.iftomm_a02(2))
+    yield system.name
+    unregister(system.name)
+
+
+@pytest.fixture(scope="module")
+def parallelogram():
+    system = System(
+        name=PARALLELOGRAM,
+        title="three-crank parallelogram, four closure equations",
+        variants=lambda: iftomm_a04.parallelogram_model(redundant=True),
+        parameters={k: v for k, v in iftomm_a04.PARAMETERS.items() if k in ("L", "m", "g")},
+        default_initial=iftomm_a04.parallelogram_state(),
+        default_dt=1e-3,
+        default_t_final=1.0,
+        default_integrator="kutta-merson",
+        default_gamma1=-20.0,
+        default_gamma2=-100.0,
+        default_projection="yoon",
+    )
+    register(system)
+    yield PARALLELOGRAM
+    unregister(PARALLELOGRAM)
+
+
+def _model_state(run, names):
+    return np.column_stack([run.state[k] for k in names])
+
+
+def _a02_acceptance(run):
+    qn, un = iftomm_a02.names(2)
+    x = _model_state(run, (*qn, *un))
+    return x, iftomm_a02.acceptance(run.t, x, 2, energy=run.energy)
+
+
+@pytest.mark.parametrize("solve", ["auto", "robust"])
+def test_a02_kutta_merson_passes_the_singular_position_on_the_exact_motion(a02, solve):
+    """Δt = 1e-3 past t = 3.32 s, where main's loops used to end ``diverged`` (energy 1e24 J):
+    horizontal passages, B0 within 1e-6 of the exact parallelogram motion, |ΔE| ≤ 1e-6."""
+    r = simulate({"system": a02, "dt": 1e-3, "t_final": 4.0, "solve": solve}, progress=False)
+    assert r.summary["status"] == "ok", r.summary["message"]
+    x, acc = _a02_acceptance(r)
+    assert np.count_nonzero(np.diff(np.sign(np.sin(x[:, 0]))) != 0) >= 2  # it did cross, more than once
+    assert acc["B0_position"] < 1e-6 and acc["B0_velocity"] < 1e-6
+    assert r.summary["max_abs_energy_drift"] < 1e-6
+    used = r.summary["robust_solve"]["evaluations"]
+    assert (used > 0) if solve == "robust" else (used >= 0)
+
+
+def test_a02_declares_the_mass_metric_projection_as_its_default(a02):
+    r = simulate({"system": a02, "t_final": 0.01}, progress=False)
+    assert r.settings["projection"] == "yoon"
+
+
+def test_redundant_parallelogram_runs_ok_on_its_exact_motion(parallelogram):
+    """All four closure equations (rank 3) declared: no square J2 exists, the robust solve runs
+    it through the first horizontal passage (t ≈ 0.71 s) on the exact pendulum motion."""
+    r = simulate({"system": parallelogram}, progress=False)
+    assert r.summary["status"] == "ok", r.summary["message"]
+    x = _model_state(r, ("th0", "th1", "th2", "ph", "dth0"))
+    th, w = iftomm_a02.exact_motion(r.t, 2, x[0, 0], x[0, 4])
+    assert np.any(np.diff(np.sign(np.cos(x[:, 0]))) != 0)
+    assert np.abs(np.cos(x[:, 0]) - np.cos(th)).max() < 1e-6 and np.abs(x[:, 4] - w).max() < 1e-6
+    assert np.abs(x[:, 1] - x[:, 0]).max() < 1e-6 and np.abs(x[:, 3]).max() < 1e-6
+    assert r.summary["max_abs_energy_drift"] < 1e-6
+    assert r.summary["robust_solve"]["evaluations"] > 0
+
+
+def test_the_paper_solve_is_refused_for_redundant_constraints(parallelogram):
+    with pytest.raises(InputError, match="solve") as err:
+        simulate({"system": parallelogram, "solve": "paper"}, progress=False)
+    assert err.value.value == "paper" and "robust" in err.value.allowed
+
+
+def test_a_bad_solve_value_names_the_field_the_value_and_the_choices():
+    with pytest.raises(InputError) as err:
+        simulate({"system": "iftomm-a01", "t_final": 1.0, "solve": "fast"}, progress=False)
+    e = err.value
+    assert e.field == "solve" and e.value == "fast"
+    assert all(c in e.allowed for c in ("auto", "paper", "robust"))
+
+
+def test_the_robust_solve_is_refused_for_a_kernel_without_it():
+    with pytest.raises(InputError, match="paper") as err:
+        simulate({"system": "iftomm-a01", "t_final": 1.0, "solve": "robust"}, progress=False)
+    assert err.value.field == "solve" and err.value.value == "robust"
