@@ -16,7 +16,8 @@ import threading
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from .expressions import parse
+from nmkane_core.analysis.expressions import parse
+
 from .numbers import Deadlines, ExpressionField, NumberField
 
 INTEGRATORS = ("kutta-merson", "rk4", "kutta-merson-adaptive", "rk45", "dop853", "radau")

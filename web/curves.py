@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import expressions as ex
+from nmkane_core.analysis import expressions as ex
+
 from . import plots as pl
 from .geometry import decimate
 
@@ -83,7 +84,7 @@ class Phase:
 
 def quantity(runs: dict, y_text: str, x_text: str = "t") -> pl.Curves | Phase:
     """A typed quantity of every run: against time (x_text ``t``) or against another one.
-    Raises :class:`~web.expressions.ExpressionError` when the text names what a run lacks."""
+    Raises :class:`~nmkane_core.analysis.expressions.ExpressionError` when the text names what a run lacks."""
     labels, many = list(runs), len(runs) > 1
     main = runs[labels[0]]
     ys, xs = [], []

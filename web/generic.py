@@ -22,13 +22,13 @@ import math
 
 import numpy as np
 
+from nmkane_core.analysis import expressions as ex
 from nmkane_core.integrate.projection import PRESETS
 from nmkane_core.kernel.built import built
 from nmkane_core.run.initial import default_state
 from nmkane_core.run.registry import get_system
 
 from . import curves as cv
-from . import expressions as ex
 from . import geometry as geo
 from . import plots as pl
 from .camera import CameraPlan, Viewport, frame

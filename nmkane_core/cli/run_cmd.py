@@ -2,6 +2,7 @@
 
 Exit code 0 when the run's status is ``ok``, 1 when it ended ``singular``, ``diverged``,
 ``timeout`` or ``failed`` (its output file is written either way), 2 on bad input.
+``--plot Y[:X]`` also draws the run's quantities to a PNG (:mod:`.plot_out`).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from ..errors import InputError
 from .argtypes import finite
 from .command import Command
 from .common import load_plugged_systems, notice_if_slow
+from .plot_out import check_plot_out, plot_file, split_plot, write_plots
 from .run_options import add_run_options, settings_from_args
 
 
@@ -21,6 +23,16 @@ def _add_arguments(run: argparse.ArgumentParser) -> None:
     run.add_argument("--out", help="write FILE.json (run document), FILE.csv or FILE.npz")
     run.add_argument("--time-limit", type=finite, dest="time_limit", help="wall-time limit in s")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    run.add_argument(
+        "--plot",
+        action="append",
+        default=[],
+        metavar="Y[:X]",
+        help="draw Y against t, or Y:X (Y against X), to a PNG; Y and X are expressions of the run's quantities "
+        "(t, coordinates, speeds, E, dE, phi_<constraint>, F_<speed>, lambda_<constraint>, R_<force>_<label>), "
+        "e.g. --plot phi_c1 --plot u2:u1; repeat for more panels",
+    )
+    run.add_argument("--plot-out", dest="plot_out", metavar="FILE.png", help="where --plot draws (<system>-plot.png)")
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -29,6 +41,9 @@ def _run(args: argparse.Namespace) -> int:
 
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")
+    check_plot_out(args.plot_out)
+    for text in args.plot:
+        split_plot(text)
     load_plugged_systems(args)
     settings = validate_settings(settings_from_args(args))
     progress = False if args.no_progress else None
@@ -44,6 +59,8 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{run.status}: {run.summary['message']} -> {args.out}")
     else:
         print(format_summary(run))
+    if args.plot:
+        print(f"plot -> {write_plots(run, args.plot, plot_file(args.system, args.plot_out))}")
     return 0 if run.status in ("ok", "event") else 1  # an event is a clean stop, not a failure
 
 

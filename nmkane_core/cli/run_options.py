@@ -31,7 +31,7 @@ SPELLED = {
 }
 GAINS = ("gamma", "gamma1", "gamma2")
 #: options of the commands that are not run settings, by the field name errors use
-COMMAND_OPTIONS = {"out": "--out", "time_limit": "--time-limit"}
+COMMAND_OPTIONS = {"out": "--out", "time_limit": "--time-limit", "plot": "--plot", "plot_out": "--plot-out"}
 
 
 def option_of(field: str) -> str:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 import viser
 
-from web import expressions as ex
+from nmkane_core.analysis import expressions as ex
 from web.panel import WINDOW_S
 from web.session import MechanismApp
 

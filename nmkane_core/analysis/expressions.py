@@ -12,7 +12,11 @@ with the reason.
 The names a run offers (:func:`quantities`): ``t``; the state (coordinates, speeds and the
 model's outputs); ``E`` (energy) and ``dE`` (its drift E − E(0)); each constraint's violation
 as ``phi_<name>``; and, when runs carry them, the generalized constraint forces
-``F_<speed>`` and the multipliers ``lambda_<constraint>``.
+``F_<speed>``, the multipliers ``lambda_<constraint>`` and the components of the forces
+the system declares at points, ``R_<force>_<label>`` (the run's ``contact.normal`` is
+``R_contact_normal``).
+
+The page's plot boxes and ``nmkane run --plot`` read expressions through this one module.
 """
 
 from __future__ import annotations
@@ -145,6 +149,8 @@ def quantities(run) -> dict[str, np.ndarray]:
     out.update({f"phi_{k}": np.asarray(v, float) for k, v in run.violation.items()})
     for attr, prefix in (("constraint_forces", "F_"), ("multipliers", "lambda_")):
         out.update({f"{prefix}{k}": np.asarray(v, float) for k, v in (getattr(run, attr, None) or {}).items()})
+    points = getattr(run, "point_forces", None) or {}
+    out.update({"R_" + k.replace(".", "_"): np.asarray(v, float) for k, v in points.items()})
     return out
 
 
