@@ -62,12 +62,14 @@ def _registry_as_it_was():
     the next test sees the registry as it was (the catalogue, the web app's scenes, the service's
     warm-up steps all follow the registry, and a test counting or warming every system would
     otherwise depend on which tests ran before it)."""
-    from nmkane_core.run import registry
+    from nmkane_core.run import plugins, registry
 
-    before = set(registry.system_names())
+    before, loaded = set(registry.system_names()), set(plugins._LOADED)
     yield
     for name in set(registry.system_names()) - before:
         registry.unregister(name)
+    for key in set(plugins._LOADED) - loaded:  # a systems file loaded again registers again
+        del plugins._LOADED[key]
 
 
 # -------------------------------------------------------------------------------- xdist

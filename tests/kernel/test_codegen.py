@@ -1,6 +1,8 @@
 """Code generation: the exact rewrites applied before printing, the source-level inlining,
 and compiled functions that must stay compiled once (numba specialises on literals)."""
 
+import re
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -75,8 +77,15 @@ def test_hot_path_is_one_function_after_source_inlining():
     for call in ("rhs_ws(", "terms(", "lu_solve_flat(", "_reduced_solve("):
         assert call not in stages, call
     assert "math.sin(x" not in stages and "math.sin(_" in stages  # terms, renamed apart
-    rhs_ws = src[src.index("def rhs_ws(") : src.index("def _reduced_solve(")]
+    rhs_ws = _function(src, "rhs_ws")
     assert "terms(" not in rhs_ws and "lu_solve_flat(" not in rhs_ws
+
+
+def _function(src: str, name: str) -> str:
+    """The source of the top-level function ``name`` (up to the next top-level statement)."""
+    start = src.index(f"def {name}(")
+    end = re.search(r"\n(?=[^\s#])", src[start:])
+    return src[start : start + end.start()] if end else src[start:]
 
 
 _MODULE = """

@@ -104,6 +104,7 @@ def test_every_systems_first_view_frames_its_moving_bodies(browser):
         assert img.mean(axis=2).std() > 0.03, f"{name}: the 3D view is blank"
         assert "Energy drift" in v["text"] and "Fit view" in v["text"]
         changed = np.abs(v["shot"] - v["bare"]).max(axis=2) > 0.08
+        v["drawn"] = changed[:, free]
         shares[name] = float(changed[:, free].mean())
         under[name] = float(changed[:, int(W - PANEL_PX + 20) :].mean())
         rows, cols = np.nonzero(changed[:, free])
@@ -116,5 +117,8 @@ def test_every_systems_first_view_frames_its_moving_bodies(browser):
         assert under[name] < 0.2 * shares[name], f"{name}: the bodies are drawn under the panel"
     for i, a in enumerate(names):
         for b in names[i + 1 :]:
-            diff = np.abs(views[a]["shot"][:, free] - views[b]["shot"][:, free]).mean()
-            assert diff > 0.01, f"{a} and {b} look the same ({diff:.4f})"
+            # compared where either draws its bodies: a thin linkage and a pendulum on a white
+            # background differ in few pixels of the whole view, but in most of their own
+            either = views[a]["drawn"] | views[b]["drawn"]
+            diff = np.abs(views[a]["shot"][:, free] - views[b]["shot"][:, free]).max(axis=2)[either].mean()
+            assert diff > 0.05, f"{a} and {b} look the same where they draw their bodies ({diff:.4f})"
