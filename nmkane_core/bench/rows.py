@@ -284,7 +284,7 @@ def _sweep_rows(add, quick: bool, long: bool) -> None:
 def _user_system_rows(add) -> None:
     from pathlib import Path
 
-    example = Path(__file__).resolve().parents[1] / "examples" / "isokinetic_bowl.py"
+    example = Path(__file__).resolve().parents[2] / "examples" / "isokinetic_bowl.py"  # the repository's
     if not example.is_file():  # an installed package without the repository's examples
         return
     args = ["run", "isokinetic-bowl", "--systems", str(example), "--t-final", "10", "--no-progress"]

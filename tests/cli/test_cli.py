@@ -154,6 +154,9 @@ def test_bench_quick_measures_every_workload():
         "adaptive Kutta–Merson",
         "Γ sweep",
         "runs, local executor",
+        "user system (examples/isokinetic_bowl.py): first run",  # (lost once when bench/ moved a level down)
+        "constraint forces on/off",
+        "Whipple bicycle: 10 s",
     ):
         assert part in names, part
     for r in rows:
