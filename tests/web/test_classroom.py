@@ -2,6 +2,7 @@
 numbers come from ``scripts/classroom.py`` on a quiet machine, see docs/reliability.md, "Classroom")."""
 
 import asyncio
+import concurrent.futures
 import sys
 import time
 from pathlib import Path
@@ -16,12 +17,20 @@ sys.path.insert(0, str(SCRIPTS))
 from viser_client import POSE_TYPES, run_clients
 
 
+def _run(coro):
+    """``asyncio.run(coro)`` in a thread of its own: a test worker that ran the browser tests
+    keeps their Playwright session, whose event loop runs in the main thread (asyncio.run
+    there raises "cannot be called from a running event loop")."""
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, coro).result()
+
+
 def test_headless_viser_clients_receive_frames():
     """Three clients speaking viser's protocol for 5 s: each gets the page (GUI messages)
     and a stream of frames moving the scene; no error, no refusal."""
     app = WebApp(host="127.0.0.1", port=0)
     try:
-        stats = asyncio.run(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 3, 5.0))
+        stats = _run(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 3, 5.0))
         for s in stats:
             assert s.error is None, s.error
             assert s.types.get("GuiFolderMessage", 0) > 0 and s.types.get("GuiSliderMessage", 0) > 0
@@ -137,7 +146,7 @@ def test_a_browser_that_leaves_while_its_page_is_built_leaves_no_session(monkeyp
     monkeypatch.setattr(ws, "MechanismApp", SlowPage)
     app = WebApp(host="127.0.0.1", port=0)
     try:
-        asyncio.run(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 1, 0.5))  # comes and goes
+        _run(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 1, 0.5))  # comes and goes
         assert started.wait(30), "the page was never built"
         deadline = time.monotonic() + 10
         while app.server.get_clients() and time.monotonic() < deadline:
