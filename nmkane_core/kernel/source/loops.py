@@ -280,6 +280,47 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _step_error(t, h, x, xn, p, K, TB, TE, w, proj, atol, rtol):
+    """The embedded step's new state into ``xn`` and (its scaled RMS error estimate
+    h Σ TE_i K_i, whether the new state is finite; inf when it is not).  With the robust solve and a projection, without
+    the error's components along the constraint normals (the projection's business):
+    source/robust.py _tangent (ODX is a robust kernel's slot)."""
+    S = K.shape[0]
+    n2 = x.shape[0]
+    errsum = 0.0
+    if ROBUST and proj is not None:
+        for j in range(n2):
+            acc = 0.0
+            accE = 0.0
+            for i in range(S):
+                acc += TB[i] * K[i, j]
+                accE += TE[i] * K[i, j]
+            xn[j] = x[j] + h * acc
+            w[ODX + j] = h * accE
+            if not math.isfinite(xn[j]):
+                return np.inf, False
+        _tangent(t + h, xn, p, w, proj)
+        for j in range(n2):
+            sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
+            e = w[ODX + j] / sc
+            errsum += e * e
+    else:
+        for j in range(n2):
+            acc = 0.0
+            accE = 0.0
+            for i in range(S):
+                acc += TB[i] * K[i, j]
+                accE += TE[i] * K[i, j]
+            xn[j] = x[j] + h * acc
+            if not math.isfinite(xn[j]):
+                return np.inf, False
+            sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
+            e = h * accE / sc
+            errsum += e * e
+    return math.sqrt(errsum / n2), True
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.AdaptiveArgs
     """Adaptive embedded-RK run from t until t_final, the output buffer is full, or
     ``max_steps`` attempts; error = h Σ TE_i K_i, step control with exponent ``err_exp``.
@@ -323,40 +364,10 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
         finite = code == STATUS_OK
         if code != STATUS_OK and code != STATUS_DIVERGED:
             return code, t, h, row, accepted, attempts, pending
-        errsum = 0.0
-        if finite and ROBUST and proj is not None:
-            # the error estimate without its components along the constraint normals (the
-            # projection's business): source/robust.py _tangent
-            for j in range(n2):
-                acc = 0.0
-                accE = 0.0
-                for i in range(S):
-                    acc += TB[i] * K[i, j]
-                    accE += TE[i] * K[i, j]
-                xn[j] = x[j] + h * acc
-                w[ODX + j] = h * accE
-                if not math.isfinite(xn[j]):
-                    finite = False
-            if finite:
-                _tangent(t + h, xn, p, w, proj)
-                for j in range(n2):
-                    sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
-                    e = w[ODX + j] / sc
-                    errsum += e * e
-        elif finite:
-            for j in range(n2):
-                acc = 0.0
-                accE = 0.0
-                for i in range(S):
-                    acc += TB[i] * K[i, j]
-                    accE += TE[i] * K[i, j]
-                xn[j] = x[j] + h * acc
-                if not math.isfinite(xn[j]):
-                    finite = False
-                sc = atol + rtol * max(abs(x[j]), abs(xn[j]))
-                e = h * accE / sc
-                errsum += e * e
-        err = math.sqrt(errsum / n2) if finite else np.inf
+        if finite:
+            err, finite = _step_error(t, h, x, xn, p, K, TB, TE, w, proj, atol, rtol)
+        else:
+            err = np.inf
         nonfinite = not finite
         if err <= 1.0:
             tn = t_final if last else t + h

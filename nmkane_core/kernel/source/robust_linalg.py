@@ -67,6 +67,19 @@ def _qr_min_norm(w, ok, n, m, tol, max_rank):
     the norms at ONRM, the column order at OPIV (kept ones first), y at OYY, 1.0 at ODROP for
     every dropped equation, the smallest kept pivot at w[OSV + SV_PIVOT] and the largest
     residual of the dropped equations (in e's units) at w[OSV + SV_RESIDUAL]; returns the rank."""
+    kept = _scale_columns(w, ok, n, m, tol)
+    rank = _pivoted_qr(w, ok, n, m, kept, tol, max_rank)
+    w[OSV + SV_PIVOT] = _solve_r11_t(w, ok, m, rank)
+    w[OSV + SV_RESIDUAL] = _dropped_residual(w, ok, m, rank, kept)
+    _apply_reflectors(w, ok, n, m, rank)
+    return rank
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _scale_columns(w, ok, n, m, tol):
+    """Column norms at ONRM; columns longer than ``tol`` times the longest scaled to unit
+    length (with their e) and listed first at OPIV, the vanishing ones after them (ODROP
+    1.0); returns how many are kept."""
     big = 0.0
     for col in range(m):
         s = 0.0
@@ -93,6 +106,14 @@ def _qr_min_norm(w, ok, n, m, tol, max_rank):
         if w[ODROP + col] == 1.0:
             w[OPIV + pos] = col
             pos += 1
+    return kept
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _pivoted_qr(w, ok, n, m, kept, tol, max_rank):
+    """Householder QR with column pivoting of the kept columns, until the pivot falls to
+    ``tol`` times the first or ``max_rank`` steps: R and the reflectors in K, β at OBETA;
+    returns the rank."""
     rank = 0
     first = 0.0
     steps = min(n, kept, max_rank)
@@ -115,28 +136,41 @@ def _qr_min_norm(w, ok, n, m, tol, max_rank):
         tmp = w[OPIV + k]
         w[OPIV + k] = w[OPIV + jbest]
         w[OPIV + jbest] = tmp
-        col = int(w[OPIV + k])
-        x0 = w[ok + k * m + col]
-        alpha = -nk if x0 >= 0.0 else nk
-        v0 = x0 - alpha
-        inv = 1.0 / v0
-        for i in range(k + 1, n):
-            w[ok + i * m + col] *= inv
-        beta = -v0 / alpha
-        w[OBETA + k] = beta
-        w[ok + k * m + col] = alpha
-        for jj in range(k + 1, kept):
-            c2 = int(w[OPIV + jj])
-            d = w[ok + k * m + c2]
-            for i in range(k + 1, n):
-                d += w[ok + i * m + col] * w[ok + i * m + c2]
-            d *= beta
-            w[ok + k * m + c2] -= d
-            for i in range(k + 1, n):
-                w[ok + i * m + c2] -= d * w[ok + i * m + col]
+        _reflect(w, ok, n, m, k, kept, nk)
         rank = k + 1
+    return rank
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _reflect(w, ok, n, m, k, kept, nk):
+    """Step k of the QR: the reflector of pivot column OPIV[k] (norm ``nk`` below row k),
+    applied to the kept columns after it."""
+    col = int(w[OPIV + k])
+    x0 = w[ok + k * m + col]
+    alpha = -nk if x0 >= 0.0 else nk
+    v0 = x0 - alpha
+    inv = 1.0 / v0
+    for i in range(k + 1, n):
+        w[ok + i * m + col] *= inv
+    beta = -v0 / alpha
+    w[OBETA + k] = beta
+    w[ok + k * m + col] = alpha
+    for jj in range(k + 1, kept):
+        c2 = int(w[OPIV + jj])
+        d = w[ok + k * m + c2]
+        for i in range(k + 1, n):
+            d += w[ok + i * m + col] * w[ok + i * m + c2]
+        d *= beta
+        w[ok + k * m + c2] -= d
+        for i in range(k + 1, n):
+            w[ok + i * m + c2] -= d * w[ok + i * m + col]
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _solve_r11_t(w, ok, m, rank):
+    """R11ᵀ y = e[piv[:r]] into OYY; returns the smallest |pivot| (at most 1)."""
     pmin = 1.0
-    for k in range(rank):  # R11ᵀ y = e[piv[:r]]
+    for k in range(rank):
         col = int(w[OPIV + k])
         s = w[OEE + col]
         for i in range(k):
@@ -145,8 +179,14 @@ def _qr_min_norm(w, ok, n, m, tol, max_rank):
         w[OYY + k] = s / rkk
         if abs(rkk) < pmin:
             pmin = abs(rkk)
+    return pmin
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _dropped_residual(w, ok, m, rank, kept):
+    """ODROP 1.0 for every equation beyond the rank; returns their largest residual, in e's units."""
     res = 0.0
-    for jj in range(rank, m):  # the dropped equations' residual, in e's units
+    for jj in range(rank, m):
         col = int(w[OPIV + jj])
         w[ODROP + col] = 1.0
         s = w[OEE + col]
@@ -156,7 +196,13 @@ def _qr_min_norm(w, ok, n, m, tol, max_rank):
             s *= w[ONRM + col]
         if abs(s) > res or not math.isfinite(s):
             res = abs(s)
-    for i in range(n):  # z = H_0 … H_{r−1} [y; 0]
+    return res
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _apply_reflectors(w, ok, n, m, rank):
+    """z = H_0 … H_{r−1} [y; 0] into OZZ."""
+    for i in range(n):
         w[OZZ + i] = w[OYY + i] if i < rank else 0.0
     for k in range(rank - 1, -1, -1):
         col = int(w[OPIV + k])
@@ -167,6 +213,3 @@ def _qr_min_norm(w, ok, n, m, tol, max_rank):
         w[OZZ + k] -= d
         for i in range(k + 1, n):
             w[OZZ + i] -= d * w[ok + i * m + col]
-    w[OSV + SV_PIVOT] = pmin
-    w[OSV + SV_RESIDUAL] = res
-    return rank
