@@ -186,14 +186,19 @@ def test_cors_is_closed_by_default_and_opens_to_configured_origins(client, tmp_p
         assert "access-control-allow-origin" not in c.options("/api/runs", headers=pre).headers
 
 
-def test_kernel_warm_up_reports_each_step(tmp_path):
-    from backend.service import RunService
+def test_kernel_warm_up_reports_each_step(tmp_path, monkeypatch):
+    """One line per step and a last one, over the paper's two systems (their loops are in the
+    tests' warmed cache: the steps load them; what the steps are for every system is
+    test_background_warm_up_serves_meanwhile_and_stops_with_the_service's)."""
+    import backend.service as service
 
-    svc = RunService(Settings(data_dir=tmp_path, warm_kernels=False))
+    monkeypatch.setattr(service, "system_names", lambda: ["appell-hamel", "sliding-particle"])
+    svc = service.RunService(Settings(data_dir=tmp_path, warm_kernels=False))
+    first, later = svc.warm_steps()
     lines = []
     svc.warm(lines.append)
-    steps = [ln for ln in lines if re.match(r"nmkane: kernels \[\d+/\d+\] ", ln)]
-    assert len(steps) == len(lines) - 1 >= 17
+    steps = [ln for ln in lines if re.match(rf"nmkane: kernels \[\d+/{len(first) + len(later)}\] ", ln)]
+    assert len(steps) == len(lines) - 1 == len(first) + len(later) == 17  # 2 + 2 variants, 4 loops each, scipy
     assert {
         "appell-hamel nonlinear, default",
         "sliding-particle minimal, adaptive",
