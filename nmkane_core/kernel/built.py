@@ -88,6 +88,9 @@ class Built:
         """(compiled kernel module, :class:`ModelInfo`) of a variant: loaded from the on-disk
         cache when the model is unchanged (no sympy work at all), otherwise derived,
         generated, compiled and cached."""
+        found = self._kernels.get(self.system.default_variant if variant is None else variant)
+        if found is not None:  # loaded before: no lock (a run asks for it a few dozen times)
+            return found
         from .loader import kernel
 
         variant = self.system.check_variant(variant)
