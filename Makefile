@@ -3,7 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup setup-dev serve test lint format docs docs-serve bench figures clean
+.PHONY: setup setup-dev serve test check lint format docs docs-serve bench figures clean
 
 # the app (library, REST service, web app, figures); the dev stamp adds tests and linters
 $(VENV)/.installed-all: pyproject.toml
@@ -28,6 +28,11 @@ serve: setup
 TEST_WORKERS ?= 2
 test: setup-dev
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup
+
+# a developer's quick loop: lint, then the tests that need no server, subprocess, browser or
+# system compiled of its own (markers: tests/conftest.py HEAVY); make test stays the whole suite
+check: lint
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not slow and not browser and not heavy"
 
 lint: setup-dev
 	$(BIN)/ruff check nmkane_core backend web tests scripts examples

@@ -72,10 +72,62 @@ def _registry_as_it_was():
         del plugins._LOADED[key]
 
 
-# -------------------------------------------------------------------------------- xdist
-
-
 SESSION_GROUPS = {"quick_runs": "paper", "quick_report": "paper"}  # session fixtures made once, on one worker
+
+
+# ------------------------------------------------------------------------------- make check
+
+# The modules left out of ``make check`` (a developer's quick loop: ``-m "not slow and not browser
+# and not heavy"``), each for what makes it long: a server or a CLI in a subprocess, a system
+# compiled of its own, long runs.  ``make test`` runs them all.  A single long test elsewhere
+# carries ``@pytest.mark.heavy`` itself.
+HEAVY = {
+    "tests/backend/test_backend_kill.py": "kills and restarts a service process",
+    "tests/backend/test_backend_serve.py": "starts nmkane serve",
+    "tests/backend/test_backend_sweep_restart.py": "restarts a service during a sweep",
+    "tests/backend/test_backend_schema_fuzz.py": "hundreds of generated requests",
+    "tests/backend/test_hardening_serve.py": "starts nmkane serve on an empty cache",
+    "tests/cli/test_cli.py": "the CLI in subprocesses, the bench",
+    "tests/paper/test_figures.py": "draws every figure of the paper",
+    "tests/paper/test_paper_claims.py": "the paper's runs",
+    "tests/run/test_nonpolynomial_constraints.py": "compiles its own systems",
+    "tests/run/test_plugins.py": "compiles plugged-in systems in subprocesses",
+    "tests/run/test_user_system.py": "compiles its own systems",
+    "tests/systems/test_closed_loops_compiled.py": "compiles the closed loops",
+    "tests/systems/test_iftomm.py": "derives the IFToMM models",
+    "tests/systems/test_kanes_method_oracle.py": "sympy's KanesMethod on every system",
+    "tests/web/test_classroom.py": "a class of sessions on a served page",
+    "tests/web/test_hardening_web.py": "sessions on a served page",
+    "tests/kernel/test_codegen.py": "compiles kernels on empty caches",
+    "tests/declare/test_user_system_declaration.py": "compiles its own systems",
+    "tests/declare/test_forces_declaration.py": "compiles forces in fresh processes",
+    "tests/run/test_point_forces_closed_forms.py": "compiles its own systems",
+    "tests/systems/test_whipple_bicycle.py": "the bicycle's benchmark runs",
+    "tests/systems/test_bicycle_events_stability.py": "compiles its own systems",
+    "tests/systems/test_bicycle_tyre_forces.py": "sympy's KanesMethod on the bicycle",
+    "tests/docs/test_pages.py": "runs the pages' examples",
+    "tests/sweep/test_sweep.py": "a Dask cluster",
+}
+# single long tests of modules that are otherwise quick (node id prefixes)
+HEAVY_TESTS = (
+    "tests/web/test_web_catalogue.py::test_a_plugged_in_system_gets_the_generic_page",
+    "tests/web/test_web_shapes.py::test_every_kind_is_drawn_where_its_declaration_puts_it",
+    "tests/web/test_web_matrices.py::test_the_latex_is_the_simplified_form_and_nothing_is_elided",
+    "tests/backend/test_backend_limits.py::test_adaptive_run_stops_at_the_row_cap_with_bounded_memory",
+    "tests/run/test_hardening_library.py::test_a_progress_bar_is_drawn_on_a_terminal_that_reports_no_size",
+    "tests/run/test_library_fuzz.py::test_appell_hamel_runs_never_report_ok_with_nonfinite_values",
+    "tests/integrate/test_singular_switching.py::test_singular_start_with_no_cure_stops_as_singular",
+    "tests/test_access.py::test_importing_access_loads_no_web_framework",
+)
+
+
+def _mark_heavy(items) -> None:
+    for item in items:
+        if item.nodeid.split("::", 1)[0] in HEAVY or item.nodeid.startswith(HEAVY_TESTS):
+            item.add_marker(pytest.mark.heavy)
+
+
+# -------------------------------------------------------------------------------- xdist
 
 
 @pytest.hookimpl(tryfirst=True)  # before xdist's own, which reads the groups into the node ids
@@ -83,7 +135,9 @@ def pytest_collection_modifyitems(config, items):
     """Under xdist (``--dist loadgroup``): the tests of a module stay on one worker (module-scoped
     fixtures and the user systems a module compiles are made once), so do the modules sharing an
     expensive session fixture (the paper's quick runs), the browser tests share one worker and
-    one Chromium, and the groups with slow tests go first, so that the two workers end together."""
+    one Chromium, and the groups with slow tests go first, so that the two workers end together.
+    Everywhere: the modules of HEAVY marked ``heavy``."""
+    _mark_heavy(items)
     if not hasattr(config, "workerinput"):
         return
     modules: dict[str, list] = {}
