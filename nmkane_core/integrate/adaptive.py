@@ -36,7 +36,10 @@ class _Chunks:
         self.count += n
 
     def last_t(self) -> float:
-        return float(self.parts[-1].t[self.sizes[-1] - 1])
+        """The time of the last row kept (a call that ended before its first row adds none: its
+        buffer holds no row, and reading it read whatever the memory held)."""
+        part, n = next((r, n) for r, n in zip(reversed(self.parts), reversed(self.sizes), strict=True) if n > 0)
+        return float(part.t[n - 1])
 
     def rows(self) -> Rows:
         """Every row in one :class:`Rows`."""

@@ -133,3 +133,22 @@ def test_singular_start_with_no_cure_stops_as_singular_and_does_not_loop(integra
     assert out.returncode == 0, out.stderr[-2000:]
     status, rows, rest = out.stdout.split(" ", 2)
     assert status == "singular" and rows == "1" and rest.startswith("[]") and "φ̇ = 0" in rest, out.stdout
+
+
+def test_an_adaptive_run_stopped_before_its_first_step_keeps_one_row(monkeypatch):
+    """A call that ends before its first row adds an empty chunk; the last row kept is the one
+    before it, not whatever the empty chunk's buffer held (A02 started on its singular position
+    returned t = [0, 0] in about half of the lesson's runs: the buffer is np.empty)."""
+    from nmkane_core.integrate import calls
+
+    made = calls.Rows.__init__
+
+    def stale(self, *a, **k):  # buffers that hold an old time, as reused memory may
+        made(self, *a, **k)
+        self.t.fill(-1.0)
+
+    monkeypatch.setattr(calls.Rows, "__init__", stale)
+    s = {"system": "appell-hamel", "model": "nonlinear", "initial": {"u2": 0.0}, "switching": False}
+    run = simulate({**s, "integrator": "kutta-merson-adaptive", "t_final": 1.0}, progress=False)
+    assert run.status == "singular" and run.summary["steps"] == 0
+    assert list(run.t) == [0.0]
