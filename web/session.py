@@ -22,6 +22,7 @@ from nmkane_core.run.simulate import simulate as core_simulate
 from . import stability
 from .camera import CameraRig
 from .controls import Control, ControlPanel, settings_from
+from .export_button import ExportButton
 from .forces import ForcePanel
 from .generic import GenericView, scene_choices
 from .keys import add_keys
@@ -114,6 +115,7 @@ class MechanismApp:
             self.plots = PlotPanel(gui, self.views)
             self.summary = self.plots.summary
             self.plot_handles = self.plots.handles
+            self.export = ExportButton(gui, self)  # the shown run as one offline HTML file
 
         with gui.add_folder("Derived matrices", expand_by_default=False):
             self.matrices = MatricesPanel(gui, self.lock, self.alive)
