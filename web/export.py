@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nmkane_core.errors import InputError
+from nmkane_core.errors import InputError, NmkaneError
 
 from .runs import Trajectory
 
@@ -152,8 +152,10 @@ def show(runs, height: int = 640):
     cell displays it; elsewhere ``IPython.display.display(run.show())``."""
     import html
 
-    from IPython.display import HTML
-
+    try:
+        from IPython.display import HTML
+    except ImportError:  # the web extra without Jupyter
+        raise NmkaneError("show() displays in Jupyter: pip install 'nmkane[notebook]'") from None
     doc = html.escape(export_html(runs), quote=True)
     return HTML(  # in a div: IPython warns about a bare iframe ("consider IFrame", which has no srcdoc)
         f'<div><iframe srcdoc="{doc}" width="100%" height="{int(height)}" '
