@@ -101,6 +101,7 @@ class MechanismApp:
             self.follow = gui.add_checkbox("Camera follows", initial_value=True)
             self.view_reset = gui.add_button("Reset view")
             self.fit_view = gui.add_button("Fit view")
+            self.export = ExportButton(gui, self)  # the shown run as one offline HTML file
             self.keys = add_keys(gui, self)
 
         self.sim_controls: dict[str, dict] = {}  # kind -> {Control: handle}
@@ -115,7 +116,6 @@ class MechanismApp:
             self.plots = PlotPanel(gui, self.views)
             self.summary = self.plots.summary
             self.plot_handles = self.plots.handles
-            self.export = ExportButton(gui, self)  # the shown run as one offline HTML file
 
         with gui.add_folder("Derived matrices", expand_by_default=False):
             self.matrices = MatricesPanel(gui, self.lock, self.alive)

@@ -91,3 +91,24 @@ def test_the_exported_page_plays_and_scrubs_offline_with_its_plots(offline_page)
     # nothing but the file was asked for
     assert outside == []
     assert all(u.startswith(("file:", "data:", "blob:")) for u in requested), requested
+
+
+def test_the_pages_export_button_downloads_the_run_on_screen(browser, tmp_path):
+    from web.app import launch
+    from web.screenshot import open_page
+
+    app = launch(port=0, scene=AH)
+    try:
+        page = open_page(browser, app.url + "?hideViserLogo")
+        assert app.wait_for_session().wait_idle(60)
+        button = page.get_by_role("button", name="Export run (offline HTML)")
+        with page.expect_download(timeout=60000) as info:
+            button.click()
+        download = info.value
+        assert download.suggested_filename.startswith(f"{AH}-") and download.suggested_filename.endswith(".html")
+        saved = tmp_path / download.suggested_filename
+        download.save_as(saved)
+        text = saved.read_text(encoding="utf-8")
+        assert "window.__VISER_EMBED_DATA__=" in text and 'data-system="appell-hamel"' in text
+    finally:
+        app.stop()
