@@ -32,7 +32,7 @@ from .runs import Trajectory
 
 FPS = 30.0  # frames per second of playback
 MAX_FRAMES = 1200  # frames of one file at most (40 s at 30 fps; ~0.5 kB each for a mechanism)
-SUFFIX = ".html"
+HTML, GIF = ".html", ".gif"  # the page, or a film of it (:mod:`web.export_gif`)
 
 
 @dataclass(frozen=True)
@@ -61,11 +61,13 @@ def frames(t_end: float, speed: float = 1.0, fps: float = FPS, max_frames: int =
     return Frames(times, playback / (n - 1), speed)
 
 
-def check_out(path: str | Path) -> Path:
-    """An export's file name: it must end in ``.html`` (InputError naming ``out`` otherwise)."""
+def check_out(path: str | Path, suffixes: tuple[str, ...] = (HTML, GIF)) -> Path:
+    """An export's file name: it must end in one of ``suffixes`` (``.html``, or ``.gif``),
+    in an existing folder (InputError naming ``out`` otherwise)."""
     p = Path(path)
-    if p.suffix.lower() != SUFFIX:
-        raise InputError("out", str(path), "a file name ending in .html", "unknown format")
+    if p.suffix.lower() not in suffixes:
+        film = " (or .gif: a film of the page)" if GIF in suffixes[1:] else ""
+        raise InputError("out", str(path), f"a file name ending in {suffixes[0]}{film}", "unknown format")
     if p.parent != Path() and not p.parent.is_dir():
         raise InputError("out", str(path), "a file in an existing folder", f"no folder {p.parent}")
     return p
@@ -126,22 +128,28 @@ def record(traj: Trajectory, shots: Frames | None = None, viewport=None) -> tupl
         return recording.as_html(), view, shots
 
 
-def export_html(runs, title: str | None = None) -> str:
+def export_page(runs, title: str | None = None) -> tuple[str, Frames]:
     """The self-contained HTML file of a run (a core Run, or runs by label: the shown one
-    first, then compare runs drawn as ghosts), as text."""
+    first, then compare runs drawn as ghosts, or a :class:`~web.runs.Trajectory`), as text,
+    and the frames it holds."""
     from .export_panel import inject
 
     traj = runs if isinstance(runs, Trajectory) else trajectory(runs)
     page, view, shots = record(traj)
-    return inject(page, view, traj, shots, title)
+    return inject(page, view, traj, shots, title), shots
+
+
+def export_html(runs, title: str | None = None) -> str:
+    """:func:`export_page`'s text alone."""
+    return export_page(runs, title)[0]
 
 
 def write(runs, path: str | Path) -> Path:
-    """Export to ``path`` (``.html``); the file appears whole or not at all."""
-    out = check_out(path)
-    text = export_html(runs)
+    """Export to ``path`` (``.html``; a film of the page: :func:`web.export_gif.write_gif`);
+    the file appears whole or not at all."""
+    out = check_out(path, (HTML,))
     partial = out.with_name(out.name + ".part")
-    partial.write_text(text, encoding="utf-8")
+    partial.write_text(export_html(runs), encoding="utf-8")
     partial.replace(out)
     return out
 
