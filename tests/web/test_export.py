@@ -109,6 +109,15 @@ def test_a_bad_out_path_is_refused_naming_out(tmp_path, path, reason):
     assert e.value.field == "out" and reason in e.value.allowed
 
 
+def test_a_gif_without_chromium_says_what_to_install(tmp_path, run, monkeypatch):
+    from web import export_gif
+
+    monkeypatch.setattr(export_gif, "chromium_path", lambda: None)
+    with pytest.raises(NmkaneError, match="apt-get install chromium"):
+        export_gif.write_gif(run, tmp_path / "run.gif")
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_cli_export_writes_the_page(tmp_path, capsys, entry_points_declared):
     out = tmp_path / "run.html"
     code = main(["export", AH, "--t-final", "1", "--dt", "0.01", "--no-progress", "--out", str(out)])
