@@ -13,7 +13,7 @@ inline SVG, with a cursor that follows the playback bar.
 **Frames.**  The recording plays the run at the system's showcase speed (1× unless it
 declares another, e.g. a 0.03 s benchmark slowed down), at :data:`FPS` frames per second of
 playback, at most :data:`MAX_FRAMES` frames (a longer run gets fewer frames per second: the
-file stays near 1–2 MB); the frames are the output rows nearest to evenly spaced times.
+file stays near 1–2 MB); each frame shows the output row at or just before its time.
 The camera frames the whole motion (the page's *Fit view*), left of the plots.
 """
 
@@ -31,7 +31,7 @@ from nmkane_core.errors import InputError, NmkaneError
 from .runs import Trajectory
 
 FPS = 30.0  # frames per second of playback
-MAX_FRAMES = 1200  # frames of one file at most (40 s at 30 fps; ~0.5 kB each for a mechanism)
+MAX_FRAMES = 1200  # frames of one file at most (40 s at 30 fps; the 10 s appell-hamel run: 301 frames, 1.08 MB)
 HTML, GIF = ".html", ".gif"  # the page, or a film of it (:mod:`web.export_gif`)
 
 
