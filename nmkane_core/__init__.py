@@ -21,6 +21,7 @@ _LAZY = {
     "linearize": "analysis.at_state",
     "load_systems": "run.plugins",
     "unregister": "run.registry",
+    "show": "run.show",
 }  # sympy is imported only when symbolic work is asked for
 
 
@@ -54,6 +55,7 @@ __all__ = [
     "resolve",
     "simulate",
     "simulate_many",
+    "show",
     "system_names",
 ]
 __version__ = "0.1.0"

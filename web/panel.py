@@ -156,24 +156,27 @@ class PlotPanel:
         self.phases[traj.kind].image = cv.draw_phase(phase, t_now)
 
 
-def summary_table(traj) -> str:
-    labels = list(traj.runs)
-    rows = ["| | " + " | ".join(labels) + " |", "|---|" + "---|" * len(labels)]
-    rows.append("| status | " + " | ".join(r.summary["status"] for r in traj.runs.values()) + " |")
-    rows.append(
-        "| max \\|ΔE\\| [J] | " + " | ".join(_fmt(r.summary["max_abs_energy_drift"]) for r in traj.runs.values()) + " |"
-    )
-    names = []
-    for r in traj.runs.values():
+def summary_rows(traj) -> list[list[str]]:
+    """The summary of a trajectory's runs as rows of cells: a header (the run labels), then
+    status, max |ΔE|, max |φ| per constraint and the final time (the panel's table, the
+    exported page's)."""
+    runs = list(traj.runs.values())
+    rows = [["", *traj.runs], ["status", *(r.summary["status"] for r in runs)]]
+    rows.append(["max |ΔE| [J]", *(_fmt(r.summary["max_abs_energy_drift"]) for r in runs)])
+    names: list[str] = []
+    for r in runs:
         names += [n for n in r.summary["max_abs_violation"] if n not in names]
     for n in names:
-        rows.append(
-            f"| max \\|φ\\| {n} | "
-            + " | ".join(_fmt(r.summary["max_abs_violation"].get(n)) for r in traj.runs.values())
-            + " |"
-        )
-    rows.append("| t_end [s] | " + " | ".join(f"{float(r.t[-1]):g}" for r in traj.runs.values()) + " |")
-    return "\n".join(rows)
+        rows.append([f"max |φ| {n}", *(_fmt(r.summary["max_abs_violation"].get(n)) for r in runs)])
+    rows.append(["t_end [s]", *(f"{float(r.t[-1]):g}" for r in runs)])
+    return rows
+
+
+def summary_table(traj) -> str:
+    """:func:`summary_rows` as a markdown table."""
+    rows = [[c.replace("|", "\\|") for c in row] for row in summary_rows(traj)]
+    lines = ["| | " + " | ".join(rows[0][1:]) + " |", "|---|" + "---|" * (len(rows[0]) - 1)]
+    return "\n".join(lines + ["| " + " | ".join(row) + " |" for row in rows[1:]])
 
 
 def status_text(traj, installs: int) -> str:

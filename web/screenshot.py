@@ -11,25 +11,11 @@ writes ``<out>/<NAME>.png``.  The e2e tests use the same helpers.
 from __future__ import annotations
 
 import os
-import shutil
 import time
 
-CHROMIUM_ARGS = [
-    "--no-sandbox",
-    "--disable-gpu",
-    "--enable-unsafe-swiftshader",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--no-first-run",
-]
+from .chromium import CHROMIUM_ARGS, chromium_path, close_toasts
 
-
-def chromium_path() -> str | None:
-    """The Chromium binary (Debian's package), or None."""
-    found = shutil.which("chromium")
-    if found:
-        return found
-    return "/usr/bin/chromium" if os.path.exists("/usr/bin/chromium") else None
+__all__ = ["CHROMIUM_ARGS", "capture", "chromium_path", "close_toasts", "collapse", "input_of", "open_page"]
 
 
 def open_page(
@@ -45,19 +31,6 @@ def open_page(
     page.wait_for_function("() => document.body.innerText.includes('update ')", timeout=timeout_ms)
     close_toasts(page)
     return page
-
-
-def close_toasts(page) -> None:
-    """Close the 'Software WebGL rendering detected' notification (headless SwiftShader)."""
-    for _ in range(3):
-        buttons = page.locator(".mantine-Notification-closeButton")
-        if buttons.count() == 0:
-            break
-        try:
-            buttons.first.click(timeout=2000)
-        except Exception:
-            break
-        time.sleep(0.2)
 
 
 def collapse(page, folder: str) -> None:

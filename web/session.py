@@ -22,6 +22,7 @@ from nmkane_core.run.simulate import simulate as core_simulate
 from . import stability
 from .camera import CameraRig
 from .controls import Control, ControlPanel, settings_from
+from .export_button import ExportButton
 from .forces import ForcePanel
 from .generic import GenericView, scene_choices
 from .keys import add_keys
@@ -100,6 +101,7 @@ class MechanismApp:
             self.follow = gui.add_checkbox("Camera follows", initial_value=True)
             self.view_reset = gui.add_button("Reset view")
             self.fit_view = gui.add_button("Fit view")
+            self.export = ExportButton(gui, self)  # the shown run as one offline HTML file
             self.keys = add_keys(gui, self)
 
         self.sim_controls: dict[str, dict] = {}  # kind -> {Control: handle}

@@ -18,11 +18,35 @@ from .plot_out import check_plot_out, plot_file, split_plot, write_plots
 from .run_options import add_run_options, settings_from_args
 
 
+def add_simulation_arguments(parser: argparse.ArgumentParser) -> None:
+    """What every command that runs one simulation takes: the run options, a wall-time
+    limit and ``--no-progress`` (``nmkane run``, ``nmkane export``)."""
+    add_run_options(parser)
+    parser.add_argument("--time-limit", type=finite, dest="time_limit", help="wall-time limit in s")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def simulate_from_args(args: argparse.Namespace):
+    """The run the options of :func:`add_simulation_arguments` ask for (plugged-in systems
+    loaded, settings checked, a first use announced on a terminal)."""
+    from ..run.plan import resolve, validate_settings
+    from ..run.simulate import prepare, simulate
+
+    load_plugged_systems(args)
+    settings = validate_settings(settings_from_args(args))
+    progress = False if args.no_progress else None
+    with notice_if_slow(
+        f"preparing {args.system} (a first use derives the equations and compiles them)",
+        enabled=not args.no_progress and sys.stderr.isatty(),
+    ):
+        plan = resolve(settings)
+        prepare(plan)
+    return simulate(plan, progress=progress, time_limit=args.time_limit)
+
+
 def _add_arguments(run: argparse.ArgumentParser) -> None:
-    add_run_options(run)
+    add_simulation_arguments(run)
     run.add_argument("--out", help="write FILE.json (run document), FILE.csv or FILE.npz")
-    run.add_argument("--time-limit", type=finite, dest="time_limit", help="wall-time limit in s")
-    run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.add_argument(
         "--plot",
         action="append",
@@ -36,24 +60,12 @@ def _add_arguments(run: argparse.ArgumentParser) -> None:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..run.plan import resolve, validate_settings
-    from ..run.simulate import prepare, simulate
-
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")
     check_plot_out(args.plot_out)
     for text in args.plot:
         split_plot(text)
-    load_plugged_systems(args)
-    settings = validate_settings(settings_from_args(args))
-    progress = False if args.no_progress else None
-    with notice_if_slow(
-        f"preparing {args.system} (a first use derives the equations and compiles them)",
-        enabled=not args.no_progress and sys.stderr.isatty(),
-    ):
-        plan = resolve(settings)
-        prepare(plan)
-    run = simulate(plan, progress=progress, time_limit=args.time_limit)
+    run = simulate_from_args(args)
     if args.out:
         run.save(args.out)
         print(f"{run.status}: {run.summary['message']} -> {args.out}")

@@ -46,6 +46,14 @@ class Run:
     def status(self) -> str:
         return self.summary["status"]
 
+    def show(self, **options):
+        """The run inline in Jupyter (the last line of a cell): the 3D animation with a
+        playback bar and the plots, offline — drawn by the installed viewer (the web app's
+        export, :mod:`nmkane_core.run.viewer`); ``height=`` in pixels."""
+        from .viewer import show_run
+
+        return show_run(self, **options)
+
     def document(self, id: str | None = None) -> RunResult:
         return RunResult(
             id=id,
