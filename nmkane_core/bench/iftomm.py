@@ -16,6 +16,7 @@ catalogue's defaults (fixed-step Kutta–Merson).
 
 from __future__ import annotations
 
+import sys
 import time
 from collections.abc import Callable
 
@@ -134,3 +135,16 @@ def iftomm_rows(add, quick: bool) -> None:
             f"projection {run.settings['projection']}; {text})",
         )
         row.update({"cpu_s": cpu, "opensim_cpu_s": opensim, "error": acc})
+
+
+def main(quick: bool = False) -> None:
+    """Measure and print only these rows: ``python -m nmkane_core.bench.iftomm [--quick]``."""
+    from .rows import _Table, format_table
+
+    table = _Table(lambda msg: print(msg, file=sys.stderr))
+    iftomm_rows(table.add, quick)
+    print(format_table(table.rows))
+
+
+if __name__ == "__main__":
+    main(quick="--quick" in sys.argv[1:])
