@@ -256,6 +256,17 @@ def test_a04_bricard_conserves_energy_and_moves_p3_as_the_non_redundant_declarat
     assert np.count_nonzero(np.diff(np.sign(r.state["u1"])) != 0) >= 3  # back, forth, back
 
 
+def test_a04_a_hard_push_at_the_default_step_ends_inconsistent_a_smaller_step_runs():
+    """What the catalogue's "what to try" says: at u1 = 5 rad/s the stage states of a 1e-3 step
+    are off the constraints by more than CONSISTENCY_TOL lets the redundant equation miss (the
+    start state itself is consistent to 1e-16); at Δt = 5e-4 the run is ok."""
+    hard = simulate({"system": "iftomm-a04", "initial": {"u1": 5.0}, "t_final": 0.01}, progress=False)
+    assert hard.summary["status"] == "singular" and "inconsistent" in hard.summary["message"]
+    finer = simulate({"system": "iftomm-a04", "initial": {"u1": 5.0}, "dt": 5e-4, "t_final": 0.5}, progress=False)
+    assert finer.summary["status"] == "ok", finer.summary["message"]
+    assert finer.summary["max_abs_energy_drift"] < 1e-9
+
+
 # ---------------------------------------------------------------------------------- A05
 def test_a05_flyball_governor_conserves_axial_momentum_and_only_dissipates():
     """Compiled path, the benchmark's 10 s at Δt = 1e-4 (the damped spring modes decay at
