@@ -16,7 +16,6 @@ catalogue's defaults (fixed-step Kutta–Merson).
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Callable
 
@@ -138,13 +137,14 @@ def iftomm_rows(add, quick: bool) -> None:
 
 
 def main(quick: bool = False) -> None:
-    """Measure and print only these rows: ``python -m nmkane_core.bench.iftomm [--quick]``."""
-    from .rows import _Table, format_table
+    """Measure and print only these rows (``nmkane bench`` measures them with the others)."""
+    rows: list[dict] = []
 
-    table = _Table(lambda msg: print(msg, file=sys.stderr))
-    iftomm_rows(table.add, quick)
-    print(format_table(table.rows))
+    def add(workload, wall, evals=None, target=None, ok=None, note=""):
+        rows.append({"workload": workload, "wall_s": wall, "target": target, "pass": ok, "note": note})
+        return rows[-1]
 
-
-if __name__ == "__main__":
-    main(quick="--quick" in sys.argv[1:])
+    iftomm_rows(add, quick)
+    for r in rows:
+        verdict = {True: "PASS", False: "FAIL", None: ""}[r["pass"]]
+        print(f"{r['workload']}: {r['wall_s'] * 1e3:.1f} ms {r['target'] or ''} {verdict}\n    {r['note']}")
