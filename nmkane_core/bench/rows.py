@@ -12,6 +12,8 @@ targets are those of the compiled-kernels issue:
 * interactive re-run: 20 s at Δt = 0.01 with a new Γ, step or model, warm
 * 500 s to a tolerance of 1e−10 with an adaptive integrator (time to an accurate answer)
 * Γ sweep: 64 sliding-particle runs, 500 s at Δt = 0.001, one core vs all cores
+* the IFToMM benchmarks A01–A05 (:mod:`nmkane_core.bench.iftomm`): CPU time of each case
+  and the error achieved, beside OpenSim 3.2's published CPU time
 * sweeps (:mod:`nmkane_core.bench.sweep`): local processes and Dask over 2 cores, Dask
   overhead per run; with ``--long`` the 10,000-run streaming memory
 """
@@ -33,6 +35,7 @@ from ..run.plan import resolve
 from ..run.registry import get_system
 from ..run.simulate import kernel_for, simulate, simulate_many
 from .forces import forces_rows
+from .iftomm import iftomm_rows
 
 
 def _best(fn, repeat=3):
@@ -97,6 +100,7 @@ def run_bench(quick: bool = False, log=print, long: bool = False) -> list[dict]:
     _user_system_rows(add)
     _bicycle_rows(add, quick)
     forces_rows(add, quick)
+    iftomm_rows(add, quick)
     _interactive_rows(add)
     _adaptive_rows(add, quick, long_t)
     _gamma_sweep_rows(add, quick)

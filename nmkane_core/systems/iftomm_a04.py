@@ -58,9 +58,21 @@ PARAMETERS = {
 WHAT_TO_TRY = (
     "Count: 5 rods and 6 hinges leave, by Grübler's formula, no freedom at all — yet the mechanism "
     "moves, because its hinge axes are special. The constraint equations are redundant: 5 closure "
-    "equations, only 4 independent. Released from rest it swings under gravity forever (no "
-    "dissipation: the energy drift is the solver's). Give it a push (u1 = 2) and watch P3."
+    "equations, only 4 independent: ask for solve paper and the run is refused (no choice of dependent "
+    "speeds makes J2 square), the rank-robust solve keeps 4 and drops the dependent one. Released from "
+    "rest it swings under gravity forever (no dissipation: the energy drift is the solver's). Give it "
+    "a push (u1 = 2) and watch P3. Push harder (u1 = 5) and the first step ends the run as "
+    "inconsistent: the Runge–Kutta stages leave the constraints by more than the redundant "
+    "equations' consistency tolerance; dt = 5e-4 runs."
 )
+
+
+#: the sliders of the web page: the independent values (the other joints follow from the closure;
+#: beyond these ranges the completion can land on another assembly of the loop)
+INITIAL_CONTROLS = {
+    "q1": (-0.5, 1.5, "q1 [rad] (joint J1's angle about y; the other four joints follow from the closure)"),
+    "u1": (-3.0, 3.0, "u1 = q̇1 (joint J1's rate) [rad/s]"),
+}
 
 
 # ---------------------------------------------------------------------------- Bricard (A04)
@@ -264,16 +276,16 @@ def _visuals():
 
 
 def iftomm_a04() -> System:
-    """The catalogue entry (``iftomm-a04``), declared with all five closure equations.
-
-    Not in :data:`nmkane_core.systems.BUILTIN` yet: today's kernel generation needs a square
-    J2 (n − p = m); the rank-robust solve of the reference runs it (tests/systems)."""
+    """The catalogue entry (``iftomm-a04``), declared with all five closure equations: no
+    partition has a square J2 (n − p = 4 < m = 5), so its kernel carries the rank-robust solve
+    (``solve`` auto or robust; docs/closed-loops.md §7)."""
     return System(
         name="iftomm-a04",
         title="IFToMM A04: Bricard's mechanism",
         variants=bricard_model,
         parameters=PARAMETERS,
         default_initial={f"q{k}": 0.0 for k in range(1, 6)} | {f"u{k}": 0.0 for k in range(1, 6)},
+        initial_controls=INITIAL_CONTROLS,
         default_dt=1e-3,
         default_t_final=10.0,
         default_integrator="kutta-merson",

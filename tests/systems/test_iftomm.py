@@ -2,12 +2,11 @@
 closed-loop cases of docs/closed-loops.md (the N-four-bar through its singular position,
 redundant closure equations, a model without a partition).
 
-Which path each test uses: A01, A03 and A05 run today's compiled kernels (they are in the
-catalogue); A02 past its singular position, the redundant parallelogram and Bricard's
-mechanism (A04) run the numpy reference's rank-robust solve (``integrate_reference`` with
-``solve="auto"`` and the mass-metric projection) — marked ``reference path``: they move to
-``simulate`` once the compiled kernel has the solve (docs/closed-loops.md, "What the
-compiled kernel needs")."""
+Which path each test uses: the benchmarks' own cases run the compiled kernels through
+``simulate`` with the catalogue's names (A02 and A04 on the compiled rank-robust solve; more
+of A02 on the compiled path in test_closed_loops_compiled.py); the numpy reference's
+rank-robust solve (``integrate_reference`` with ``solve="auto"`` and the mass-metric
+projection) is tested here too — marked ``reference path`` — and is A04's oracle."""
 
 import math
 
@@ -142,11 +141,29 @@ def test_a02_adaptive_step_passes_the_singular_position_with_the_tangent_error(a
 
 
 def test_a02_catalogue_entry_declares_the_benchmark_with_N_as_constructor_argument():
-    s = iftomm_a02.iftomm_a02(2)
+    s = get_system("iftomm-a02")  # built in with N = 2, the case OpenSim 3.2 times
     assert s.name == "iftomm-a02" and s.default_t_final == 10.0 and s.default_dt == 1e-3
+    assert (s.default_integrator, s.default_projection) == ("kutta-merson", "yoon")
+    assert len(built(s).coordinates) == 5
     assert s.default_initial["dth0"] == -1.0 and s.default_initial["th1"] == math.pi / 2  # ẋ_B0 = 1 m/s
     assert iftomm_a02.iftomm_a02(40).name == "iftomm-a02-n40"
     assert len(iftomm_a02.names(40)[0]) == 81
+
+
+def test_a02_benchmark_case_on_the_compiled_path_follows_the_exact_motion():
+    """Compiled path, ``nmkane run iftomm-a02`` with no options: N = 2, 10 s at Δt = 1e-3,
+    Kutta–Merson, solve auto, the Yoon projection — ten horizontal passages, B0 within 1e-8 m
+    and 1e-8 m/s of the exact parallelogram motion (measured 1.6e-10, 1.1e-9; the benchmark
+    asks 1e-3), |ΔE| ≤ 1e-9 J (3.4e-11)."""
+    r = simulate({"system": "iftomm-a02"}, progress=False)
+    assert r.summary["status"] == "ok", r.summary["message"]
+    assert r.t[-1] == pytest.approx(10.0) and r.settings["solve"] == "auto"
+    qn, un = iftomm_a02.names(2)
+    x = np.column_stack([r.state[k] for k in (*qn, *un)])
+    assert np.count_nonzero(np.diff(np.sign(np.sin(x[:, 0]))) != 0) >= 9  # the passages
+    acc = iftomm_a02.acceptance(r.t, x, 2, energy=r.energy)
+    assert acc["B0_position"] < 1e-8 and acc["B0_velocity"] < 1e-8, acc
+    assert acc["energy_drift"] < 1e-9 and r.summary["max_abs_energy_drift"] < 1e-9
 
 
 # -------------------------------------------------------------------- the redundant parallelogram
@@ -212,7 +229,11 @@ def test_a04_bricard_has_five_closure_equations_of_rank_four(bricard):
 
 def test_a04_bricard_conserves_energy_and_moves_p3_as_the_non_redundant_declaration(bricard):
     """Reference path: released from rest (OpenSim's start), 1 s at Δt = 1e-3: |ΔE| ≤ 1e-6 and
-    P3 as with the redundant equation left out (the paper's path with 4 equations)."""
+    P3 as with the redundant equation left out (the paper's path with 4 equations).  Compiled
+    path, ``nmkane run iftomm-a04`` with no options (the benchmark's 10 s at Δt = 1e-3, all five
+    equations, the compiled rank-robust solve): |ΔE| ≤ 1e-10 J (measured 7.5e-13), P3 over the
+    first second on both reference runs within 1e-8 m, and the swing of its period (q1 from 0 to
+    π and back, twice in 10 s)."""
     _, ref, classic, p = bricard
     t, xs, E = _reference_run(ref, np.zeros(10), p, 1e-3, 1.0, 5)
     _, xc, _ = _reference_run(classic, np.zeros(10), p, 1e-3, 1.0, 4, solve="paper")
@@ -221,6 +242,29 @@ def test_a04_bricard_conserves_energy_and_moves_p3_as_the_non_redundant_declarat
     P3c = np.array([classic.outputs(ti, xi, p) for ti, xi in zip(t, xc, strict=True)])
     assert np.abs(P3 - P3c).max() < 1e-8
     assert np.ptp(P3[:, 1]) > 0.1  # it does move
+
+    r = simulate({"system": "iftomm-a04"}, progress=False)
+    assert r.summary["status"] == "ok", r.summary["message"]
+    assert r.t[-1] == pytest.approx(10.0) and r.summary["robust_solve"]["min_rank"] == 4
+    assert r.summary["max_abs_energy_drift"] < 1e-10
+    x = np.column_stack([r.state[f"{c}{k}"] for c in "qu" for k in range(1, 6)])
+    first = slice(0, len(t))
+    np.testing.assert_allclose(r.t[first], t, atol=1e-12)
+    P3r = np.array([ref.outputs(ti, xi, p) for ti, xi in zip(r.t[first], x[first], strict=True)])
+    assert np.abs(P3r - P3).max() < 1e-8 and np.abs(P3r - P3c).max() < 1e-8
+    assert np.ptp(r.state["q1"]) == pytest.approx(math.pi, abs=1e-6)
+    assert np.count_nonzero(np.diff(np.sign(r.state["u1"])) != 0) >= 3  # back, forth, back
+
+
+def test_a04_a_hard_push_at_the_default_step_ends_inconsistent_a_smaller_step_runs():
+    """What the catalogue's "what to try" says: at u1 = 5 rad/s the stage states of a 1e-3 step
+    are off the constraints by more than CONSISTENCY_TOL lets the redundant equation miss (the
+    start state itself is consistent to 1e-16); at Δt = 5e-4 the run is ok."""
+    hard = simulate({"system": "iftomm-a04", "initial": {"u1": 5.0}, "t_final": 0.01}, progress=False)
+    assert hard.summary["status"] == "singular" and "inconsistent" in hard.summary["message"]
+    finer = simulate({"system": "iftomm-a04", "initial": {"u1": 5.0}, "dt": 5e-4, "t_final": 0.5}, progress=False)
+    assert finer.summary["status"] == "ok", finer.summary["message"]
+    assert finer.summary["max_abs_energy_drift"] < 1e-9
 
 
 # ---------------------------------------------------------------------------------- A05
@@ -255,7 +299,16 @@ def test_iftomm_declarations_carry_their_published_parameters():
 
 
 # ------------------------------------------------------------------------------- the scenes
-@pytest.mark.parametrize("name", ["iftomm-a01", "iftomm-a03", "iftomm-a05"])
+CATALOGUE = ["iftomm-a01", "iftomm-a02", "iftomm-a03", "iftomm-a04", "iftomm-a05"]
+
+
+def test_the_catalogue_holds_the_five_benchmarks():
+    from nmkane_core.systems import BUILTIN
+
+    assert [n for n in BUILTIN if n.startswith("iftomm-")] == CATALOGUE
+
+
+@pytest.mark.parametrize("name", CATALOGUE)
 def test_catalogue_benchmarks_have_scenes_that_compile(name):
     from nmkane_core.kernel.visuals import compile_visuals
 
@@ -269,15 +322,12 @@ def test_catalogue_benchmarks_have_scenes_that_compile(name):
     assert np.all(np.isfinite(cv.sizes(params)))
 
 
-@pytest.mark.parametrize("build", [lambda: iftomm_a02.iftomm_a02(2), iftomm_a04.iftomm_a04])
-def test_reference_path_benchmarks_declare_scenes_of_their_names(build):
-    """A02 and A04 are declared as Systems (with what to try and a scene) outside the
-    catalogue: their scenes name only state values and parameters."""
-    system = build()
-    assert system.what_to_try
+@pytest.mark.parametrize("name", CATALOGUE)
+def test_benchmark_scenes_name_only_state_values_and_parameters(name):
+    system = get_system(name)
     md = built(system).model()
     vis = system.visuals()
-    names = {str(s) for s in (*md.q, *md.u, *md.params)}
+    names = {str(s).removesuffix("(t)") for s in (*md.q, *md.u, *md.params)}
     for shape in vis.shapes:
         for f in (*shape.PARAM_FIELDS, *shape.STATE_FIELDS):
             for e in np.ravel(np.array(getattr(shape, f), dtype=object)):

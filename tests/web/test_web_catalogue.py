@@ -16,7 +16,7 @@ from nmkane_core.run.registry import get_system, system_names
 from web.app import MechanismApp
 from web.generic import parameter_control
 
-CATALOGUE = ("knife-edge", "chaplygin-sleigh", "rolling-disk", "odometer-puck")
+CATALOGUE = ("knife-edge", "chaplygin-sleigh", "rolling-disk", "odometer-puck", "iftomm-a02", "iftomm-a04")
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "isokinetic_bowl.py"
 
 
