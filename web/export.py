@@ -96,13 +96,30 @@ def _private_server():
     from . import fastpath
 
     fastpath.install()  # plain-float poses, as the live page sends them (and msgpack encodes)
-    with contextlib.redirect_stdout(io.StringIO()):
+    with _quiet():
         server = viser.ViserServer(host="127.0.0.1", port=0, label="nmkane export", verbose=False)
     try:
         yield server
     finally:
-        with contextlib.redirect_stdout(io.StringIO()):
+        with _quiet():
             server.stop()
+
+
+@contextlib.contextmanager
+def _quiet():
+    """viser's banner and goodbye into a buffer: they go to stdout, or in Jupyter (rich's console
+    sees the notebook) to the cell's output as rich displays, beside the exported scene."""
+    import rich
+
+    console = rich.get_console()
+    saved = dict(console.__dict__)
+    rich.reconfigure(file=io.StringIO(), force_jupyter=False, force_terminal=False)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            yield
+    finally:
+        console.__dict__.clear()
+        console.__dict__.update(saved)
 
 
 def record(traj: Trajectory, shots: Frames | None = None, viewport=None) -> tuple[str, object, Frames]:

@@ -162,6 +162,21 @@ def test_show_is_an_iframe_whose_srcdoc_is_the_page(run):
     assert "__VISER_EMBED_DATA__" in doc and 'id="nmk-panel"' in doc and not EXTERNAL.search(doc)
 
 
+def test_show_in_a_notebook_displays_the_scene_alone(run, monkeypatch, capsys):
+    """viser's banner and goodbye reach neither stdout nor, in Jupyter (where rich's console
+    displays into the cell), the cell's output: the first export in a notebook showed both."""
+    import IPython.display
+    import rich
+
+    console = rich.get_console()
+    shown = []
+    monkeypatch.setattr(IPython.display, "display", lambda *a, **k: shown.append(a))
+    monkeypatch.setattr(console, "is_jupyter", True)  # as rich finds it in a notebook
+    export.show(run, height=300)
+    assert shown == [] and capsys.readouterr().out == ""
+    assert console.is_jupyter  # the console is as it was
+
+
 def test_run_show_and_core_show_find_the_web_viewer(run, entry_points_declared):
     from IPython.display import HTML
 
