@@ -89,11 +89,9 @@ def format_summary(run) -> str:
     ]
     if s["max_abs_energy_drift"] is not None:
         lines.append(f"energy   max |ΔE| = {s['max_abs_energy_drift']:.3e}, final ΔE = {s['final_energy_drift']:.3e}")
-    viol = ", ".join(f"{k} {v:.3e}" for k, v in s["max_abs_violation"].items())
-    lines.append(f"max |φ|  {viol}")
+    lines.append(f"max |φ|  {_largest(s['max_abs_violation'])}")
     if s.get("max_abs_multiplier"):
-        lam = ", ".join(f"{k} {v:.3e}" for k, v in s["max_abs_multiplier"].items())
-        lines.append(f"max |λ|  {lam}  (constraint forces F_c = Jᵀλ)")
+        lines.append(f"max |λ|  {_largest(s['max_abs_multiplier'])}  (constraint forces F_c = Jᵀλ)")
     if s.get("max_abs_point_force"):
         at = ", ".join(f"{k} {v:.4g} N" for k, v in s["max_abs_point_force"].items())
         lines.append(f"max |F|  {at}  (forces at points: {', '.join(run.point_forces)})")
@@ -101,9 +99,21 @@ def format_summary(run) -> str:
         lines.append(f"switch   t = {sw['t']:.4g} s: {sw['from']} → {sw['to']} (rcond {sw['rcond']:.2g})")
     for w in s.get("warnings", []):
         lines.append(f"warning  {w}")
-    final = ", ".join(f"{k} = {v[-1]:.6g}" for k, v in run.state.items())
-    lines.append(f"final    t = {run.t[-1]:.6g} s: {final}")
+    final = [f"{k} = {v[-1]:.6g}" for k, v in run.state.items()]
+    more = f", … ({len(final)} values; --out FILE.json has them all)" if len(final) > 2 * MOST else ""
+    lines.append(f"final    t = {run.t[-1]:.6g} s: {', '.join(final[: 2 * MOST] if more else final)}{more}")
     return "\n".join(lines)
+
+
+MOST = 8  # entries of a summary line; a large model's lines show the largest (a chain: 80 constraints)
+
+
+def _largest(values: dict) -> str:
+    """``name value`` of each entry, or of the MOST largest and how many more there are."""
+    if len(values) <= MOST:
+        return ", ".join(f"{k} {v:.3e}" for k, v in values.items())
+    top = sorted(values.items(), key=lambda kv: -abs(kv[1]))[:MOST]
+    return ", ".join(f"{k} {v:.3e}" for k, v in top) + f", … ({len(values) - MOST} more, each smaller)"
 
 
 COMMAND = Command("run", "simulate a system and print a summary or write a file", _add_arguments, _run)
