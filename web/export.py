@@ -31,7 +31,7 @@ from nmkane_core.errors import InputError, NmkaneError
 from .runs import Trajectory
 
 FPS = 30.0  # frames per second of playback
-MAX_FRAMES = 1200  # frames of one file at most (40 s at 30 fps; the 10 s appell-hamel run: 301 frames, 1.08 MB)
+MAX_FRAMES = 1200  # frames of one file at most (40 s at 30 fps; a 10 s run: 301 frames, about 1.1 MB)
 HTML, GIF = ".html", ".gif"  # the page, or a film of it (:mod:`web.export_gif`)
 
 
