@@ -118,6 +118,15 @@ HEAVY_TESTS = (
     "tests/run/test_library_fuzz.py::test_appell_hamel_runs_never_report_ok_with_nonfinite_values",
     "tests/integrate/test_singular_switching.py::test_singular_start_with_no_cure_stops_as_singular",
     "tests/test_access.py::test_importing_access_loads_no_web_framework",
+    "tests/run/test_simulate_core.py::test_compiled_rhs_agrees_with_numpy_reference_to_1e12",
+    "tests/web/test_web_catalogue.py::test_performance_switch_and_slider_to_new_motion",
+    "tests/run/test_library_fuzz.py::test_sliding_particle_runs_never_report_ok_with_nonfinite_values",
+    "tests/backend/test_backend_api.py::test_singular_and_diverged_runs_are_normal_results",
+    "tests/web/test_web_study.py::test_map_equals_direct_simulate_runs_and_a_cell_loads_into_the_sliders",
+    "tests/web/test_web_study.py::test_holonomic_gains_and_a_generic_system",
+    "tests/web/test_web_guard.py::test_typed_text_over_the_websocket_is_read_exactly_or_refused_beside_the_box",
+    "tests/cli/test_plot.py::test_bad_expression_exits_2_naming_the_option_and_the_names",
+    "tests/backend/test_backend_limits.py::test_a_running_simulation_does_not_block_the_event_loop",
 )
 
 
