@@ -146,7 +146,10 @@ class RunService:
     def start(self) -> None:
         """Open the store and the pool (again, after a stop: an app can have several lifespans)."""
         with self._lock:
-            self._stopping.clear()
+            # a new event for each lifespan: a warm-up thread of an earlier one, still finishing
+            # its step, holds the event that stopped it and is not woken by this start
+            if self._stopping.is_set():
+                self._stopping = threading.Event()
             if self.store is None:
                 self.store = RunStore(self.settings.database, self.settings.store_cap)
             if self.pool is None:
@@ -204,11 +207,12 @@ class RunService:
         after the step under way, and says so (``serve`` reports a compilation it abandons).
         """
         start = time.perf_counter()
+        stopping = self._stopping  # this lifespan's (start() makes a new one after a stop)
         if steps is None:
             first, later = self.warm_steps()
             steps = first + later
         for i, (label, settings) in enumerate(steps, 1):
-            if self._stopping.is_set():
+            if stopping.is_set():
                 if report is not None:
                     report(
                         f"nmkane: {title} stopped with the service after {i - 1} of {len(steps)} "

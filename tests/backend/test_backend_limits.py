@@ -258,6 +258,36 @@ def test_a_warm_up_stopped_during_a_step_finishes_it_and_says_so(tmp_path, monke
     assert lines[1].startswith("nmkane: the other loops stopped with the service after 1 of 3 ")
 
 
+def test_a_restart_does_not_wake_the_warm_up_an_earlier_stop_ended(tmp_path, monkeypatch):
+    """Stop during a warm-up step, then start again before the step ends (an app with several
+    lifespans: schemathesis' schema loading, then the tests'): the old warm-up ends after its
+    step as it said, instead of going on in the background beside the new lifespan's and
+    printing into whatever runs next."""
+    import backend.service as service
+
+    compiling, finish = threading.Event(), threading.Event()
+    calls = []
+
+    def slow_step(settings, **_):
+        calls.append(settings)
+        compiling.set()
+        assert finish.wait(60)
+
+    monkeypatch.setattr(service, "simulate", slow_step)
+    svc = service.RunService(Settings(data_dir=tmp_path, warm_kernels=False))
+    svc.start()
+    lines = []
+    thread = svc.warm_in_background([("first", {}), ("second", {}), ("third", {})], lines.append)
+    assert compiling.wait(60)
+    svc.stop()
+    svc.start()  # the next lifespan, while the first step still runs
+    finish.set()
+    thread.join(60)
+    svc.stop()
+    assert not thread.is_alive() and len(calls) == 1, calls
+    assert lines[-1].startswith("nmkane: the other loops stopped with the service after 1 of 3 "), lines
+
+
 def _wait_until(cond, timeout=60.0):
     deadline = time.monotonic() + timeout
     while not cond():
