@@ -63,7 +63,9 @@ def _film(page_file: Path, times: list[float], size: tuple[int, int]) -> list[by
             page.wait_for_function(f"() => !!{BAR}", timeout=120000)
             close_toasts(page)
             bar = page.locator(".mantine-Slider-root")
-            bar.locator("xpath=ancestor::div[.//button][1]").locator("button").first.click()  # pause
+            # pause: the click event itself, not a pointer's (which waits for the button to hold still
+            # over two drawn frames, each seconds long in software WebGL on a busy machine)
+            bar.locator("xpath=ancestor::div[.//button][1]").locator("button").first.dispatch_event("click")
             box = page.locator("input.mantine-NumberInput-input").first
             end = float(page.evaluate(f"{BAR}.getAttribute('aria-valuemax')"))  # past it the bar starts again
             for t in times:

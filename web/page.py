@@ -1,4 +1,4 @@
-"""The browser page's own side of a session: its address bar and its clipboard.
+"""The browser page's own side of a session: its address bar, its clipboard, its renderer.
 
 viser 1.1 gives the server no view of the page's address (its websocket URL drops the
 query) and no public way to run script in the page, but its client runs the source of a
@@ -26,6 +26,33 @@ _SEND = (
 )
 
 _ASK = "send({kind: 'address', search: window.location.search});"
+
+# the WebGL renderer that draws the scene, once its canvas exists (asked again every half second,
+# at most a minute: the canvas is made after the page connects)
+_RENDERER = """
+let tries = 0;
+const ask = () => {
+  const c = document.querySelector('canvas[data-engine]');
+  if (!c) { if (++tries < 120) setTimeout(ask, 500); return; }
+  let name = '';
+  try {
+    const gl = c.getContext('webgl2') || c.getContext('webgl');
+    const ext = gl && gl.getExtension('WEBGL_debug_renderer_info');
+    name = gl ? String(gl.getParameter(ext ? ext.UNMASKED_RENDERER_WEBGL : gl.RENDERER)) : '';
+  } catch (e) {}
+  send({kind: 'renderer', name: name});
+};
+ask();
+"""
+
+#: words in a WebGL renderer's name that say it draws on the processor, without a graphics card
+SOFTWARE_RENDERERS = ("swiftshader", "llvmpipe", "softpipe", "software", "basic render")
+
+
+def is_software(renderer: str) -> bool:
+    """Whether the WebGL renderer ``renderer`` (its name as the page reports it) is software."""
+    return any(word in renderer.lower() for word in SOFTWARE_RENDERERS)
+
 
 _WRITE = """
 const cur = new URLSearchParams(window.location.search);
@@ -115,7 +142,7 @@ class PageBridge:
 
     ``on_answer(dict)`` gets each answer: ``{"kind": "address", "search": "?…"}``,
     ``{"kind": "written", "search": …}``, ``{"kind": "copied", "href": …, "ok": bool}``,
-    ``{"kind": "plots", "busy": bool}``."""
+    ``{"kind": "plots", "busy": bool}``, ``{"kind": "renderer", "name": …}``."""
 
     def __init__(self, gui, client, on_answer: Callable[[dict], None]):
         self.client = client
@@ -152,6 +179,10 @@ class PageBridge:
         """Put ``pairs`` in the address bar, keeping the page's other parameters (viser's own:
         ``websocket``, ``hideViserLogo``, …) and dropping the ones named ``ours``/``prefixes``."""
         return self.run(_WRITE, PAIRS=[list(p) for p in pairs], OURS=list(ours), PREFIXES=list(prefixes))
+
+    def ask_renderer(self) -> bool:
+        """The page's WebGL renderer, once its scene's canvas exists: ``{"kind": "renderer", "name": …}``."""
+        return self.run(_RENDERER)
 
     def copy_address(self) -> bool:
         return self.run(_COPY)

@@ -28,10 +28,15 @@ from .generic import GenericView, scene_choices
 from .keys import add_keys
 from .link import Link, LinkPanel, read_link, read_system
 from .numbers import HIDE_SLIDER_BOXES, ExpressionField, NumberField
-from .page import PageBridge
+from .page import PageBridge, is_software
 from .panel import MatricesPanel, PlotPanel, status_text
 from .runs import Runner, Trajectory
 from .study import StudyPanel
+
+SHADOWS_HINT = (
+    "The bodies' shadows on the ground. Off by itself where the browser draws without a graphics "
+    "card (software WebGL), where they more than double the cost of a frame."
+)
 
 
 class MechanismApp:
@@ -66,6 +71,7 @@ class MechanismApp:
         self.playing = True
         self.closed = False
         self._installs = 0
+        self.renderer = ""  # the page's WebGL renderer, once it has said (web.page)
         self.run_status = "computing … (the first run loads the compiled kernels)"
         self._shown_t: float | None = None
         self.views: dict[str, GenericView] = {}
@@ -80,6 +86,7 @@ class MechanismApp:
         self._on_scene()
         self.link.start()  # the page says which link it was opened with; then its address follows the page
         self.bridge.help_plots()
+        self.bridge.ask_renderer()  # software WebGL: shadows off (self._on_page)
 
     # ---------------------------------------------------------------- GUI
     def _build_gui(self, first: str) -> None:
@@ -99,6 +106,7 @@ class MechanismApp:
             self.speed = self.controls.number("Speed ×", 1.0, 0.01, 20.0, 0.01, log=True)
             self.time = self.controls.number("Time t [s]", 0.0, 0.0, 20.0, 0.01, unit="s", marks=False)
             self.follow = gui.add_checkbox("Camera follows", initial_value=True)
+            self.shadows = gui.add_checkbox("Shadows", initial_value=True, hint=SHADOWS_HINT)
             self.view_reset = gui.add_button("Reset view")
             self.fit_view = gui.add_button("Fit view")
             self.export = ExportButton(gui, self)  # the shown run as one offline HTML file
@@ -128,6 +136,7 @@ class MechanismApp:
         self.view_reset.on_click(lambda _: self.reset_view())
         self.fit_view.on_click(lambda _: self.fit())
         self.controls.on_change(self.follow, lambda: self._look(follow=bool(self.follow.value)))
+        self.controls.on_change(self.shadows, self._light)
         with self._form("Γ study", expand_by_default=False):  # web/study.py; follows the scene itself
             self.study = StudyPanel(gui, self)
 
@@ -323,8 +332,24 @@ class MechanismApp:
                 self.plots.busy = busy
                 if not busy and self.traj is not None:
                     self.plots.mark(self.traj, self.t_now)
+        elif answer.get("kind") == "renderer":
+            self._on_renderer(str(answer.get("name", "")))
         else:
             self.link.on_answer(answer)
+
+    def _on_renderer(self, name: str) -> None:
+        """The page draws with ``name``: without a graphics card (software WebGL), shadows more
+        than double a frame's cost (measured in headless Chromium's SwiftShader at 1400 × 900:
+        3 frames a second with them, 7 without), so they start off there; the box turns them on."""
+        self.renderer = name
+        if is_software(name) and self.shadows.value:
+            self.controls.set_quietly(self.shadows, False)
+            self._light()
+
+    def _light(self) -> None:
+        """The scene's default lights, casting shadows or not as the *Shadows* box says."""
+        if self.client is not None and self.alive():
+            self.client.scene.configure_default_lights(True, cast_shadow=bool(self.shadows.value))
 
     # ---------------------------------------------------------------- links
     def link_values(self) -> dict:

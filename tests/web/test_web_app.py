@@ -363,3 +363,17 @@ def test_launch_serves_and_stops():
         assert b"<html" in html[:2000].lower()
     finally:
         handle.stop()
+
+
+def test_software_webgl_starts_without_shadows_and_the_box_turns_them_on(app):
+    from web.page import is_software
+
+    assert app.shadows.value is True  # a graphics card: shadows
+    app._on_page({"kind": "renderer", "name": "ANGLE (NVIDIA, NVIDIA GeForce RTX 3060 Direct3D11 vs_5_0 ps_5_0)"})
+    assert app.renderer.startswith("ANGLE (NVIDIA") and app.shadows.value is True
+    swiftshader = "ANGLE (Google, Vulkan 1.3.0 (SwiftShader Device (Subzero) (0x0000C0DE)), SwiftShader driver)"
+    assert is_software(swiftshader) and is_software("llvmpipe (LLVM 15.0.6, 256 bits)")
+    app._on_page({"kind": "renderer", "name": swiftshader})
+    assert app.shadows.value is False
+    app.shadows.value = True  # the person ticks the box: it stays ticked
+    assert app.shadows.value is True

@@ -73,6 +73,10 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     ):
         assert label in text, label
 
+    # the page said what draws it: SwiftShader here (software WebGL), so the shadows are off
+    until(lambda: session.renderer, 60, "the page's renderer")
+    assert "SwiftShader" in session.renderer and session.shadows.value is False, session.renderer
+
     # the mechanism moves in the page (three.js node poses) and the 3D canvas is not blank
     p0 = page.evaluate(BODY_POSITION)
     assert p0 is not None
