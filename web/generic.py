@@ -401,10 +401,10 @@ def scene_choices() -> dict[str, str]:
     return out
 
 
-def warm_systems(skip=()) -> list[tuple[str, str]]:
+def warm_systems(skip=(), stopped=lambda: False) -> list[tuple[str, str]]:
     """Load every registered system's kernels and loops (a short run of each variant) and
     compile its visuals, so that choosing it (or comparing) later is quick; returns
-    (system, default variant) of each, for the matrices."""
+    (system, default variant) of each, for the matrices.  Ends early once ``stopped()``."""
     import contextlib
 
     from nmkane_core.kernel.visuals import compile_visuals
@@ -413,6 +413,8 @@ def warm_systems(skip=()) -> list[tuple[str, str]]:
 
     out = []
     for name in system_names():
+        if stopped():
+            break
         if name in skip:
             continue
         with contextlib.suppress(Exception):

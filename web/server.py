@@ -174,7 +174,7 @@ class WebApp:
         self.skipped = 0  # session frames skipped (browser not keeping up)
         self.server.on_client_connect(self._connect)
         self.server.on_client_disconnect(self._disconnect)
-        self._warm_thread = threading.Thread(target=warm, daemon=True, name="nmkane-warm")
+        self._warm_thread = threading.Thread(target=warm, args=(self._stop,), daemon=True, name="nmkane-warm")
         self._warm_thread.start()
         self._anim = threading.Thread(target=self._animate, daemon=True, name="nmkane-animate")
         self._anim.start()
@@ -345,16 +345,20 @@ class WebApp:
         self.server.stop()
 
 
-def warm() -> None:
+def warm(stop: threading.Event | None = None) -> None:
     """Load every system's compiled kernels and their loops (numba loads machine code at a
     function's first call: a short run does it), compile its visuals, and derive the
-    matrices panels before anyone waits."""
-    first = warm_systems()
+    matrices panels before anyone waits.  Ends after the system under way once ``stop`` is
+    set (the app stopped: nobody is left to wait for the rest)."""
+    stopped = stop.is_set if stop is not None else (lambda: False)
+    first = warm_systems(stopped=stopped)
     rest = []
     for name, default in first:
         with contextlib.suppress(Exception):
             rest += [(name, v) for v in get_system(name).variants if v != default]
     for key in first + rest:  # every system's first model, then the others
+        if stopped():
+            return
         with contextlib.suppress(Exception):
             mx.panel(*key)
 

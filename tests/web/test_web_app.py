@@ -377,3 +377,22 @@ def test_software_webgl_starts_without_shadows_and_the_box_turns_them_on(app):
     assert app.shadows.value is False
     app.shadows.value = True  # the person ticks the box: it stays ticked
     assert app.shadows.value is True
+
+
+def test_the_web_apps_warm_up_ends_with_the_system_under_way_once_the_app_stops(monkeypatch):
+    """A stopped app's warm-up does not go on compiling every other system in the background."""
+    import threading
+
+    import nmkane_core.run.simulate as core_simulate
+    import web.server as srv
+
+    stop, ran, panels = threading.Event(), [], []
+
+    def fake(settings, **_):
+        ran.append(settings["system"])
+        stop.set()  # the app stops while the first system warms
+
+    monkeypatch.setattr(core_simulate, "simulate", fake)
+    monkeypatch.setattr(srv.mx, "panel", lambda *key: panels.append(key))
+    srv.warm(stop)
+    assert ran and set(ran) == {ran[0]} and panels == [], (ran, panels)
