@@ -24,10 +24,11 @@ serve: setup
 	$(BIN)/nmkane serve
 
 # two xdist workers (CI has two cores); tests/conftest.py warms the shared kernel cache once first and
-# groups tests (a module, a session fixture, the browser tests) onto one worker each: --dist loadgroup
+# groups tests (a module, a session fixture, the browser tests) onto one worker each: --dist loadgroup;
+# the 15 slowest tests are listed at the end (what to shorten next)
 TEST_WORKERS ?= 2
 test: setup-dev
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=15
 
 # a developer's quick loop: lint, then the tests that need no server, subprocess, browser or
 # system compiled of its own (markers: tests/conftest.py HEAVY); make test stays the whole suite
