@@ -69,7 +69,7 @@ class _RightHandSide:
         job, mod, w = self.job, self.mod, self.w
         mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), job.p, job.G, job.G1, job.G2, self.K, 0, w)
         if mod.ROBUST:  # the loops' bookkeeping of the rank-robust solve (kernel/source/loops.py)
-            code = mod._robust_outcome(t, 0.0, w, self.stats, self.solve.order, self.solve.log)
+            code = mod._robust_outcome(t, 0.0, w, self.stats, self.solve.order, self.solve.log, True)
             self.solve.collect(self.stats)
             if code != STATUS_OK:
                 raise _NonFinite(t) if code == STATUS_DIVERGED else _Stopped(code)
