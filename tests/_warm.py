@@ -6,8 +6,10 @@ Under CI it starts empty (``.ci/run``), so before the first test it is warmed he
 processes, with what nearly every test module uses: for each of the systems in ORDER, every variant's
 loops as ``nmkane serve`` warms them (fixed step and adaptive, with and without a projection),
 the scipy adapter for the paper's two systems, and what the web app derives from a system (its
-compiled visuals, its matrices panels).  Without it, two xdist workers compiled the same kernels
-at once, and each subprocess test paid for whatever the tests before it had not compiled yet.
+compiled visuals, its matrices panels); for every other built-in system, what the web app's own
+warm-up loads of it (:func:`warm_page`).  Without it, two xdist workers compiled the same kernels
+at once, each subprocess test paid for whatever the tests before it had not compiled yet, and each
+browser test's app compiled the other systems in a background thread of the tests' process.
 
 A stamp (a hash of the sources of ``nmkane_core``, ``backend``, ``web`` and this file, Python's and
 numba's versions) marks a warmed cache: a second run with nothing changed skips the warm-up.
@@ -67,6 +69,29 @@ def warm_system(name: str) -> tuple[str, float]:
     return name, time.perf_counter() - t0
 
 
+def warm_page(name: str) -> tuple[str, float]:
+    """In a child process: what the web app's own warm-up loads of system ``name`` (each
+    variant's default run, its visuals, its matrices panels) — a system that few test modules
+    run but every browser test's app warms in a background thread, which, compiling in the
+    tests' process, held up the pages of the browser tests running beside it."""
+    t0 = time.perf_counter()
+    from nmkane_core.kernel.visuals import compile_visuals
+    from nmkane_core.run.registry import get_system
+    from nmkane_core.run.simulate import simulate
+
+    system = get_system(name)
+    for variant in system.variants:
+        simulate({"system": name, system.option: variant, "t_final": 0.05}, progress=False)
+    compile_visuals(system)
+    try:
+        from web import matrices
+    except ImportError:
+        return name, time.perf_counter() - t0
+    for variant in system.variants:
+        matrices.panel(name, variant)
+    return name, time.perf_counter() - t0
+
+
 def _child_init() -> None:
     # one compiling process per core: the loop's background precompile child would be a third
     os.environ["NMKANE_PRECOMPILE"] = "0"
@@ -78,8 +103,14 @@ def _builtin_names() -> list[str]:
     from nmkane_core.run.registry import system_names
 
     # the systems nearly every test module runs; the others (the IFToMM benchmarks, the
-    # odometer, the knife edge) are compiled by the few tests that use them, when they do
+    # odometer, the knife edge) get what the web app warms of them (warm_page)
     return [n for n in ORDER if n in system_names()]
+
+
+def _other_names() -> list[str]:
+    from nmkane_core.run.registry import system_names
+
+    return [n for n in system_names() if n not in ORDER]
 
 
 def warm(root: Path, processes: int, log) -> bool:
@@ -97,11 +128,12 @@ def warm(root: Path, processes: int, log) -> bool:
         if mark.exists():
             return True
         t0 = time.perf_counter()
-        names = _builtin_names()
+        names, others = _builtin_names(), _other_names()
         failed, took = [], {}
         ctx = multiprocessing.get_context("spawn")
         with concurrent.futures.ProcessPoolExecutor(processes, mp_context=ctx, initializer=_child_init) as pool:
             futures = {pool.submit(warm_system, n): n for n in names}
+            futures.update({pool.submit(warm_page, n): n for n in others})
             for future in concurrent.futures.as_completed(futures):
                 try:
                     name, seconds = future.result()
@@ -109,7 +141,7 @@ def warm(root: Path, processes: int, log) -> bool:
                 except Exception:  # the tests of that system fail and say why
                     failed.append(futures[future])
                     log(f"warming {futures[future]} failed:\n{traceback.format_exc()}")
-        detail = ", ".join(f"{n} {took[n]:.0f} s" for n in names if n in took)
+        detail = ", ".join(f"{n} {took[n]:.0f} s" for n in names + others if n in took)
         log(f"kernel cache {root} warmed in {time.perf_counter() - t0:.0f} s by {processes} processes ({detail})")
         if not failed:
             mark.touch()  # (stamps of other sources stay: worktrees of other branches share a cache)
