@@ -45,6 +45,12 @@ class ConvergenceError(NmkaneError):
     """A Newton iteration (state completion, projection) that did not converge."""
 
 
+class NotDefined(NmkaneError):
+    """A matrix of the paper's procedure that a model does not have (A = −J2⁻¹J1 and what is
+    built on it, for constraints that are redundant: no partition makes J2 square and
+    invertible; its runs use the rank-robust solve)."""
+
+
 class SingularMatrix(ArithmeticError):
     """J2 or T is singular or ill-conditioned at a state (``matrix``, ``rcond``, ``t``)."""
 

@@ -31,7 +31,9 @@ from pathlib import Path
 import numpy as np
 
 MATRICES = ("A1", "A2", "T")
-TITLES = {"A1": "A_1", "A2": "A_2", "T": "T"}
+#: what a model without A = −J2⁻¹J1 shows instead (redundant constraints: no square J2)
+FALLBACK = ("J1", "J2", "Q")
+TITLES = {"A1": "A_1", "A2": "A_2", "T": "T", "J1": "J_1", "J2": "J_2", "Q": "Q"}
 EQUATION = {"A1": "(22)", "A2": "(40)", "T": "(44)"}
 DPI = 200  # sharp in viser's enlarged view (the image's expand icon)
 ICON_PAD = 30  # px of white above a matrix: viser's expand icon sits in the image's top-right corner
@@ -250,11 +252,17 @@ def _build(system: str, variant: str) -> Panel:
     import sympy as sp
 
     from nmkane_core import get_system
+    from nmkane_core.errors import NotDefined
     from nmkane_core.kernel.built import built
 
     core = get_system(system)
     d = built(core).derivation(variant)
-    raw = {name: d.matrix(name) for name in MATRICES}
+    try:
+        shown, missing = MATRICES, None
+        raw = {name: d.matrix(name) for name in shown}
+    except NotDefined as e:
+        shown, missing = FALLBACK, str(e)
+        raw = {name: d.matrix(name) for name in shown}
     elided = sp.Dummy("elided")  # stands for an entry too long to typeset
     nice = {name: M.applyfunc(_nice) for name, M in raw.items()}
     longest = max((sp.count_ops(e) for M in nice.values() for e in M), default=0)
@@ -270,7 +278,7 @@ def _build(system: str, variant: str) -> Panel:
         name: _matrix_image(
             TITLES[name], [[tex(short[name][i, j]) for j in range(short[name].cols)] for i in range(short[name].rows)]
         )
-        for name in MATRICES
+        for name in shown
         if short[name].rows and short[name].cols
     }
     where_image = _lines_image([f"{tex(n)} = {tex(e)}" for n, e in defs]) if defs else None
@@ -279,7 +287,7 @@ def _build(system: str, variant: str) -> Panel:
         name: f"{TITLES[name]} = {sp.latex(short[name], fold_func_brackets=True)}"
         if all(e != elided for e in short[name])
         else f"% {TITLES[name]}: too long to show; `nmkane matrices {system} --{core.option} {variant}` prints it"
-        for name in MATRICES
+        for name in shown
     }
     if where:
         latex["where"] = r"\text{where } " + r",\quad ".join(where)
@@ -288,6 +296,8 @@ def _build(system: str, variant: str) -> Panel:
         f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
         f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}){speed_names(built(get_system(system)).model(variant))}."
     )
+    if missing:
+        intro += f" Shown instead: J1, J2 and Q. {missing[0].upper()}{missing[1:]}."
     if longest > TYPESET_OPS:
         intro += (
             f" Entries drawn as ⋯ are too long to typeset (the longest has {longest:,} operations); "

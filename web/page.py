@@ -148,27 +148,34 @@ class PageBridge:
         self.client = client
         self._on_answer = on_answer
         self.inbox = gui.add_text("page", "", visible=False)
-        self.inbox.on_update(lambda _: self._received())
+        self.inbox.on_update(lambda _: self._received(self.inbox))
+        # a box of its own for the renderer's one answer: viser's client sends only the latest
+        # update of a box within its throttle window, and this answer, sent as the page's link
+        # was answered, replaced that answer (the page never opened on its link)
+        self.renderer_inbox = gui.add_text("page renderer", "", visible=False)
+        self.renderer_inbox.on_update(lambda _: self._received(self.renderer_inbox))
         self.active = client is not None and _queue(client) is not None
 
-    def _received(self) -> None:
+    def _received(self, box) -> None:
         try:
-            answer = json.loads(self.inbox.value)
+            answer = json.loads(box.value)
         except (TypeError, ValueError):
             return
         if isinstance(answer, dict):
             self._on_answer(answer)
 
-    def run(self, body: str, **data: Any) -> bool:
+    def run(self, body: str, inbox=None, **data: Any) -> bool:
         """Run a script in the page: ``body`` with the names of ``data`` bound to their values
-        (JSON) and ``send(obj)`` answering; False when there is no page to run it in."""
+        (JSON) and ``send(obj)`` answering (into ``inbox``, default the shared one); False when
+        there is no page to run it in."""
         queue = _queue(self.client) if self.client is not None else None
         if queue is None:
             return False
         from viser import _messages
 
         binds = "".join(f"const {k} = {json.dumps(v)};" for k, v in data.items())
-        source = "(function () {" + _SEND.replace("UUID", json.dumps(self.inbox._impl.uuid)) + binds + body + "})();"
+        box = inbox if inbox is not None else self.inbox
+        source = "(function () {" + _SEND.replace("UUID", json.dumps(box._impl.uuid)) + binds + body + "})();"
         queue(_messages.RunJavascriptMessage(source=source))
         return True
 
@@ -182,7 +189,7 @@ class PageBridge:
 
     def ask_renderer(self) -> bool:
         """The page's WebGL renderer, once its scene's canvas exists: ``{"kind": "renderer", "name": …}``."""
-        return self.run(_RENDERER)
+        return self.run(_RENDERER, inbox=self.renderer_inbox)
 
     def copy_address(self) -> bool:
         return self.run(_COPY)

@@ -250,7 +250,11 @@ class MatricesPanel:
         self.intro.content = panel.intro + (
             "  \nn₁, … (last image) name the sums in denominators." if panel.where is not None else ""
         )
-        imgs = {name: panel.where if name == "where" else panel.images.get(name) for name in self.images}
+        # the panel's matrices in the slots in order (a model without A shows J1, J2, Q instead)
+        drawn = list(panel.images.values())
+        slots = [name for name in self.images if name != "where"]
+        imgs = {name: drawn[i] if i < len(drawn) else None for i, name in enumerate(slots)}
+        imgs["where"] = panel.where
         width = max(i.shape[1] for i in imgs.values() if i is not None)
         for name, h in self.images.items():
             img = imgs[name]

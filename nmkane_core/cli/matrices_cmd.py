@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..errors import InputError
+from ..errors import InputError, NotDefined
 from .argtypes import add_systems_option
 from .command import Command
 from .common import load_plugged_systems
@@ -41,6 +41,14 @@ def _run(args: argparse.Namespace) -> int:
     for name in names:
         if name not in d.NAMES:
             raise InputError("--matrix", name, " | ".join(d.NAMES), "unknown matrix")
+    for name in names:
+        if not args.matrix:  # the default set: what the model does not have is said, not raised
+            try:
+                d.matrix(name)
+            except NotDefined as e:
+                print(f"{name}: not defined. {e}")
+                print()
+                break
         if args.latex:
             print(d.latex(name))
         else:

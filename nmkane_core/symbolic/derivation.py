@@ -25,6 +25,7 @@ from functools import cached_property
 
 import sympy as sp
 
+from ..errors import NotDefined
 from .model import MechanicalModel
 
 __all__ = ["Derivation", "derive"]
@@ -183,7 +184,18 @@ class Derivation:
     def _J2_inv_rhs(self):
         """J2⁻¹ [J1 | b | s], solved symbolically by LU (small m only; for display)."""
         rhs = sp.Matrix.hstack(self.J1, self.b, self.s)
-        return self.J2.LUsolve(rhs)
+        rows, cols = self.J2.shape
+        try:
+            if rows != cols:
+                raise ValueError("J2 is not square")
+            return self.J2.LUsolve(rhs)
+        except ValueError as e:  # sympy: "The system is inconsistent." (J2 singular or not square)
+            raise NotDefined(
+                f"A = −J2⁻¹J1 (20) and the matrices built on it (B, B̂, A1, A2, T, V, V̂) are not "
+                f"defined for this model: J2 is {rows} × {cols} and not invertible ({e}) — its "
+                f"constraint equations are redundant or singular there, and its runs use the "
+                f"rank-robust solve (docs/closed-loops.md); J1, J2, B1, B2, Q and P are defined"
+            ) from None
 
     @cached_property
     def A(self) -> sp.Matrix:

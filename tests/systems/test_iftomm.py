@@ -360,3 +360,25 @@ def test_benchmark_scenes_name_only_state_values_and_parameters(name):
         for f in (*shape.PARAM_FIELDS, *shape.STATE_FIELDS):
             for e in np.ravel(np.array(getattr(shape, f), dtype=object)):
                 assert {str(s) for s in getattr(e, "free_symbols", set())} <= names, (shape, f)
+
+
+def test_a04s_matrices_say_what_is_not_defined_instead_of_a_traceback(capsys):
+    """Redundant constraints have no square J2: A = −J2⁻¹J1 and T are not defined. The
+    derivation says so (NotDefined); `nmkane matrices` prints what is defined and says why the
+    rest is not, or refuses an explicit --matrix T on one line (before: sympy's "The system is
+    inconsistent." as a traceback, and no matrices panel in the web page)."""
+    from nmkane_core.cli import main
+    from nmkane_core.errors import NotDefined
+    from nmkane_core.kernel.built import built
+
+    d = built(get_system("iftomm-a04")).derivation()
+    assert d.matrix("J2").shape == (5, 4) and d.matrix("Q").shape == (5, 5)
+    with pytest.raises(NotDefined, match="J2 is 5 × 4"):
+        d.matrix("T")
+    assert main(["matrices", "iftomm-a04", "--matrix", "J2"]) == 0
+    assert main(["matrices", "iftomm-a04"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("J2 =") == 2 and "A1: not defined. A = −J2⁻¹J1" in out and "T =" not in out
+    assert main(["matrices", "iftomm-a04", "--matrix", "T"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "not defined for this model" in err[0]

@@ -34,6 +34,16 @@ def test_the_short_matrices_are_typeset_in_full():
     assert all(v.startswith(mx.TITLES[k]) for k, v in p.latex.items() if k != "where")
 
 
+def test_a_model_without_a_square_j2_shows_j1_j2_and_q_and_says_why():
+    """IFToMM A04's constraints are redundant: no A = −J2⁻¹J1, so no A1, A2, T (before: the
+    panel was "matrices unavailable: The system is inconsistent.")."""
+    from web import matrices as mx
+
+    p = mx.panel("iftomm-a04", "default")
+    assert list(p.images) == ["J1", "J2", "Q"] and set(p.latex) >= {"J1", "J2", "Q"}
+    assert "Shown instead: J1, J2 and Q" in p.intro and "J2 is 5 × 4" in p.intro
+
+
 def test_the_latex_is_the_simplified_form_and_nothing_is_elided():
     """The nonlinear Appell–Hamel model (the teacher's A1 was 4,359 characters unsimplified):
     simplified, with the denominators' sums named n_k and defined, and no entry drawn as ⋯."""
