@@ -44,28 +44,40 @@ def stamp() -> str:
     return h.hexdigest()[:24]
 
 
-def warm_system(name: str) -> tuple[str, float]:
-    """In a child process: load, or compile once, what the tests use of system ``name``."""
-    t0 = time.perf_counter()
-    from nmkane_core.kernel.visuals import compile_visuals
-    from nmkane_core.run.registry import get_system
+def _runs(system, settings: list[dict]) -> None:
     from nmkane_core.run.simulate import simulate
 
-    system = get_system(name)
-    for variant in system.variants:
-        base = {"system": name, system.option: variant, "t_final": 0.05}
-        for integrator in ("kutta-merson", "kutta-merson-adaptive"):
-            for projection in ("none", "yoon"):
-                simulate({**base, "integrator": integrator, "projection": projection}, progress=False)
-    if name in SCIPY_SYSTEMS:
-        simulate({"system": name, "integrator": "rk45", "t_final": 0.05}, progress=False)
+    for one in settings:
+        simulate({"system": system.name, "t_final": 0.05, **one}, progress=False)
+
+
+def _page_parts(system) -> None:
+    """What the web app derives from a system: its compiled visuals and its matrices panels."""
+    from nmkane_core.kernel.visuals import compile_visuals
+
     compile_visuals(system)
     try:
         from web import matrices
     except ImportError:  # the web extra is not installed: its tests skip
-        return name, time.perf_counter() - t0
+        return
     for variant in system.variants:
-        matrices.panel(name, variant)
+        matrices.panel(system.name, variant)
+
+
+def warm_system(name: str) -> tuple[str, float]:
+    """In a child process: load, or compile once, what the tests use of system ``name``."""
+    t0 = time.perf_counter()
+    from nmkane_core.run.registry import get_system
+
+    system = get_system(name)
+    loops = [
+        {system.option: variant, "integrator": integrator, "projection": projection}
+        for variant in system.variants
+        for integrator in ("kutta-merson", "kutta-merson-adaptive")
+        for projection in ("none", "yoon")
+    ]
+    _runs(system, loops + ([{"integrator": "rk45"}] if name in SCIPY_SYSTEMS else []))
+    _page_parts(system)
     return name, time.perf_counter() - t0
 
 
@@ -75,20 +87,11 @@ def warm_page(name: str) -> tuple[str, float]:
     run but every browser test's app warms in a background thread, which, compiling in the
     tests' process, held up the pages of the browser tests running beside it."""
     t0 = time.perf_counter()
-    from nmkane_core.kernel.visuals import compile_visuals
     from nmkane_core.run.registry import get_system
-    from nmkane_core.run.simulate import simulate
 
     system = get_system(name)
-    for variant in system.variants:
-        simulate({"system": name, system.option: variant, "t_final": 0.05}, progress=False)
-    compile_visuals(system)
-    try:
-        from web import matrices
-    except ImportError:
-        return name, time.perf_counter() - t0
-    for variant in system.variants:
-        matrices.panel(name, variant)
+    _runs(system, [{system.option: variant} for variant in system.variants])
+    _page_parts(system)
     return name, time.perf_counter() - t0
 
 

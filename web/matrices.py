@@ -257,12 +257,13 @@ def _build(system: str, variant: str) -> Panel:
 
     core = get_system(system)
     d = built(core).derivation(variant)
+    missing = None
     try:
-        shown, missing = MATRICES, None
-        raw = {name: d.matrix(name) for name in shown}
+        raw = {name: d.matrix(name) for name in MATRICES}
     except NotDefined as e:
-        shown, missing = FALLBACK, str(e)
-        raw = {name: d.matrix(name) for name in shown}
+        missing = str(e)
+        raw = {name: d.matrix(name) for name in FALLBACK}
+    shown = tuple(raw)
     elided = sp.Dummy("elided")  # stands for an entry too long to typeset
     nice = {name: M.applyfunc(_nice) for name, M in raw.items()}
     longest = max((sp.count_ops(e) for M in nice.values() for e in M), default=0)

@@ -185,17 +185,18 @@ class Derivation:
         """J2⁻¹ [J1 | b | s], solved symbolically by LU (small m only; for display)."""
         rhs = sp.Matrix.hstack(self.J1, self.b, self.s)
         rows, cols = self.J2.shape
-        try:
-            if rows != cols:
-                raise ValueError("J2 is not square")
-            return self.J2.LUsolve(rhs)
-        except ValueError as e:  # sympy: "The system is inconsistent." (J2 singular or not square)
-            raise NotDefined(
-                f"A = −J2⁻¹J1 (20) and the matrices built on it (B, B̂, A1, A2, T, V, V̂) are not "
-                f"defined for this model: J2 is {rows} × {cols} and not invertible ({e}) — its "
-                f"constraint equations are redundant or singular there, and its runs use the "
-                f"rank-robust solve (docs/closed-loops.md); J1, J2, B1, B2, Q and P are defined"
-            ) from None
+        reason = "J2 is not square"
+        if rows == cols:
+            try:
+                return self.J2.LUsolve(rhs)
+            except ValueError as e:  # sympy: "The system is inconsistent." (J2 singular)
+                reason = str(e)
+        raise NotDefined(
+            f"A = −J2⁻¹J1 (20) and the matrices built on it (B, B̂, A1, A2, T, V, V̂) are not "
+            f"defined for this model: J2 is {rows} × {cols} and not invertible ({reason}) — its "
+            f"constraint equations are redundant or singular there, and its runs use the "
+            f"rank-robust solve (docs/closed-loops.md); J1, J2, B1, B2, Q and P are defined"
+        )
 
     @cached_property
     def A(self) -> sp.Matrix:
