@@ -61,12 +61,25 @@ def make_workspace():
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def rhs_ws(t, x, p, G, G1, G2, K, row, w):
     """ẋ = [C u + D; T⁻¹V̂] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T.
-    With w[OFLAG] set, J2 is copied to w[OJ2C] before its LU (for :func:`_forces`).
+    With w[OFLAG] set, what :func:`_forces` needs is kept (:func:`_keep_for_forces`).
     Kernels with the rank-robust solve run ``_rhs_robust`` (source/robust.py) instead."""
     if ROBUST:
         _rhs_robust(t, x, p, G, G1, G2, K, row, w)  # INLINE
     else:
         _rhs_paper(t, x, p, G, G1, G2, K, row, w)  # INLINE
+
+
+@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
+def _keep_for_forces(w):
+    """Q and P of this evaluation into w[OQC], w[OPC] (with w[OFLAG] set: a step's first stage
+    from a recorded state), for :func:`_forces` after the step's later stages overwrote them.
+    The forces are computed after the step, not in the stage loop: any work in that loop's
+    body, even a matrix–vector product taken once per recorded row, made every Appell–Hamel
+    evaluation about 20 % slower (numba/LLVM; ``nmkane bench``)."""
+    for i in range(N * N):
+        w[OQC + i] = w[OQ + i]
+    for i in range(N):
+        w[OPC + i] = w[OP + i]
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -106,8 +119,7 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, so
             return STATUS_J2_SINGULAR
         if rc1 <= rcond_min:
             return STATUS_T_SINGULAR
-        if i == 0 and w[OFLAG] != 0.0:  # the step starts at a recorded state: its forces
-            _forces(w, K, 0)
+        if i == 0:  # the step starts at a recorded state: rhs_ws kept what its forces need
             w[OFLAG] = 0.0
     return STATUS_OK
 
@@ -183,10 +195,10 @@ def _record(t, x, p, viol, stats, nv):
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def _forces(w, K, krow):
     """The constraint forces of the state whose derivative is K[krow] (after ``rhs_ws`` with
-    w[OFLAG] set): F_c = Q u̇ − P into w[OFC] ([u_I, u_D] order) and the multipliers λ of
-    F_c = Jᵀλ into w[OLAM], from the dependent rows (F_c)_D = J2ᵀλ (exact: the independent
-    rows (F_c)_I = J1ᵀλ follow from A2 F_c = 0, the nonminimal equations).  u̇ is the run's
-    own, the Baumgarte terms included."""
+    w[OFLAG] set, and any evaluations since without it): F_c = Q u̇ − P into w[OFC] ([u_I, u_D]
+    order) and the multipliers λ of F_c = Jᵀλ into w[OLAM], from the dependent rows
+    (F_c)_D = J2ᵀλ (exact: the independent rows (F_c)_I = J1ᵀλ follow from A2 F_c = 0, the
+    nonminimal equations).  u̇ is the run's own, the Baumgarte terms included."""
     if ROBUST:
         _forces_robust(w, K, krow)
     else:
@@ -247,7 +259,8 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log)
         if code != STATUS_OK:
             return code, k, row, pending
-        if pending >= 0:
+        if pending >= 0:  # the forces of the row this step started from (its first stage)
+            _forces(w, K, 0)
             _store_forces(w, pending, out_F, out_L)
             pending = -1
         for j in range(n2):
@@ -362,6 +375,7 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
         w[OFLAG] = 1.0 if pending >= 0 else 0.0
         code = _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, solve_log)
         if pending >= 0 and w[OFLAG] == 0.0:  # the first stage came through: the row's forces
+            _forces(w, K, 0)
             _store_forces(w, pending, out_F, out_L)
             pending = -1
         # a stage that left the finite numbers (a trial step past a point where the model's

@@ -76,7 +76,8 @@ def _rhs_paper(t, x, p, G, G1, G2, K, row, w):
     for i in range(N):
         K[row, i] = w[OQD + i]
     w[ORC] = 1.0
-    if M > 0 and w[OFLAG] != 0.0:
+    if w[OFLAG] != 0.0:  # this evaluation's forces are wanted: J2 before its LU, Q and P
+        _keep_for_forces(w)
         for i in range(M):
             for j in range(M):
                 w[OJ2C + i * M + j] = w[OJ + i * N + PI + j]
@@ -183,9 +184,9 @@ def _reduced_solve(w, K, row):
 def _forces_paper(w, K, krow):
     """``_forces`` of the paper's solve with the declared partition."""
     for r in range(N):
-        acc = -w[OP + r]
+        acc = -w[OPC + r]
         for c in range(N):
-            acc += w[OQ + r * N + c] * K[krow, N + PERM[c]]
+            acc += w[OQC + r * N + c] * K[krow, N + PERM[c]]
         w[OFC + r] = acc
     if M > 0:
         for i in range(M):  # J2ᵀ, in place

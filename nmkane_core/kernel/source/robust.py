@@ -405,7 +405,9 @@ def _rhs_robust(t, x, p, G, G1, G2, K, row, w):
     prev = w[OSV + SV_USED]
     w[OSV + SV_CHANGED] = 0.0
     w[OSV + SV_STATUS] = 0.0
-    w[OSV + SV_FORCES] = 0.0
+    if w[OFLAG] != 0.0:  # this evaluation's forces are wanted (later ones leave SV_FORCES)
+        _keep_for_forces(w)
+        w[OSV + SV_FORCES] = 0.0
     w[ORC] = 1.0
     w[ORC + 1] = 1.0
     _constraint_rhs(w, G, G1, G2, m)
@@ -431,6 +433,9 @@ def _rhs_robust(t, x, p, G, G1, G2, K, row, w):
     if prev >= 0.0 and used != prev:
         w[OSV + SV_CHANGED] = 1.0
     w[OSV + SV_USED] = used
+    if w[OFLAG] != 0.0:  # the partition its J2 copy was taken in (a later stage may change it)
+        for i in range(N):
+            w[OORDC + i] = w[OORD + i]
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -438,9 +443,9 @@ def _forces_robust(w, K, krow):
     """``_forces`` of a kernel with the rank-robust solve: F_c = Q u̇ − P (J's column order) and
     λ — from the robust solve, or from J2ᵀλ = (F_c)_D of the partition in use."""
     for r in range(N):
-        acc = -w[OP + r]
+        acc = -w[OPC + r]
         for c in range(N):
-            acc += w[OQ + r * N + c] * K[krow, N + PERM[c]]
+            acc += w[OQC + r * N + c] * K[krow, N + PERM[c]]
         w[OFC + r] = acc
     if w[OSV + SV_FORCES] == 0.0 and M > 0 and M <= N:
         pi = N - M
@@ -450,7 +455,7 @@ def _forces_robust(w, K, krow):
                 w[OJ2C + i * M + j] = w[OJ2C + j * M + i]
                 w[OJ2C + j * M + i] = a
         for a in range(M):
-            w[OLAM + a] = w[OFC + int(w[OORD + pi + a])]
+            w[OLAM + a] = w[OFC + int(w[OORDC + pi + a])]
         zero = krow - krow
         one, m = zero + 1, zero + M
         lu_solve_flat(w, zero + OJ2C, m, zero + OLAM, one, m, one)
