@@ -147,6 +147,7 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
 
     monkeypatch.setattr(Built, "kernel", spy)
     monkeypatch.setattr(calls, "_prime", spy_prime)
+    monkeypatch.setattr(calls, "_PRIMED", set())  # as in a fresh process: nothing primed yet
     monkeypatch.setattr(sim, "integrate", timed(sim.integrate))
     linear = built(get_system("appell-hamel")).module("linear")
     for integrator in ("kutta-merson", "kutta-merson-adaptive"):
