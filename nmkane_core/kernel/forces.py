@@ -67,17 +67,16 @@ class CompiledForces:
     ) -> dict[str, np.ndarray]:
         """Every component (``NAME.LABEL`` → array over the rows of ``states``)."""
         n = len(next(iter(states.values())))
-        arr = {k: np.asarray(v, float) for k, v in states.items()}
         with np.errstate(all="ignore"):
             out = self._ns["components"](
-                arr,
+                _arrays(states),
                 params,
-                {k: np.asarray(v, float) for k, v in (multipliers or {}).items()},
-                {k: np.asarray(v, float) for k, v in (generalized or {}).items()},
-                {k: np.asarray(v, float) for k, v in (rates or {}).items()},
+                _arrays(multipliers),
+                _arrays(generalized),
+                _arrays(rates),
                 np.asarray(t, float),
             )
-        return {k: np.broadcast_to(np.asarray(v, float), (n,)).copy() for k, v in zip(self.columns, out, strict=True)}
+        return {k: _column(v, n) for k, v in zip(self.columns, out, strict=True)}
 
     def geometry(self, states: dict, params: dict) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Force name → (points (n, 3) where it acts, axes (n, 3, k) of its components), world coordinates."""
@@ -111,6 +110,17 @@ class CompiledForces:
                 f["name"]: np.sqrt(sum(np.asarray(components[c], float) ** 2 for c in f["columns"]))
                 for f in self.forces
             }
+
+
+def _arrays(values: dict | None) -> dict:
+    return {k: np.asarray(v, float) for k, v in (values or {}).items()}
+
+
+def _column(v, n: int) -> np.ndarray:
+    """A component as an array of its own of n rows (a constant expression gives a scalar)."""
+    if isinstance(v, np.ndarray) and v.shape == (n,) and v.dtype == np.float64:
+        return v.copy()
+    return np.broadcast_to(np.asarray(v, float), (n,)).copy()
 
 
 def declared_forces(system, variant: str):

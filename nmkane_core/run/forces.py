@@ -75,7 +75,8 @@ def add_point_forces(plan, run, out) -> list[str]:
         return []
     b = built(plan.system)
     info = b.info(plan.variant)
-    x = np.column_stack([run.state[k] for k in info.state_names])
+    need_x = compiled.rates or getattr(out, "unknown_multipliers", None)
+    x = np.column_stack([run.state[k] for k in info.state_names]) if need_x else None
     xdot = None
     if compiled.rates:
         kept = getattr(out, "XD", None)  # ẋ of each row, when the loops keep it (they compute it: K[0])
@@ -84,7 +85,7 @@ def add_point_forces(plan, run, out) -> list[str]:
         else:
             xdot = rates_rows(b.module(plan.variant), plan.p, plan.G, plan.G1, plan.G2, run.t, x)
     comps = _evaluate(compiled, info, run.state, plan.params, run.t, run.multipliers, run.constraint_forces, xdot)
-    notes = _switched_rows(plan, run, out, x, compiled, comps)
+    notes = _switched_rows(plan, run, out, x, compiled, comps) if x is not None else []
     notes += _finite(run.t, comps)
     run.point_forces = comps
     run.summary["max_abs_point_force"] = {
@@ -148,11 +149,9 @@ def _gains_for(plan, info):
 
 def _finite(t: np.ndarray, comps: dict) -> list[str]:
     """Components that are not finite (a singular constraint matrix) are reported as 0, with a warning."""
-    if not comps:
+    if not comps or all(np.isfinite(v).all() for v in comps.values()):
         return []
     bad = ~np.all([np.isfinite(v) for v in comps.values()], axis=0)
-    if not bad.any():
-        return []
     for v in comps.values():
         v[bad] = 0.0
     times = t[bad]
