@@ -16,7 +16,6 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
-import scipy.linalg as sla
 
 from ..errors import SingularMatrix
 
@@ -257,6 +256,8 @@ def partition_rcond(J: np.ndarray, n_ind: int) -> float:
     J2 = J[:, n_ind:] / rn[:, None]
     if J2.shape[0] != J2.shape[1]:
         return 0.0
+    import scipy.linalg as sla  # here: scipy costs a process ~0.2 s to import; only the reference path calls this
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", sla.LinAlgWarning)
         lu, _ = sla.lu_factor(J2, check_finite=False)
