@@ -110,6 +110,7 @@ HEAVY = {
 }
 # single long tests of modules that are otherwise quick (node id prefixes)
 HEAVY_TESTS = (
+    "tests/kernel/test_codegen.py::test_the_callees_compiled_beside_a_new_loop_are_those_the_loops_call",
     "tests/web/test_web_catalogue.py::test_a_plugged_in_system_gets_the_generic_page",
     "tests/web/test_web_shapes.py::test_every_kind_is_drawn_where_its_declaration_puts_it",
     "tests/web/test_web_matrices.py::test_the_latex_is_the_simplified_form_and_nothing_is_elided",

@@ -153,6 +153,27 @@ def loop_signature(args: type[NamedTuple], projected: bool = False) -> tuple:
     return tuple(names[hints[f].__metadata__[0]] for f in args._fields)
 
 
+def callee_signatures(module, projected: bool = False) -> dict[str, tuple]:
+    """The loops' callees that numba compiles as functions of their own (the stage loop, with
+    the right-hand side pasted in, compiles with the loop), with the types both loops call
+    them with, literal ints included (``_forces(w, K, 0)``, ``_record(…, NV)``): while a child
+    compiles a new kernel's loop (:mod:`~nmkane_core.kernel.precompile`), the waiting process
+    compiles these, and the child, busy with the stage loop meanwhile, loads them from the
+    cache.  tests/kernel/test_codegen.py checks them against what the loops call."""
+    from numba import types
+
+    vec, mat = types.float64[::1], types.float64[:, ::1]
+    sigs = {
+        "_forces": (vec, mat, types.literal(0)),
+        "_record": (types.float64, vec, vec, vec, vec, types.literal(int(module.NV))),
+        "_store_forces": (vec, types.int64, mat, mat),
+    }
+    if projected:
+        ivec = types.int64[::1]
+        sigs["_project_step"] = (types.float64, vec, vec, vec, vec, ivec, vec, vec, ivec)
+    return sigs
+
+
 def fixed_loop_signature() -> tuple:
     """The signature every unprojected fixed-step run calls ``integrate_fixed`` with."""
     return loop_signature(FixedArgs)

@@ -9,6 +9,12 @@ meanwhile the first process derives the other models it needs and checks the ini
 and before its own first loop call it waits for the child and loads the result (:func:`wait`).
 Only the loop a run uses is compiled ahead: the others compile on their first use.
 
+While it waits, the first process compiles the functions the loop calls that compile apart
+from its stage loop (:func:`~nmkane_core.kernel.interface.callee_signatures`: the constraint
+forces' solve, the diagnostics, the projection step), and the child, busy with the stage loop
+meanwhile, loads them from the cache when it gets there: the two cores share the loop's
+compilation instead of one doing it while the other waits.
+
 Set ``NMKANE_PRECOMPILE=0`` to turn it off.
 """
 
@@ -21,9 +27,10 @@ import sys
 import threading
 from pathlib import Path
 
-from .interface import LOOPS, fixed_loop_signature, loop_signature
+from .interface import LOOPS, callee_signatures, fixed_loop_signature, loop_signature
 
 _CHILDREN: dict[str, subprocess.Popen] = {}
+_PROJECTED: dict[str, bool] = {}  # whether the child's loop is the projected one
 _FRESH: dict[str, Path] = {}  # kernels this process wrote (never compiled yet): key -> folder
 _LOCK = threading.Lock()
 
@@ -49,15 +56,22 @@ def start(module, loop: str = "integrate_fixed", projected: bool = False) -> Non
             _CHILDREN[key] = subprocess.Popen(
                 command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
             )
+            _PROJECTED[key] = projected
 
 
 def wait(module, timeout: float = 300.0) -> None:
-    """Wait for the child compiling ``module``'s loop, if one is running."""
+    """Wait for the child compiling ``module``'s loop, if one is running (compiling meanwhile
+    what the loop calls apart from its stage loop)."""
     key = module.__name__.removeprefix("nmkane_kernel_")
     with _LOCK:
         proc = _CHILDREN.pop(key, None)
+        projected = _PROJECTED.pop(key, False)
     if proc is None:
         return
+    if proc.poll() is None:
+        for name, signature in callee_signatures(module, projected).items():
+            with contextlib.suppress(Exception):  # only a head start: the child compiles what is missing
+                getattr(module, name).compile(signature)
     try:
         proc.wait(timeout)
     except subprocess.TimeoutExpired:

@@ -233,3 +233,21 @@ def test_scipy_runs_compile_before_their_clock_starts(tmp_path):
     status, wall, load = out.stdout.split()
     assert status == "ok"
     assert float(wall) < float(load)  # compiling (seconds) happened in kernel_load_s
+
+
+def test_the_callees_compiled_beside_a_new_loop_are_those_the_loops_call():
+    """While a child compiles a new kernel's loop, the waiting process compiles the loop's
+    callees for the signatures ``callee_signatures`` lists (kernel.precompile.wait); a listed
+    type that is not the one the loops call (a literal int, an array layout) would compile
+    something no loop uses and leave the child to compile it again."""
+    import numba
+
+    from nmkane_core.kernel.interface import LOOPS, callee_signatures
+
+    mod = kernel_for(get_system("knife-edge"), None)
+    for loop, projected in (("integrate_fixed", False), ("integrate_fixed", True), ("integrate_adaptive", True)):
+        fresh = numba.njit(cache=False, nogil=True, error_model="numpy")(getattr(mod, loop).py_func)
+        fresh.compile(loop_signature(LOOPS[loop], projected))  # its callees: loaded or compiled, typed
+        for name, signature in callee_signatures(mod, projected).items():
+            called = list(getattr(mod, name).overloads)
+            assert tuple(signature) in called, (loop, name, called)

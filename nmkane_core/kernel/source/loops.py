@@ -74,8 +74,8 @@ def _keep_for_forces(w):
     """Q and P of this evaluation into w[OQC], w[OPC] (with w[OFLAG] set: a step's first stage
     from a recorded state), for :func:`_forces` after the step's later stages overwrote them.
     The forces are computed after the step, not in the stage loop: any work in that loop's
-    body, even a matrix–vector product taken once per recorded row, made every Appell–Hamel
-    evaluation about 20 % slower (numba/LLVM; ``nmkane bench``)."""
+    body, even a matrix–vector product taken once per recorded row, made every evaluation of
+    the bench's paper system about 20 % slower (numba/LLVM; ``nmkane bench``)."""
     for i in range(N * N):
         w[OQC + i] = w[OQ + i]
     for i in range(N):
