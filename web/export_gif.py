@@ -18,7 +18,7 @@ from pathlib import Path
 
 from nmkane_core.errors import NmkaneError
 
-from .chromium import CHROMIUM_ARGS, chromium_path, close_toasts
+from .chromium import CHROMIUM_ARGS, POLL_MS, chromium_path, close_toasts
 from .export import GIF, check_out, export_page, frames, trajectory
 from .runs import Trajectory
 
@@ -60,7 +60,7 @@ def _film(page_file: Path, times: list[float], size: tuple[int, int]) -> list[by
             context.set_offline(True)
             page = context.new_page()
             page.goto(page_file.as_uri())
-            page.wait_for_function(f"() => !!{BAR}", timeout=120000)
+            page.wait_for_function(f"() => !!{BAR}", timeout=120000, polling=POLL_MS)
             close_toasts(page)
             bar = page.locator(".mantine-Slider-root")
             # pause: the click event itself, not a pointer's (which waits for the button to hold still
@@ -73,7 +73,9 @@ def _film(page_file: Path, times: list[float], size: tuple[int, int]) -> list[by
                 box.fill(f"{t:.3f}")
                 box.press("Enter")
                 page.wait_for_function(
-                    f"() => Math.abs(parseFloat({BAR}.getAttribute('aria-valuenow')) - {t:.3f}) < 1e-6", timeout=30000
+                    f"() => Math.abs(parseFloat({BAR}.getAttribute('aria-valuenow')) - {t:.3f}) < 1e-6",
+                    timeout=30000,
+                    polling=POLL_MS,
                 )
                 page.evaluate("() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))")
                 close_toasts(page)

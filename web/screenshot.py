@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import time
 
-from .chromium import CHROMIUM_ARGS, chromium_path, close_toasts
+from .chromium import CHROMIUM_ARGS, POLL_MS, chromium_path, close_toasts
 
 __all__ = ["CHROMIUM_ARGS", "capture", "chromium_path", "close_toasts", "collapse", "input_of", "open_page"]
 
@@ -27,8 +27,10 @@ def open_page(
     if requests is not None:
         page.on("request", lambda r: requests.append(r.url))
     page.goto(url)
-    page.wait_for_function("() => !document.body.innerText.includes('Connecting...')", timeout=timeout_ms)
-    page.wait_for_function("() => document.body.innerText.includes('update ')", timeout=timeout_ms)
+    page.wait_for_function(
+        "() => !document.body.innerText.includes('Connecting...')", timeout=timeout_ms, polling=POLL_MS
+    )
+    page.wait_for_function("() => document.body.innerText.includes('update ')", timeout=timeout_ms, polling=POLL_MS)
     close_toasts(page)
     return page
 

@@ -11,6 +11,7 @@ require_browser()
 
 import nmkane_core
 from web import export
+from web.chromium import POLL_MS
 from web.screenshot import close_toasts
 
 pytestmark = pytest.mark.browser
@@ -51,7 +52,9 @@ def offline_page(browser, exported):
     page = context.new_page()
     page.on("request", lambda r: requested.append(r.url))
     page.goto(exported.as_uri())
-    page.wait_for_function(f"() => !!document.querySelector('canvas[data-engine]') && !!{BODY}", timeout=60000)
+    page.wait_for_function(
+        f"() => !!document.querySelector('canvas[data-engine]') && !!{BODY}", timeout=60000, polling=POLL_MS
+    )
     close_toasts(page)
     yield page, outside, requested
     context.close()

@@ -10,6 +10,7 @@ import pytest
 
 from tests._helpers import require_browser
 from tests.web._pages import HIDE_TOASTS, new_session, png, settled, until
+from web.chromium import POLL_MS
 from web.screenshot import close_toasts, open_page
 
 require_browser()
@@ -27,7 +28,9 @@ def test_bicycle_scene_sliders_and_eigenvalue_plot(browser):
         title = next(t for t, n in session.choices.items() if n == "whipple-bicycle")
         session.scene_choice.value = title
         assert session.wait_idle(300)
-        page.wait_for_function(f"() => document.body.innerText.includes({session.system_view.folder!r})")
+        page.wait_for_function(
+            f"() => document.body.innerText.includes({session.system_view.folder!r})", polling=POLL_MS
+        )
         session.set_playing(False)
         session.seek(1.0)
         view = session.system_view
@@ -35,7 +38,7 @@ def test_bicycle_scene_sliders_and_eigenvalue_plot(browser):
         until(lambda: len(plot.handle.data[0]) >= 100, 120, "the eigenvalue plot has no data")
         assert len(plot.handle.data[0]) == 101 and len(plot.handle.data) == 6  # speeds, 4 Re, max Im
         assert plot.value == pytest.approx(5.0)  # the default run's speed is marked
-        page.wait_for_function("() => document.body.innerText.includes('Eigenvalues against speed')")
+        page.wait_for_function("() => document.body.innerText.includes('Eigenvalues against speed')", polling=POLL_MS)
         close_toasts(page)
         shoot = lambda: page.screenshot(timeout=120000, style=HIDE_TOASTS)  # noqa: E731
         until(lambda: _drawn(png(shoot())[:, :700]), 60, "nothing but the ground plane is visible")

@@ -12,6 +12,7 @@ import pytest
 
 from tests._helpers import require_browser
 from tests.web._pages import png, settled, until
+from web.chromium import POLL_MS
 from web.screenshot import close_toasts, input_of, open_page
 
 require_browser()
@@ -81,7 +82,7 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     p0 = page.evaluate(BODY_POSITION)
     assert p0 is not None
     moved = f"() => JSON.stringify({BODY_POSITION}) !== {json.dumps(json.dumps(p0))}"
-    page.wait_for_function(moved, timeout=30000)  # "the scene does not animate" otherwise
+    page.wait_for_function(moved, timeout=30000, polling=POLL_MS)  # "the scene does not animate" otherwise
     close_toasts(page)
     shot = png(page.locator("canvas").first.screenshot())
     scene = shot[:, : int(shot.shape[1] * 0.68)]  # left of the control panel
@@ -110,7 +111,9 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     box.press("Enter")
     # the page shows the new run's status: one Enter, one new run (the latency is printed, not asserted:
     # on a loaded machine a wall-clock bound fails by chance — it measured 4.9 s once against 2 s)
-    page.wait_for_function(f"() => document.body.innerText.includes('update {n + 1} (')", timeout=60000)
+    page.wait_for_function(
+        f"() => document.body.innerText.includes('update {n + 1} (')", timeout=60000, polling=POLL_MS
+    )
     latency = time.perf_counter() - t0
     print(
         f"u1(0) entered in the page -> new run's status in the page: {latency * 1e3:.0f} ms "
@@ -127,7 +130,9 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     # the derived matrices panel shows images
     page.get_by_text("Derived matrices", exact=True).click()
     page.wait_for_function(
-        "() => Array.from(document.querySelectorAll('img')).some(i => i.naturalWidth > 100)", timeout=60000
+        "() => Array.from(document.querySelectorAll('img')).some(i => i.naturalWidth > 100)",
+        timeout=60000,
+        polling=POLL_MS,
     )
 
     # a second browser gets its own session: the first one's settings do not leak into it

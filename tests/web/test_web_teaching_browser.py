@@ -11,6 +11,7 @@ import pytest
 
 from tests._helpers import require_browser
 from tests.web._pages import until
+from web.chromium import POLL_MS
 from web.screenshot import close_toasts, input_of, open_page
 
 require_browser()
@@ -48,7 +49,7 @@ def _open(app, browser, query: str = "", name: str | None = None, context=None):
         page = open_page(browser, app.url + "?hideViserLogo" + query)
     else:
         page.goto(app.url + "?hideViserLogo" + query)
-        page.wait_for_function("() => document.body.innerText.includes('update ')", timeout=60000)
+        page.wait_for_function("() => document.body.innerText.includes('update ')", timeout=60000, polling=POLL_MS)
     close_toasts(page)
     return page, _session(app, before, name)
 
@@ -124,6 +125,7 @@ def test_what_cannot_be_read_is_refused_beside_the_box_in_the_page(app, browser)
                 "(w) => Array.from(document.querySelectorAll('.nmk-msg')).some((m) => m.innerText.includes(w))",
                 arg=why,
                 timeout=30000,
+                polling=POLL_MS,
             )
         assert session.wait_idle(30) and _shown(session) == before  # nothing ran with a refused value
         page.get_by_text("Physical parameters", exact=True).first.click()  # a log slider's box, in kg
@@ -134,6 +136,7 @@ def test_what_cannot_be_read_is_refused_beside_the_box_in_the_page(app, browser)
         page.wait_for_function(
             "() => !Array.from(document.querySelectorAll('.nmk-msg')).some((m) => m.innerText.includes('abc'))",
             timeout=30000,
+            polling=POLL_MS,
         )
     finally:
         page.close()
@@ -146,7 +149,7 @@ def test_a_link_reopens_its_setup_in_a_fresh_browser(app, browser):
         s = _shown(session)
         assert (s["dt"], s["t_final"], s["gamma"], s["params"]["r"], s["initial"]["u4"]) == (0.002, 7, -10, 0.25, 0.5)
         _type(page, "u3 = ψ̇", "-1")  # a change: the address follows
-        page.wait_for_function("() => window.location.search.includes('initial.u3=-1')", timeout=30000)
+        page.wait_for_function("() => window.location.search.includes('initial.u3=-1')", timeout=30000, polling=POLL_MS)
         link = page.url
         assert "system=rolling-disk" in link and "params.r=0.25" in link and "hideViserLogo" in link
         page.get_by_role("button", name="Copy link").click()
@@ -194,6 +197,7 @@ def test_keys_play_step_and_fit_and_the_plots_show_values_and_keep_a_zoom(app, b
             "() => { const t = document.querySelector('.nmk-tip'); return t && t.style.display === 'block' "
             "&& t.textContent.includes('ΔE') && /\\d/.test(t.textContent); }",
             timeout=30000,
+            polling=POLL_MS,
         )
         until(lambda: session.plots.busy, 10, "the page to report the pointer on a plot")
         page.mouse.move(box["x"] + 0.2 * box["width"], box["y"] + 0.5 * box["height"])
