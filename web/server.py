@@ -215,7 +215,9 @@ class WebApp:
         found = [
             o
             for o in gc.get_objects()
-            if isinstance(o, Server)
+            # the type itself: isinstance() asks a weakref.proxy for its referent's class, and a
+            # dead proxy anywhere in the process raised ReferenceError (a CI run, after other tests)
+            if issubclass(type(o), Server)
             and o.server is not None
             and any(sock.getsockname()[1] == self.port for sock in o.server.sockets)
         ]
