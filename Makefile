@@ -3,7 +3,7 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup setup-dev serve test check lint format docs docs-serve bench figures clean
+.PHONY: setup setup-dev serve test test-shuffled check lint format docs docs-serve bench figures clean
 
 # the app (library, REST service, web app, figures); the dev stamp adds tests and linters
 $(VENV)/.installed-all: pyproject.toml
@@ -26,14 +26,20 @@ serve: setup
 # two xdist workers (CI has two cores); tests/conftest.py warms the shared kernel cache once first and
 # groups tests (a module, a session fixture, the browser tests) onto one worker each: --dist loadgroup;
 # the 15 slowest tests are listed at the end (what to shorten next)
+# in file order (-p no:randomly); make test-shuffled runs the same suite in a random order, to
+# find tests that pass only after others (it prints the seed: SEED=N make test-shuffled repeats it)
 TEST_WORKERS ?= 2
 test: setup-dev
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=15
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=15 -p no:randomly
+
+SEED ?=
+test-shuffled: setup-dev
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=15 $(if $(SEED),--randomly-seed=$(SEED))
 
 # a developer's quick loop: lint, then the tests that need no server, subprocess, browser or
 # system compiled of its own (markers: tests/conftest.py HEAVY); make test stays the whole suite
 check: lint
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not slow and not browser and not heavy"
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not slow and not browser and not heavy" -p no:randomly
 
 lint: setup-dev
 	$(BIN)/ruff check nmkane_core backend web tests scripts examples

@@ -186,3 +186,10 @@ def quick_report(quick_runs, tmp_path_factory):
     from nmkane_core.paper import make_figures
 
     return make_figures(str(tmp_path_factory.mktemp("figures")), progress=False, runs=quick_runs)
+
+
+def pytest_terminal_summary(terminalreporter, config):
+    """The order's seed at the end of a shuffled run (make test-shuffled; -q hides the header)."""
+    seed = config.getoption("randomly_seed", None) if config.pluginmanager.hasplugin("randomly") else None
+    if isinstance(seed, int):
+        terminalreporter.write_line(f"test order shuffled: SEED={seed} make test-shuffled repeats it")

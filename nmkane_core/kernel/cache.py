@@ -32,15 +32,17 @@ def declared_data(
     """JSON data generated from a system's declaration (its visuals, its events): read from
     ``<cache root>/KIND/``, or ``build()`` (sympy work) and stored there.  The file is keyed by
     ``key`` (the system's kernel key, :meth:`nmkane_core.kernel.built.Built.key`), the file
-    defining ``declaration``, the ``generator`` module's file and its ``version``; a declaration
-    with no file (defined interactively) is never cached."""
+    defining ``declaration`` and the declaration itself (:func:`_identity`), the ``generator``
+    module's file and its ``version``; a declaration with no file (defined interactively) is
+    never cached."""
     path = None
     try:
         src = inspect.getsourcefile(declaration)
     except TypeError:
         src = None
-    if key is not None and src is not None and not src.startswith("<"):
-        h = hashlib.sha256(f"{key}\0{version}".encode())
+    identity = _identity(declaration)
+    if key is not None and src is not None and not src.startswith("<") and identity is not None:
+        h = hashlib.sha256(f"{key}\0{version}\0{identity}".encode())
         h.update(Path(src).read_bytes())
         h.update(Path(generator).read_bytes())
         path = cache_root() / kind / f"{h.hexdigest()[:24]}.json"
@@ -58,6 +60,31 @@ def declared_data(
         except OSError:
             pass
     return data
+
+
+_PLAIN = (bool, int, float, str, bytes, type(None))
+
+
+def _identity(declaration) -> str | None:
+    """What tells a declaration from the others in its file: its qualified name, its source and
+    the values it closes over (``_visuals(N)``'s N).  Two declarations of one file under one
+    system name shared a cache file: the first one's data answered for the second (a shuffled
+    test run).  None — never cached — when a closed-over value cannot be written down."""
+    parts = [getattr(declaration, "__qualname__", type(declaration).__qualname__)]
+    try:
+        parts.append(inspect.getsource(declaration))
+    except (OSError, TypeError):
+        return None
+    for cell in getattr(declaration, "__closure__", None) or ():
+        try:
+            value = cell.cell_contents
+        except ValueError:  # a cell not filled yet
+            continue
+        items = value if isinstance(value, tuple) else (value,)
+        if not all(isinstance(v, _PLAIN) for v in items):
+            return None
+        parts.append(repr(value))
+    return "\0".join(parts)
 
 
 def kernel_dir() -> Path:

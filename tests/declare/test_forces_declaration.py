@@ -76,6 +76,23 @@ def test_unknown_names_in_a_declaration_are_refused_naming_the_force():
         compile_forces(_blade(state_in_point_ok_but_multiplier_not))
 
 
+def test_two_declarations_in_one_file_for_one_system_name_do_not_share_their_cache():
+    """The compiled forces are cached by the system's kernel key and the declaring file; two
+    declarations of one file under one name shared a file, and the second got the first's
+    forces (a shuffled run: the refusals above passed only when they ran first)."""
+    import sympy as sp
+
+    def good():
+        return Forces(forces=(PointForce("blade", at=(0, 0, 0), components=(multiplier("no_side_slip"),)),))
+
+    def bad():
+        return Forces(forces=(PointForce("blade", at=(0, 0, 0), components=(sp.Symbol("mass"),)),))
+
+    assert compile_forces(_blade(good)).columns == ["blade.x"]
+    with pytest.raises(InputError, match=r"forces\.blade\.components.*mass"):
+        compile_forces(_blade(bad))
+
+
 def test_generalized_forces_rates_and_dynamicsymbol_derivatives_compile():
     import sympy as sp
     from sympy.physics import mechanics as me
