@@ -78,7 +78,7 @@ def add_point_forces(plan, run, out) -> list[str]:
     need_x = compiled.rates or getattr(out, "unknown_multipliers", None)
     x = np.column_stack([run.state[k] for k in info.state_names]) if need_x else None
     xdot = None
-    if compiled.rates:
+    if compiled.rates and x is not None:
         kept = getattr(out, "XD", None)  # ẋ of each row, when the loops keep it (they compute it: K[0])
         if kept is not None and kept.shape == x.shape:
             xdot = kept
