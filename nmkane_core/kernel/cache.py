@@ -65,16 +65,31 @@ def declared_data(
 _PLAIN = (bool, int, float, str, bytes, type(None))
 
 
+def _code_text(code) -> str:
+    """A code object as text that is the same in every process (marshal's output depends on
+    reference counts; a frozenset's order on string hashing)."""
+    consts = []
+    for c in code.co_consts:
+        if hasattr(c, "co_code"):
+            consts.append(_code_text(c))
+        elif isinstance(c, frozenset):
+            consts.append(repr(sorted(map(repr, c))))
+        else:
+            consts.append(repr(c))
+    return repr((code.co_code.hex(), code.co_names, code.co_varnames, consts))
+
+
 def _identity(declaration) -> str | None:
-    """What tells a declaration from the others in its file: its qualified name, its source and
+    """What tells a declaration from the others in its file: its qualified name, its code and
     the values it closes over (``_visuals(N)``'s N).  Two declarations of one file under one
     system name shared a cache file: the first one's data answered for the second (a shuffled
     test run).  None — never cached — when a closed-over value cannot be written down."""
-    parts = [getattr(declaration, "__qualname__", type(declaration).__qualname__)]
-    try:
-        parts.append(inspect.getsource(declaration))
-    except (OSError, TypeError):
+    code = getattr(declaration, "__code__", None)
+    if code is None:  # not a function: nothing that tells it apart
         return None
+    # its compiled code (not inspect.getsource: a declaration compiled from text that is not a
+    # Python file, a docs page's block, made the tokenizer raise)
+    parts = [declaration.__qualname__, _code_text(code)]
     for cell in getattr(declaration, "__closure__", None) or ():
         try:
             value = cell.cell_contents
