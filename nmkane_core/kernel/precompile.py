@@ -29,8 +29,7 @@ from pathlib import Path
 
 from .interface import LOOPS, callee_signatures, fixed_loop_signature, loop_signature
 
-_CHILDREN: dict[str, subprocess.Popen] = {}
-_PROJECTED: dict[str, bool] = {}  # whether the child's loop is the projected one
+_CHILDREN: dict[str, tuple[subprocess.Popen, bool]] = {}  # key -> (child, its loop is the projected one)
 _FRESH: dict[str, Path] = {}  # kernels this process wrote (never compiled yet): key -> folder
 _LOCK = threading.Lock()
 
@@ -53,10 +52,10 @@ def start(module, loop: str = "integrate_fixed", projected: bool = False) -> Non
             return
         command = [sys.executable, "-m", "nmkane_core.kernel.precompile", str(folder), key, loop, str(int(projected))]
         with contextlib.suppress(OSError):  # no second process: compile in this one
-            _CHILDREN[key] = subprocess.Popen(
+            child = subprocess.Popen(
                 command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
             )
-            _PROJECTED[key] = projected
+            _CHILDREN[key] = (child, projected)
 
 
 def wait(module, timeout: float = 300.0) -> None:
@@ -64,10 +63,10 @@ def wait(module, timeout: float = 300.0) -> None:
     what the loop calls apart from its stage loop)."""
     key = module.__name__.removeprefix("nmkane_kernel_")
     with _LOCK:
-        proc = _CHILDREN.pop(key, None)
-        projected = _PROJECTED.pop(key, False)
-    if proc is None:
+        found = _CHILDREN.pop(key, None)
+    if found is None:
         return
+    proc, projected = found
     if proc.poll() is None:
         for name, signature in callee_signatures(module, projected).items():
             with contextlib.suppress(Exception):  # only a head start: the child compiles what is missing

@@ -75,17 +75,16 @@ def add_point_forces(plan, run, out) -> list[str]:
         return []
     b = built(plan.system)
     info = b.info(plan.variant)
-    need_x = compiled.rates or getattr(out, "unknown_multipliers", None)
-    x = np.column_stack([run.state[k] for k in info.state_names]) if need_x else None
     xdot = None
-    if compiled.rates and x is not None:
+    if compiled.rates:
+        x = _state_rows(run, info)
         kept = getattr(out, "XD", None)  # ẋ of each row, when the loops keep it (they compute it: K[0])
         if kept is not None and kept.shape == x.shape:
             xdot = kept
         else:
             xdot = rates_rows(b.module(plan.variant), plan.p, plan.G, plan.G1, plan.G2, run.t, x)
     comps = _evaluate(compiled, info, run.state, plan.params, run.t, run.multipliers, run.constraint_forces, xdot)
-    notes = _switched_rows(plan, run, out, x, compiled, comps) if x is not None else []
+    notes = _switched_rows(plan, run, out, compiled, comps)
     notes += _finite(run.t, comps)
     run.point_forces = comps
     run.summary["max_abs_point_force"] = {
@@ -94,12 +93,18 @@ def add_point_forces(plan, run, out) -> list[str]:
     return notes
 
 
-def _switched_rows(plan, run, out, x, home: CompiledForces, comps: dict) -> list[str]:
+def _state_rows(run, info) -> np.ndarray:
+    """The run's state as rows (n, 2N), in the kernel's order."""
+    return np.column_stack([run.state[k] for k in info.state_names])
+
+
+def _switched_rows(plan, run, out, home: CompiledForces, comps: dict) -> list[str]:
     """Rows computed with an equivalent model: that model's declared forces, its λ from F_c."""
     ranges = list(getattr(out, "unknown_multipliers", []) or [])
     if not ranges:
         return []
     b = built(plan.system)
+    x = _state_rows(run, b.info(plan.variant))
     leaving = [s for s in out.switches if s["from"] == plan.variant]
     notes = []
     for (t_a, t_b), sw in zip(ranges, leaving, strict=False):
@@ -149,9 +154,10 @@ def _gains_for(plan, info):
 
 def _finite(t: np.ndarray, comps: dict) -> list[str]:
     """Components that are not finite (a singular constraint matrix) are reported as 0, with a warning."""
-    if not comps or all(np.isfinite(v).all() for v in comps.values()):
+    finite = [np.isfinite(v) for v in comps.values()]
+    if all(f.all() for f in finite):  # (none at all too)
         return []
-    bad = ~np.all([np.isfinite(v) for v in comps.values()], axis=0)
+    bad = ~np.all(finite, axis=0)
     for v in comps.values():
         v[bad] = 0.0
     times = t[bad]

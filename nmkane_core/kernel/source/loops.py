@@ -119,7 +119,7 @@ def _stages(t, h, x, p, G, G1, G2, TA, TC, K, xs, w, rcond_min, stats, order, so
             return STATUS_J2_SINGULAR
         if rc1 <= rcond_min:
             return STATUS_T_SINGULAR
-        if i == 0:  # the step starts at a recorded state: rhs_ws kept what its forces need
+        if i == 0:  # with OFLAG, the first stage has kept what the forces need: later stages keep nothing
             w[OFLAG] = 0.0
     return STATUS_OK
 
