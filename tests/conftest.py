@@ -99,6 +99,7 @@ HEAVY = {
     "tests/web/test_classroom.py": "a class of sessions on a served page",
     "tests/web/test_hardening_web.py": "sessions on a served page",
     "tests/kernel/test_codegen.py": "compiles kernels on empty caches",
+    "tests/kernel/test_native.py": "compiles kernels with C functions",
     "tests/declare/test_user_system_declaration.py": "compiles its own systems",
     "tests/declare/test_forces_declaration.py": "compiles forces in fresh processes",
     "tests/run/test_point_forces_closed_forms.py": "compiles its own systems",

@@ -23,9 +23,10 @@ arguments: nothing recompiles when a slider moves.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from pathlib import Path
 
-from . import constants
+from . import constants, native
 from .inline import inline_marked
 from .interface import LOOPS, PROJECTION_SCRATCH, WORKSPACE, layout, parameter_list
 
@@ -77,19 +78,36 @@ def _printer():
     return _Printer({"fully_qualified_modules": True, "standard": "python3"})
 
 
-def _block(
-    name: str, signature: str, kt, assignments: list[tuple], returns: str | None = None, inline: bool = False
-) -> str:
-    """One straight-line function: unpack state and parameters, CSE, assign outputs."""
+@dataclass
+class Block:
+    """One straight-line function after common-subexpression elimination, ready to print (as
+    numba source here, as C by :mod:`nmkane_core.kernel.native`): the state and parameter
+    entries it reads, the ranges of ``w`` it zeroes first, the subexpressions ``c_k`` and the
+    assignments ``(target, expression, comment)``."""
+
+    x_used: list[int]
+    p_used: list[int]
+    zero_fill: list[tuple[int, int]]
+    replacements: list[tuple]
+    outputs: list[tuple]
+
+    @property
+    def statements(self) -> int:
+        return (
+            len(self.x_used) + len(self.p_used) + 2 * len(self.zero_fill) + len(self.replacements) + len(self.outputs)
+        )
+
+
+def _cse(kt, assignments: list[tuple]) -> Block:
+    """The :class:`Block` of ``assignments`` (``(target, expression[, comment])``): the model's
+    symbols renamed ``x_i``, ``p_i``, ``t``, zeros written by loops (:func:`_zero_fill`), CSE."""
     import sympy as sp
 
-    printer = _printer()
     xs = [sp.Symbol(f"x_{i}", real=True) for i in range(len(kt.args_x))]
     ps = [sp.Symbol(f"p_{i}", real=True) for i in range(len(kt.args_p))]
-    tt = sp.Symbol("t", real=True)
     sub = dict(zip(kt.args_x, xs, strict=True))
     sub.update(zip(kt.args_p, ps, strict=True))
-    sub[kt.args_t] = tt
+    sub[kt.args_t] = sp.Symbol("t", real=True)
     assignments, zero_fill = _zero_fill(assignments)
     exprs = [sp.sympify(a[1]).xreplace(sub) for a in assignments]
     # cse's "basic" pre-optimizations (factoring) save a few percent of operations but cost
@@ -102,24 +120,31 @@ def _block(
     used = set()
     for e in exprs:
         used |= {s.name for s in sp.sympify(e).free_symbols}
+    return Block(
+        x_used=[i for i, s in enumerate(xs) if s.name in used],
+        p_used=[i for i, s in enumerate(ps) if s.name in used],
+        zero_fill=zero_fill,
+        replacements=list(repl),
+        outputs=[(a[0], e, a[2] if len(a) > 2 else "") for a, e in zip(assignments, reduced, strict=True)],
+    )
+
+
+def _block(name: str, signature: str, block: Block, returns: str | None = None, inline: bool = False) -> str:
+    """One straight-line numba function: unpack state and parameters, the CSE'd block."""
+    printer = _printer()
     flags = ', inline="always"' if inline else ""
     # error_model="numpy": x/0 gives ±inf or NaN, as √ of a negative number does, instead of raising
     # ZeroDivisionError from compiled code; the loops' finiteness checks then end the run with a status
     lines = [f'@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy"{flags})', f"def {name}({signature}):"]
-    for i, s in enumerate(xs):
-        if s.name in used:
-            lines.append(f"    {s.name} = x[{i}]")
-    for i, s in enumerate(ps):
-        if s.name in used:
-            lines.append(f"    {s.name} = p[{i}]")
-    for lo, hi in zero_fill:
+    lines += [f"    x_{i} = x[{i}]" for i in block.x_used]
+    lines += [f"    p_{i} = p[{i}]" for i in block.p_used]
+    for lo, hi in block.zero_fill:
         lines.append(f"    for _k in range({lo}, {hi}):")
         lines.append("        w[_k] = 0.0")
-    for sym, e in repl:
+    for sym, e in block.replacements:
         lines.append(f"    {sym} = {printer.doprint(e)}")
-    for a, e in zip(assignments, reduced, strict=True):
-        comment = f"  # {a[2]}" if len(a) > 2 else ""
-        lines.append(f"    {a[0]} = {printer.doprint(e)}{comment}")
+    for target, e, comment in block.outputs:
+        lines.append(f"    {target} = {printer.doprint(e)}" + (f"  # {comment}" if comment else ""))
     if returns:
         lines.append(f"    return {returns}")
     if len(lines) == 2:
@@ -169,34 +194,78 @@ def _zero_fill(assignments: list[tuple]) -> tuple[list[tuple], list[tuple[int, i
     return kept, [(a, b) for a, b in ranges]
 
 
-def generate_source(derivation) -> str:
-    """The whole kernel module for one model, as text."""
+#: the model-specific functions: (name, arguments, output array, returned name)
+MODEL_FUNCTIONS = (
+    ("terms", ("t", "x", "p"), "w", None),
+    ("constraint_terms", ("t", "x", "p"), "w", None),
+    ("positions", ("t", "x", "p"), "w", None),
+    ("diagnostics", ("t", "x", "p"), "viol", "_E"),
+    ("outputs", ("t", "x", "p"), "out", None),
+)
+
+
+def generate_source(derivation, native_code: bool = True) -> str:
+    """The whole kernel module for one model, as text.  A model whose ``terms`` are too large
+    to paste into the right-hand side gets its model-specific functions as C
+    (:mod:`nmkane_core.kernel.native`) when a C compiler is there and ``native_code``."""
     from ..symbolic.terms import kernel_terms
 
     kt = kernel_terms(derivation)
     robust = needs_robust(derivation)
     dims = kernel_dims(kt, robust)
     off, wsize = layout(WORKSPACE, dims)
-    terms = _block("terms", "t, x, p, w", kt, _terms_assignments(kt, off))
-    parts = [
-        _head(kt, dims, derivation, off, wsize, robust),
-        terms,
-        _block("constraint_terms", "t, x, p, w", kt, _constraint_assignments(kt, off)),
-        _block("positions", "t, x, p, w", kt, _position_assignments(kt, off)),
-        _block(
-            "diagnostics",
-            "t, x, p, viol",
-            kt,
-            [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)],
-            returns="_E",
-        ),
-        _block("outputs", "t, x, p, out", kt, [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)]),
-        _projection_layout_source(),
-    ]
-    large = terms.count("\n") > INLINE_TERMS_MAX_STATEMENTS
+    assignments = {
+        "terms": _terms_assignments(kt, off),
+        "constraint_terms": _constraint_assignments(kt, off),
+        "positions": _position_assignments(kt, off),
+        "diagnostics": [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)],
+        "outputs": [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)],
+    }
+    blocks = {name: _cse(kt, assignments[name]) for name, *_ in MODEL_FUNCTIONS}
+    large = blocks["terms"].statements > INLINE_TERMS_MAX_STATEMENTS
+    model_part = (native_code and large and _native_source(blocks)) or _numba_source(blocks)
+    parts = [_head(kt, dims, derivation, off, wsize, robust), model_part, _projection_layout_source()]
     keep = {"terms"} if large else set()
     keep.add("_rhs_paper" if robust else "_rhs_robust")  # the branch numba prunes stays a call
     return inline_marked("\n\n".join(parts) + _generic_source(), keep_calls=keep)
+
+
+def _numba_source(blocks: dict[str, Block]) -> str:
+    """The model-specific functions as numba source."""
+    return "\n\n".join(
+        _block(name, ", ".join([*args, out]), blocks[name], returns=returns)
+        for name, args, out, returns in MODEL_FUNCTIONS
+    )
+
+
+def _native_source(blocks: dict[str, Block]) -> str | None:
+    """The model-specific functions as C (embedded in the module, compiled into a library beside
+    it when the module is imported) and their numba wrappers; None without a C compiler or for
+    an expression C cannot write."""
+    if native.compiler() is None:
+        return None
+    try:
+        functions = [
+            native.c_function(name, args, out, blocks[name], returns) for name, args, out, returns in MODEL_FUNCTIONS
+        ]
+    except ValueError:
+        return None
+    source, tag = native.c_module(functions)
+    head = [
+        "# the model-specific functions in C (kernel.native): compiled beside this module, then called",
+        "from numba import types",
+        "",
+        "from nmkane_core.kernel import native as _native",
+        "",
+        f"NATIVE_TAG = {tag!r}",
+        f"NATIVE_SOURCE = {source!r}",
+        "_native.load(__file__, NATIVE_TAG, NATIVE_SOURCE)",
+        "_PD = types.CPointer(types.float64)",
+    ]
+    wrappers = [
+        native.numba_wrapper(name, args, out, tag, returns is not None) for name, args, out, returns in MODEL_FUNCTIONS
+    ]
+    return "\n".join(head) + "\n\n\n" + "\n\n".join(wrappers)
 
 
 def _head(kt, d: dict[str, int], derivation, off: dict[str, int], wsize: int, robust: bool) -> str:

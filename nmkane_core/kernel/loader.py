@@ -16,6 +16,7 @@ import json
 import os
 import sys
 import threading
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -23,6 +24,7 @@ from . import precompile
 from .cache import import_kernel, kernel_dir, write_kernel
 from .codegen import GENERIC_FILES, generate_source
 from .info import ModelInfo
+from .native import NativeBuildError
 
 __all__ = ["compiled_kernel", "fingerprint", "kernel", "model_fingerprint", "source_key"]
 
@@ -51,14 +53,36 @@ def _import(folder: Path, key: str, source: str | None):
 
 
 def compiled_kernel(derivation, source: str | None = None):
-    """Import (generating if needed) the compiled kernel module of a derivation."""
+    """Import (generating if needed) the compiled kernel module of a derivation.  A module whose
+    C library does not build (:mod:`~nmkane_core.kernel.native`) is generated again for numba
+    alone, with a warning that says why."""
     if source is None:
         source = generate_source(derivation)
+    try:
+        return _load(source)
+    except NativeBuildError as e:
+        warnings.warn(f"{e}; the model is compiled by numba alone", RuntimeWarning, stacklevel=2)
+        return _load(generate_source(derivation, native_code=False))
+
+
+def _load(source: str):
     key = source_key(source)
     with _LOCK:
         if key not in _LOADED:
-            _LOADED[key] = _import(kernel_dir() / key, key, source)
+            folder = kernel_dir() / key
+            try:
+                _LOADED[key] = _import(folder, key, source)
+            except NativeBuildError:
+                with contextlib.suppress(OSError):
+                    (folder / f"nmkane_kernel_{key}.py").unlink()
+                sys.modules.pop(f"nmkane_kernel_{key}", None)
+                raise
         return _LOADED[key]
+
+
+def module_key(module) -> str:
+    """The cache key of a loaded kernel module (its folder's name)."""
+    return module.__name__.removeprefix("nmkane_kernel_")
 
 
 #: the files that shape a generated kernel: a change in any of them gives every model a new key
@@ -159,7 +183,7 @@ def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] 
         tmp.write_text(
             json.dumps(
                 {
-                    "key": source_key(source),
+                    "key": module_key(module),
                     "system": label[0],
                     "variant": label[1],
                     "info": json.loads(info.to_json()),
