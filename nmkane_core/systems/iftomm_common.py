@@ -37,8 +37,12 @@ class Body:
     name: str = field(default="")
 
 
-def _nonzero_cols(M, n):
-    return [j for j in range(n) if any(M[i, j] != 0 for i in range(M.rows))]
+def _jacobian_cols(e, q, index):
+    """(∂e/∂q restricted to the coordinates e involves, their indices): a body's expressions
+    involve a few of the model's coordinates, and differentiating by all of them was the N²
+    part of building a long chain."""
+    cols = sorted(index[s] for s in e.free_symbols if s in index)
+    return e.jacobian([q[j] for j in cols]), cols
 
 
 def rigid_bodies_QP(bodies: Sequence[Body], q: Sequence, u: Sequence):
@@ -59,20 +63,21 @@ def rigid_bodies_QP(bodies: Sequence[Body], q: Sequence, u: Sequence):
     def dt(e):  # time derivative of an expression of q (q̇ = u)
         return sum((sp.diff(e, qi) * qd[qi] for qi in e.free_symbols & set(q)), sp.S.Zero)
 
+    qindex = {qi: j for j, qi in enumerate(q)}
+    uindex = {ui: j for j, ui in enumerate(u)}
     Q = sp.zeros(n, n)
     P = sp.zeros(n, 1)
     T = sp.S.Zero
     for b in bodies:
         r = sp.Matrix(b.r)
-        JG = r.jacobian(q)
-        cols = _nonzero_cols(JG, n)
-        v = JG[:, cols] * sp.Matrix([u[j] for j in cols])
+        JG, cols = _jacobian_cols(r, q, qindex)  # the columns of ∂r_G/∂q that can be nonzero
+        v = JG * sp.Matrix([u[j] for j in cols])
         acc_vel = sp.Matrix([dt(vi) for vi in v]) if cols else sp.zeros(3, 1)  # J̇_G u (u̇ terms excluded)
         F = sp.Matrix(b.force)
-        for i in cols:
-            for j in cols:
-                Q[i, j] += b.mass * JG[:, i].dot(JG[:, j])
-            P[i] += JG[:, i].dot(F - b.mass * acc_vel)
+        for a, i in enumerate(cols):
+            for c, j in enumerate(cols):
+                Q[i, j] += b.mass * JG[:, a].dot(JG[:, c])
+            P[i] += JG[:, a].dot(F - b.mass * acc_vel)
         T += b.mass * v.dot(v) / 2
         if b.omega is not None:  # planar: ω = W u in world axes, inertia constant there
             w = sp.Matrix(b.omega)
@@ -88,13 +93,12 @@ def rigid_bodies_QP(bodies: Sequence[Body], q: Sequence, u: Sequence):
             Mb = sp.Matrix(b.moment)
         else:
             continue
-        W = w.jacobian(u)
-        wcols = _nonzero_cols(W, n)
+        W, wcols = _jacobian_cols(w, u, uindex)
         wdot_vel = sp.Matrix([dt(wi) for wi in w]) if wcols else sp.zeros(3, 1)  # Ẇ u
         gyro = Ib * wdot_vel + w.cross(Ib * w) - Mb
-        for i in wcols:
-            for j in wcols:
-                Q[i, j] += W[:, i].dot(Ib * W[:, j])
-            P[i] -= W[:, i].dot(gyro)
+        for a, i in enumerate(wcols):
+            for c, j in enumerate(wcols):
+                Q[i, j] += W[:, a].dot(Ib * W[:, c])
+            P[i] -= W[:, a].dot(gyro)
         T += w.dot(Ib * w) / 2
     return Q.applyfunc(sp.expand), P.applyfunc(sp.expand), sp.expand(T)
