@@ -300,6 +300,8 @@ def _head(kt, d: dict[str, int], derivation, off: dict[str, int], wsize: int, ro
         f"MAX_RANK_DEFAULT = {d['N'] - p if p else min(d['N'], d['M'])}  # n − p (declared), else at most min(n, m)",
     ]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")
+    head += _sparsity_source("Q", kt.Q, "Q's structural nonzeros by row ([u_I, u_D] order; CSR)")
+    head += _sparsity_source("J", kt.J, "J's structural nonzeros by row (CSR)")
     head.append(
         f"ROWDEG = np.array({(kt.row_degree or [1])!r}, dtype=np.int64)  # degree in u of each row of J"
         "  (0: not a polynomial)"
@@ -314,6 +316,22 @@ def _head(kt, d: dict[str, int], derivation, off: dict[str, int], wsize: int, ro
     head += [f"{name} = {pos}" for name, pos in ps_off.items()]
     head.append(f"PS_SIZE = {ps_size}")
     return "\n".join(head) + "\n"
+
+
+def _sparsity_source(name: str, matrix, what: str) -> list[str]:
+    """``{name}PTR``, ``{name}IDX``: where a matrix can be nonzero, row by row (compressed
+    sparse rows): the entries that are not identically zero.  The rank-robust solve's products
+    with Q and J run over these only — a long chain's Q and J have a few entries a row, and
+    the dense loops over them were most of a right-hand side at 81 coordinates."""
+    ptr, idx = [0], []
+    for i in range(matrix.rows):
+        idx += [j for j in range(matrix.cols) if matrix[i, j] != 0]
+        ptr.append(len(idx))
+    return [
+        f"# {what}",
+        f"{name}PTR = np.array({ptr!r}, dtype=np.int64)",
+        f"{name}IDX = np.array({(idx or [0])!r}, dtype=np.int64)",
+    ]
 
 
 def _projection_layout_source() -> str:

@@ -216,6 +216,7 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OORD", "NR", "the current partition: J's columns in the order [u_I, u_D]"),
     ("OORDC", "NR", "the partition of the evaluation whose forces are wanted (its J2 copy's)"),
     ("OORD2", "NR", "a partition being tried; the pivot columns of Wehage & Haug's elimination"),
+    ("OPOS", "NR", "each of J's columns' position in the order the paper's solve uses (OORD's inverse)"),
     ("OROWS", "MR", "row indices of that elimination"),
     ("ORN", "MR", "|J_i|∞, the row norms (equilibration)"),
     ("OCV", "MR", "c = −b + s, the right-hand side of J u̇ = c"),

@@ -46,11 +46,15 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
             pmax = big
         if big < pmin:
             pmin = big
+        hi = n  # one past the pivot row's last nonzero (BAND_MIN)
+        if n > BAND_MIN:
+            while hi > c + 1 and w[oa + c * lda + hi - 1] == 0.0:
+                hi -= 1
         inv = 1.0 / w[oa + c * lda + c]
         for i in range(c + 1, n):
             f = w[oa + i * lda + c] * inv
             if f != 0.0:
-                for j in range(c + 1, n):
+                for j in range(c + 1, hi):
                     w[oa + i * lda + j] -= f * w[oa + c * lda + j]
                 for j in range(k):
                     w[ob + i * ldb + j] -= f * w[ob + c * ldb + j]
@@ -59,14 +63,25 @@ def lu_solve_flat(w, oa, lda, ob, ldb, n, k):
         rc = 0.0
     elif n > 0:
         for c in range(n - 1, -1, -1):
+            hi = n  # U's row c ends there: the rest are zeros
+            if n > BAND_MIN:
+                while hi > c + 1 and w[oa + c * lda + hi - 1] == 0.0:
+                    hi -= 1
             inv = 1.0 / w[oa + c * lda + c]
             for j in range(k):
                 acc = w[ob + c * ldb + j]
-                for l in range(c + 1, n):
+                for l in range(c + 1, hi):
                     acc -= w[oa + c * lda + l] * w[ob + l * ldb + j]
                 w[ob + c * ldb + j] = acc * inv
         rc = pmin / pmax
     return rc
+
+
+#: matrices larger than this are treated as banded by ``lu_solve_flat``: each row's elimination
+#: and back substitution stop at its last nonzero (a chain's J2 has a few entries a row near
+#: the diagonal); the small matrices of most models keep the plain loops (where the size is a
+#: constant of the kernel, numba drops the search)
+BAND_MIN = 8
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")

@@ -127,8 +127,8 @@ def _constraint_rhs(w, G, G1, G2, m):
         w[OCV + i] = -w[OB + i] + s
         w[OSS + i] = s
         big = 0.0
-        for j in range(N):
-            a = abs(w[OJ + i * N + j])
+        for kk in range(JPTR[i], JPTR[i + 1]):  # the row's structural nonzeros (the rest are exact zeros)
+            a = abs(w[OJ + i * N + JIDX[kk]])
             if a > big or not math.isfinite(a):
                 big = a
         w[ORN + i] = big
@@ -150,14 +150,23 @@ def _paper_ordered(w, K, row, oord, n, m):
     for i in range(m):
         if not w[ORN + i] > w[OSV + SV_RANK_TOL] * big:
             vanishing = True
+    for i in range(n):  # OPOS: each column's position in this order (_reduced_ordered uses it too)
+        w[OPOS + int(w[oord + i])] = i
     rc = 0.0
     if not vanishing and math.isfinite(big):
-        for i in range(m):
+        for i in range(m):  # J2 into OJE, −J1 into R: zeros, then J's structural nonzeros in place
             inv = 1.0 / w[ORN + i]
             for j in range(m):
-                w[OJE + i * m + j] = w[OJ + i * N + int(w[oord + pi + j])] * inv
+                w[OJE + i * m + j] = 0.0
             for j in range(pi):
-                w[OR + i * ld + j] = -w[OJ + i * N + int(w[oord + j])] * inv
+                w[OR + i * ld + j] = 0.0
+            for kk in range(JPTR[i], JPTR[i + 1]):
+                j = JIDX[kk]
+                pos = int(w[OPOS + j])
+                if pos >= pi:
+                    w[OJE + i * m + pos - pi] = w[OJ + i * N + j] * inv
+                else:
+                    w[OR + i * ld + pos] = -w[OJ + i * N + j] * inv
             w[OR + i * ld + pi] = w[OCV + i] * inv
             w[OR + i * ld + pi + 1] = w[OSS + i] * inv
         if lu_solve_flat(w, n - n + OJE, m, n - n + OR, ld, m, ld) > 0.0:
@@ -188,29 +197,34 @@ def _reduced_ordered(w, K, row, oord, n, m):
     each right-hand side) the Baumgarte terms' part u̇_s (B̂ → J2⁻¹s, P → 0) into OUS."""
     pi = n - m
     ld = pi + 2
-    for i in range(n):  # W = Q A2ᵀ
+    # W = Q A2ᵀ with A2ᵀ = [I; A], and y = P − Q_{·D} B̂ (and −Q_{·D} J2⁻¹s), over Q's structural
+    # nonzeros (QPTR, QIDX), each column's position from OPOS (_paper_ordered)
+    for i in range(n):
         oi = int(w[oord + i])
         for r in range(pi):
-            acc = w[OQ + oi * N + int(w[oord + r])]
-            for k in range(m):
-                acc += w[OQ + oi * N + int(w[oord + pi + k])] * w[OR + k * ld + r]
-            w[OW + i * pi + r] = acc
+            w[OW + i * pi + r] = 0.0
+        acc = w[OP + oi]
+        acc_s = 0.0
+        for kk in range(QPTR[oi], QPTR[oi + 1]):
+            j = QIDX[kk]
+            q = w[OQ + oi * N + j]
+            pos = int(w[OPOS + j])
+            if pos < pi:
+                w[OW + i * pi + pos] += q
+            else:
+                k = pos - pi
+                for r in range(pi):
+                    w[OW + i * pi + r] += q * w[OR + k * ld + r]
+                acc -= q * w[OR + k * ld + pi]
+                acc_s -= q * w[OR + k * ld + pi + 1]
+        w[OY + 2 * i] = acc
+        w[OY + 2 * i + 1] = acc_s
     for r in range(pi):  # A2 Q A2ᵀ
         for c in range(pi):
             acc = w[OW + r * pi + c]
             for k in range(m):
                 acc += w[OR + k * ld + r] * w[OW + (pi + k) * pi + c]
             w[OMR + r * pi + c] = acc
-    for i in range(n):  # y = P − Q_{·D} B̂, and −Q_{·D} J2⁻¹s
-        oi = int(w[oord + i])
-        acc = w[OP + oi]
-        acc_s = 0.0
-        for k in range(m):
-            q = w[OQ + oi * N + int(w[oord + pi + k])]
-            acc -= q * w[OR + k * ld + pi]
-            acc_s -= q * w[OR + k * ld + pi + 1]
-        w[OY + 2 * i] = acc
-        w[OY + 2 * i + 1] = acc_s
     for r in range(pi):
         for c in range(2):
             acc = w[OY + 2 * r + c]
@@ -379,7 +393,8 @@ def _stab_share(x, w, paper):
         ui = x[N + PERM[i]]
         acc_u = 0.0
         acc_s = 0.0
-        for j in range(N):
+        for kk in range(QPTR[i], QPTR[i + 1]):  # Q's structural nonzeros
+            j = QIDX[kk]
             q = w[OQ + i * N + j]
             acc_u += q * x[N + PERM[j]]
             if paper:
