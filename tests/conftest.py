@@ -95,6 +95,7 @@ HEAVY = {
     "tests/run/test_user_system.py": "compiles its own systems",
     "tests/systems/test_closed_loops_compiled.py": "compiles the closed loops",
     "tests/systems/test_iftomm.py": "derives the IFToMM models",
+    "tests/systems/test_iftomm_a02_n40.py": "registers and runs the 81-rod chain",
     "tests/systems/test_kanes_method_oracle.py": "sympy's KanesMethod on every system",
     "tests/web/test_classroom.py": "a class of sessions on a served page",
     "tests/web/test_hardening_web.py": "sessions on a served page",
