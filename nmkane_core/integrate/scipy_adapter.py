@@ -62,8 +62,8 @@ class _RightHandSide:
         if self.mod.ROBUST:
             s = self.solve
             self.mod.solve_setup(
-                self.w, job.solve, RANK_TOL, s.max_rank, CONSISTENCY_TOL, RCOND_ROBUST, job.rcond_min, s.order
-            )
+                self.w, job.solve, RANK_TOL, s.max_rank, CONSISTENCY_TOL, RCOND_ROBUST, job.rcond_min, s.order, False
+            )  # no projection between scipy's steps: the Baumgarte terms stay whole
 
     def __call__(self, t, x):
         job, mod, w = self.job, self.mod, self.w

@@ -297,6 +297,7 @@ def _head(kt, d: dict[str, int], derivation, off: dict[str, int], wsize: int, ro
         f"RANK_TOL_DEFAULT = {rb.RANK_TOL!r}",
         f"CONSISTENCY_TOL_DEFAULT = {rb.CONSISTENCY_TOL!r}",
         f"RCOND_ROBUST_DEFAULT = {rb.RCOND_ROBUST!r}",
+        f"BAUMGARTE_FADE = {rb.BAUMGARTE_FADE!r}  # the Baumgarte terms of vanishing rows fade (symbolic.robust)",
         f"MAX_RANK_DEFAULT = {d['N'] - p if p else min(d['N'], d['M'])}  # n − p (declared), else at most min(n, m)",
     ]
     head.append(f"PERM = np.array({kt.perm!r}, dtype=np.int64)")

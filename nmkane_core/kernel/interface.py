@@ -212,7 +212,7 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OFC", "N", "F_c = Q u̇ − P, the generalized constraint force, in the order [u_I, u_D]"),
     ("OLAM", "M", "λ, the multipliers: F_c = Jᵀλ"),
     # the rank-robust solve (kernels with ROBUST; docs/closed-loops.md §7)
-    ("OSV", "RB * 16", "the solve's settings and state (source/robust.py: SV_*)"),
+    ("OSV", "RB * 17", "the solve's settings and state (source/robust.py: SV_*)"),
     ("OORD", "NR", "the current partition: J's columns in the order [u_I, u_D]"),
     ("OORDC", "NR", "the partition of the evaluation whose forces are wanted (its J2 copy's)"),
     ("OORD2", "NR", "a partition being tried; the pivot columns of Wehage & Haug's elimination"),

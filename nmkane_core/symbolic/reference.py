@@ -36,6 +36,7 @@ from .robust import (  # noqa: F401 (re-exported: the reference's public names)
     ConstraintsInconsistent,
     RobustSolution,
     cholesky_lower,
+    fade_baumgarte,
     partition_by_pivoting,
     partition_rcond,
     qr_column_pivoting,
@@ -180,6 +181,7 @@ class ReferenceKernel:
         rank_tol: float = RANK_TOL,
         consistency_tol: float = CONSISTENCY_TOL,
         rcond_robust: float = RCOND_ROBUST,
+        fade: bool = False,
     ) -> np.ndarray:
         """ẋ = [C u + D; u̇].
 
@@ -191,7 +193,9 @@ class ReferenceKernel:
         above ``rcond_robust``; below, the partition is re-picked by pivoting on J
         (:func:`partition_by_pivoting`) and, where no partition is well-conditioned (J has
         lost rank, or the equations are redundant), the robust solve; each change is
-        appended to :attr:`switches`."""
+        appended to :attr:`switches`.  ``fade`` (with ``robust`` and ``auto``, as the compiled
+        loops with a projection): the Baumgarte terms of vanishing rows fade
+        (:func:`~nmkane_core.symbolic.robust.fade_baumgarte`)."""
         x = np.asarray(x, float)
         if solve == "paper":
             mats = self.matrices(t, x, p, G, G1, G2)
@@ -199,6 +203,8 @@ class ReferenceKernel:
                 raise SingularMatrix("J2", mats["rcond_J2"], t)
             return self._xdot(t, x, p, self._solve_T(mats, t, rcond_min))
         Q, P, J, b, s = self._terms(t, x, p, G, G1, G2)
+        if fade:
+            s = fade_baumgarte(J, s)
         if solve == "robust":
             return self._xdot(t, x, p, self._robust(t, Q, P, J, -b + s, rank_tol, consistency_tol))
         if solve != "auto":
@@ -406,6 +412,7 @@ def integrate_reference(
     constraints (:meth:`ReferenceKernel.project`).  Returns (t, x) with one row per step.
     """
     A, b, c = tableau.A, tableau.b, tableau.c
+    options.setdefault("fade", project)  # as the compiled loops with a projection
     x = np.array(x0, float)
     ts, xs = [0.0], [x.copy()]
     for k in range(nsteps):
@@ -447,6 +454,7 @@ def integrate_reference_adaptive(
     projection removes anyway and which would otherwise drive the step onto the singular
     point.  Returns (t, x, rejected steps)."""
     A, b, c, E = tableau.A, tableau.b, tableau.c, tableau.E
+    options.setdefault("fade", project)  # as the compiled loops with a projection
     exponent = 1.0 / (tableau.error_order + 1)
     t, h, x = 0.0, h0, np.array(x0, float)
     ts, xs, rejected = [0.0], [x.copy()], 0

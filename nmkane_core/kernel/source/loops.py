@@ -248,7 +248,7 @@ def integrate_fixed(*FixedArgs):  # the fields of kernel.interface.FixedArgs
     viol = np.empty(NV)
     w = make_workspace()
     if ROBUST:
-        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order)
+        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order, proj is not None)
     ps = make_projection_scratch()
     perm = PERM.copy()
     forces = out_F.shape[0] > 0
@@ -357,7 +357,7 @@ def integrate_adaptive(*AdaptiveArgs):  # the fields of kernel.interface.Adaptiv
     viol = np.empty(NV)
     w = make_workspace()
     if ROBUST:
-        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order)
+        solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order, proj is not None)
     ps = make_projection_scratch()
     perm = PERM.copy()
     cap = out_t.shape[0]

@@ -46,6 +46,7 @@ SV_ESTIMATE = 12  # the J2 estimate of the partition left (or taken)
 SV_FORCES = 13  # 1.0: the robust solve has put F_c and λ into w (with OFLAG)
 SV_LEAVE = 14  # kinetic-energy share of the last projection's speed correction
 SV_STAB = 15  # u̇_sᵀQu̇_s / uᵀQu of the last evaluation: u̇_s the Baumgarte terms' part of u̇ (per step: × h²)
+SV_FADE = 16  # 1.0: the Baumgarte terms of vanishing rows fade (a loop with a projection, solve auto or robust)
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
@@ -59,15 +60,18 @@ def _solve_defaults(w):
     w[OSV + SV_RCOND_ROBUST] = RCOND_ROBUST_DEFAULT
     w[OSV + SV_RCOND_MIN] = 0.0
     w[OSV + SV_USED] = -1.0
+    w[OSV + SV_FADE] = 0.0
     for i in range(N):
         w[OORD + i] = i
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
-def solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order):
+def solve_setup(w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order, projected):
     """A loop's solve arguments into the work array; ``order`` = the column order [u_I, u_D]
-    of J, then the solve in use (``SV_USED``)."""
+    of J, then the solve in use (``SV_USED``); ``projected``: the loop projects each step onto
+    the constraints, so that the Baumgarte terms of vanishing rows may fade (``SV_FADE``)."""
     w[OSV + SV_MODE] = solve
+    w[OSV + SV_FADE] = 1.0 if projected and solve != 0 else 0.0
     w[OSV + SV_RANK_TOL] = rank_tol
     w[OSV + SV_MAX_RANK] = max_rank
     w[OSV + SV_CONSISTENCY_TOL] = consistency_tol
@@ -114,7 +118,8 @@ def _log_solve(t, w, stats, order, solve_log):
 # ------------------------------------------------------------------ the right-hand side
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
 def _constraint_rhs(w, G, G1, G2, m):
-    """c = −b + s, s = [Γφ; Γ1ψ̇ + Γ2ψ] (105), (112) at OCV (s at OSS), and the row norms |J_i|∞ at ORN."""
+    """c = −b + s, s = [Γφ; Γ1ψ̇ + Γ2ψ] (105), (112) at OCV (s at OSS), and the row norms |J_i|∞ at ORN;
+    with SV_FADE, s faded on the rows that vanish (BAUMGARTE_FADE)."""
     for i in range(m):
         s = 0.0
         if i < MNH:
@@ -132,6 +137,20 @@ def _constraint_rhs(w, G, G1, G2, m):
             if a > big or not math.isfinite(a):
                 big = a
         w[ORN + i] = big
+    # with a projection (SV_FADE) the Baumgarte terms of rows whose gradient vanishes fade out
+    # (BAUMGARTE_FADE): near a singular position they would ask accelerations of order Γψ/|J_i|,
+    # and the projection keeps the positions on the constraints anyway
+    if w[OSV + SV_FADE] == 0.0:
+        return
+    longest = 0.0
+    for i in range(m):
+        longest = max(longest, w[ORN + i])
+    for i in range(m):
+        share = w[ORN + i] / longest if longest > 0.0 else 1.0
+        if share < BAUMGARTE_FADE:
+            f = (share / BAUMGARTE_FADE) * (share / BAUMGARTE_FADE)
+            w[OSS + i] *= f
+            w[OCV + i] = -w[OB + i] + w[OSS + i]
 
 
 @njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")
