@@ -36,8 +36,8 @@ RCOND_ROBUST = 1e-6
 #: a row of J shorter than this share of the longest (a constraint whose gradient vanishes at a
 #: singular position) gets its Baumgarte term scaled by (share / BAUMGARTE_FADE)²
 #: (:func:`fade_baumgarte`): Γ1ψ̇ + Γ2ψ asks accelerations of order Γψ/|J_i| there, kicks that
-#: IFToMM A02's passages through the horizontal position turned into a velocity error of 1.4e-6
-#: after 10 s at Δt = 5e-4 (4e-9 with the fade)
+#: a four-bar chain's passages through its flat position turned into a velocity error of 1.4e-6
+#: after 10 s at Δt = 5e-4 (4e-9 with the fade; docs/closed-loops.md §7.3)
 BAUMGARTE_FADE = 1e-3
 
 

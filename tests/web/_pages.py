@@ -34,6 +34,20 @@ def settled(shoot, timeout: float = 60.0) -> np.ndarray:
         last = now
 
 
+def element_shot(locator, timeout: float = 60.0) -> bytes:
+    """A screenshot (PNG bytes) of ``locator``'s element.  The page replaces some elements
+    when it redraws them (a plot given a new quantity or a new run): one replaced while its
+    screenshot was being taken ("not attached to the DOM") is looked up again, within a
+    deadline — the page redrawing is an event to wait for, not a failure."""
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            return locator.screenshot(timeout=timeout * 1000)
+        except Exception as e:  # playwright's Error
+            if "not attached" not in str(e) or time.monotonic() > deadline:
+                raise
+
+
 def until(cond, timeout: float = 60.0, what: str = "condition") -> None:
     """Poll ``cond()`` until true, within a deadline."""
     deadline = time.monotonic() + timeout

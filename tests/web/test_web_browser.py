@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from tests._helpers import require_browser
-from tests.web._pages import png, settled, until
+from tests.web._pages import element_shot, png, settled, until
 from web.chromium import POLL_MS
 from web.screenshot import close_toasts, input_of, open_page
 
@@ -103,7 +103,8 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     session.control("option.plot").value = "theta"
     assert session.wait_idle(30)
     plot = page.locator(".uplot").filter(has_text="Plotted quantity").first
-    before = settled(plot.screenshot)  # the plot of θ as drawn, the last marker refresh landed
+    shoot = lambda: element_shot(plot)  # noqa: E731  (the page replaces the plot's element when it redraws it)
+    before = settled(shoot)  # the plot of θ as drawn, the last marker refresh landed
     n = session._installs
     box = input_of(page, "u1 = θ̇")
     box.fill("0.4")
@@ -123,8 +124,8 @@ def test_page_renders_the_mechanism_and_a_control_changes_the_plot(app, browser)
     assert session.traj.main.settings["initial"]["u1"] == 0.4
     assert session.traj.main.state["u1"][0] == 0.4
     # the plot redrawn with the new run: polled within a deadline, then looked at once settled
-    until(lambda: _differs(before, png(plot.screenshot())), 30, "the plot did not change")
-    after = settled(plot.screenshot)
+    until(lambda: _differs(before, png(shoot())), 30, "the plot did not change")
+    after = settled(shoot)
     assert _differs(before, after), "the plot did not change"
 
     # the derived matrices panel shows images
