@@ -29,9 +29,26 @@ from importlib.metadata import version
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-# the costliest first, so that two processes finish together (seconds on two cores, empty cache)
+# the systems nearly every test module runs: warmed whole (warm_system), the others as the web app warms them
 ORDER = ("whipple-bicycle", "appell-hamel", "sliding-particle", "chaplygin-sleigh", "rolling-disk")
 SCIPY_SYSTEMS = ("appell-hamel", "sliding-particle")  # the systems tests run with scipy's integrators
+#: the order the two processes take the systems in: the longest first, so that they end together
+#: (seconds each on an idle 2-core machine, empty cache, 2026-12-03: appell-hamel 57–74,
+#: iftomm-a04 63–94, whipple-bicycle 41–54, sliding-particle 47–56, iftomm-a03 44–47, iftomm-a02
+#: 36–44, the others under 31; taken in registry order, A04 started last and one process
+#: worked alone for its last 20–30 s)
+COSTLIEST_FIRST = (
+    "appell-hamel",
+    "iftomm-a04",
+    "sliding-particle",
+    "whipple-bicycle",
+    "iftomm-a03",
+    "iftomm-a02",
+    "rolling-disk",
+    "chaplygin-sleigh",
+    "iftomm-a01",
+    "iftomm-a05",
+)
 
 
 def stamp() -> str:
@@ -135,8 +152,10 @@ def warm(root: Path, processes: int, log) -> bool:
         failed, took = [], {}
         ctx = multiprocessing.get_context("spawn")
         with concurrent.futures.ProcessPoolExecutor(processes, mp_context=ctx, initializer=_child_init) as pool:
-            futures = {pool.submit(warm_system, n): n for n in names}
-            futures.update({pool.submit(warm_page, n): n for n in others})
+            rank = {n: i for i, n in enumerate(COSTLIEST_FIRST)}
+            jobs = [(warm_system, n) for n in names] + [(warm_page, n) for n in others]
+            jobs.sort(key=lambda job: rank.get(job[1], len(rank)))  # stable: the rest as registered
+            futures = {pool.submit(fn, n): n for fn, n in jobs}
             for future in concurrent.futures.as_completed(futures):
                 try:
                     name, seconds = future.result()
