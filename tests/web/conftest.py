@@ -19,10 +19,41 @@ def _chromium():
         browser.close()
 
 
+#: the pages' animation frames at most every 200 ms: headless Chromium draws the 3D view in
+#: software (SwiftShader) as fast as it can, its GPU process then takes both cores (133–173 % CPU
+#: measured), and the app serving the page, the page's scripts and the other test worker wait
+#: for it.  Playwright's own waits run in a world of their own and keep their pace.
+FRAME_CAP = """(() => {
+  const raf = window.requestAnimationFrame.bind(window);
+  window.requestAnimationFrame = (callback) => setTimeout(() => raf(callback), 200);
+})();"""
+
+
+class _FrameCapped:
+    """The shared Chromium, every page and context it opens with :data:`FRAME_CAP`."""
+
+    def __init__(self, browser):
+        self._browser = browser
+
+    def new_page(self, **options):
+        page = self._browser.new_page(**options)
+        page.add_init_script(FRAME_CAP)
+        return page
+
+    def new_context(self, **options):
+        context = self._browser.new_context(**options)
+        context.add_init_script(FRAME_CAP)
+        return context
+
+    def __getattr__(self, name):
+        return getattr(self._browser, name)
+
+
 @pytest.fixture
 def browser(_chromium):
-    """The shared Chromium; the pages a test leaves open are closed after it (each page has a
-    browser context of its own: nothing carries over from one test to the next)."""
-    yield _chromium
+    """The shared Chromium (frames capped: :data:`FRAME_CAP`); the pages a test leaves open are
+    closed after it (each page has a browser context of its own: nothing carries over from one
+    test to the next)."""
+    yield _FrameCapped(_chromium)
     for context in list(_chromium.contexts):
         context.close()
