@@ -29,6 +29,7 @@ from pathlib import Path
 from . import constants, native
 from .inline import inline_marked
 from .interface import LOOPS, PROJECTION_SCRATCH, WORKSPACE, layout, parameter_list
+from .printing import python_printer
 
 __all__ = ["GENERIC_FILES", "generate_source"]
 
@@ -57,25 +58,6 @@ ZERO_FILL_MIN = 200
 #: costs nothing measurable against such a body, while small models keep the pasted body (a call
 #: costs them ~20% of the loop's time)
 INLINE_TERMS_MAX_STATEMENTS = 300
-
-
-def _printer():
-    import sympy as sp
-    from sympy.printing.pycode import PythonCodePrinter
-
-    class _Printer(PythonCodePrinter):
-        def _print_Pow(self, expr, rational=False):
-            # integer powers as products/divisions: exact and fast in compiled code
-            base, exp = expr.as_base_exp()
-            if exp.is_Integer and 1 < abs(int(exp)) <= 4:
-                b = self.parenthesize(base, 100)
-                prod = "*".join([b] * abs(int(exp)))
-                return f"({prod})" if exp > 0 else f"(1.0/({prod}))"
-            if exp == sp.S.Half:
-                return f"math.sqrt({self._print(base)})"
-            return super()._print_Pow(expr, rational=rational)
-
-    return _Printer({"fully_qualified_modules": True, "standard": "python3"})
 
 
 @dataclass
@@ -131,7 +113,7 @@ def _cse(kt, assignments: list[tuple]) -> Block:
 
 def _block(name: str, signature: str, block: Block, returns: str | None = None, inline: bool = False) -> str:
     """One straight-line numba function: unpack state and parameters, the CSE'd block."""
-    printer = _printer()
+    printer = python_printer()
     flags = ', inline="always"' if inline else ""
     # error_model="numpy": x/0 gives ±inf or NaN, as √ of a negative number does, instead of raising
     # ZeroDivisionError from compiled code; the loops' finiteness checks then end the run with a status

@@ -91,6 +91,8 @@ _CORE_FILES = (
     "../symbolic/derivation.py",
     "../symbolic/terms.py",
     "codegen.py",
+    "printing.py",
+    "native.py",
     "inline.py",
     "interface.py",
     "constants.py",

@@ -28,6 +28,8 @@ import subprocess
 import threading
 from pathlib import Path
 
+from .printing import c_printer
+
 __all__ = ["NativeBuildError", "c_function", "c_module", "compiler", "load", "numba_wrapper"]
 
 #: -O1: the functions are straight lines (no loops to vectorize); -O2 took half as long again to
@@ -54,31 +56,12 @@ def compiler() -> str | None:
     return None
 
 
-def _printer():
-    import sympy as sp
-    from sympy.printing.c import C99CodePrinter
-
-    class _Printer(C99CodePrinter):
-        def _print_Pow(self, expr):
-            # small integer powers as products, as the numba printer does (exact and fast)
-            base, exp = expr.as_base_exp()
-            if exp.is_Integer and 1 < abs(int(exp)) <= 4:
-                b = self.parenthesize(base, 100)
-                prod = "*".join([b] * abs(int(exp)))
-                return f"({prod})" if exp > 0 else f"(1.0/({prod}))"
-            if exp == sp.S.Half:
-                return f"sqrt({self._print(base)})"
-            return super()._print_Pow(expr)
-
-    return _Printer({"strict": True})
-
-
 def c_function(name: str, args: tuple[str, ...], out: str, block, returns: str | None = None) -> str:
     """One straight-line C function of a CSE'd block (:class:`~nmkane_core.kernel.codegen.Block`):
     ``args`` among t, x, p, then the output array ``out`` (``double *``); returns ``double``
     when ``returns`` (a name the block assigns) is given.  Raises ValueError for an expression
     C cannot write."""
-    printer = _printer()
+    printer = c_printer()
     params = ", ".join([_C_ARGS[a] for a in args] + [f"double *{out}"])
     lines = [f"{'double' if returns else 'void'} @PREFIX@{name}({params}) {{"]
     lines += [f"  const double x_{i} = x[{i}];" for i in block.x_used]
