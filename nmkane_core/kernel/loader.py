@@ -90,6 +90,7 @@ _CORE_FILES = (
     "../symbolic/model.py",
     "../symbolic/derivation.py",
     "../symbolic/terms.py",
+    "../symbolic/robust.py",  # its thresholds are written into the kernels
     "codegen.py",
     "printing.py",
     "native.py",
