@@ -3,6 +3,7 @@
 and the plots show values at the cursor and keep a zoom.  Waits are deadlines on the page's
 or the session's state, never fixed sleeps; the run's one Chromium (tests/web/conftest.py)."""
 
+import itertools
 import re
 import time
 
@@ -66,6 +67,35 @@ def _retry(action, timeout: float = 120.0):
             if time.monotonic() > end:
                 raise
             time.sleep(0.1)
+
+
+TIP_SHOWS_DE = (
+    "() => { const t = document.querySelector('.nmk-tip'); return t && t.style.display === 'block' "
+    "&& t.textContent.includes('ΔE') && /\\d/.test(t.textContent); }"
+)
+
+
+def _hover(page, plot, over, shown: str, timeout: float = 120.0) -> dict:
+    """Point at the middle of a plot until ``shown`` (a page predicate) holds; the plot's box.
+    The pointer moves again each try, onto the box as it is then: the page's plot script may
+    arrive after the first move, and under load the panel can still move (content arriving
+    above the plot) between reading the box and moving — a single move then hovers nothing."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
+    page.wait_for_function("() => window.__nmkPlots === true", timeout=60000, polling=POLL_MS)
+    end = time.monotonic() + timeout
+    for k in itertools.count():
+        _retry(lambda: plot.scroll_into_view_if_needed(timeout=30000))
+        box = _retry(lambda: over.bounding_box(timeout=30000))
+        nudge = (k % 5 - 2) * 0.02  # a new position each try: a move to where the pointer is fires nothing
+        page.mouse.move(box["x"] + (0.5 + nudge) * box["width"], box["y"] + 0.5 * box["height"])
+        try:
+            page.wait_for_function(shown, timeout=3000, polling=POLL_MS)
+            return box
+        except PlaywrightTimeout:
+            if time.monotonic() > end:
+                raise
+    raise AssertionError("unreachable")
 
 
 def _type(page, label: str, text: str) -> None:
@@ -191,16 +221,8 @@ def test_keys_play_step_and_fit_and_the_plots_show_values_and_keep_a_zoom(app, b
         assert "space play/pause" in page.inner_text("body")
 
         plot = page.locator(".uplot").filter(has_text="Energy drift").first
-        _retry(lambda: plot.scroll_into_view_if_needed(timeout=30000))
         over = plot.locator(".u-over")
-        box = _retry(lambda: over.bounding_box(timeout=30000))
-        page.mouse.move(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
-        page.wait_for_function(
-            "() => { const t = document.querySelector('.nmk-tip'); return t && t.style.display === 'block' "
-            "&& t.textContent.includes('ΔE') && /\\d/.test(t.textContent); }",
-            timeout=30000,
-            polling=POLL_MS,
-        )
+        box = _hover(page, plot, over, TIP_SHOWS_DE)
         until(lambda: session.plots.busy, 10, "the page to report the pointer on a plot")
         page.mouse.move(box["x"] + 0.2 * box["width"], box["y"] + 0.5 * box["height"])
         page.mouse.down()
