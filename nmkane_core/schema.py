@@ -242,6 +242,11 @@ class RunSummary(BaseModel):
     rhs_evals: int
     wall_time_s: float = Field(description="integration wall time, s")
     kernel_load_s: float = Field(0.0, description="time to load (or first compile) the kernel, s")
+    kernel_tier: Literal["compiled", "interpreted"] = Field(
+        "compiled",
+        description="how the loop ran: compiled (numba), or interpreted — the first short run of a kernel "
+        "just generated, run by Python while numba compiles it in the background",
+    )
     t_end: float
     max_abs_violation: dict[str, float]
     max_abs_energy_drift: float | None

@@ -65,7 +65,7 @@ def _runs(system, settings: list[dict]) -> None:
     from nmkane_core.run.simulate import simulate
 
     for one in settings:
-        simulate({"system": system.name, "t_final": 0.05, **one}, progress=False)
+        simulate({"system": system.name, "t_final": 0.05, **one}, progress=False, interpret=False)
 
 
 def _page_parts(system) -> None:

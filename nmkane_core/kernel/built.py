@@ -105,6 +105,15 @@ class Built:
         """The compiled kernel module of a variant."""
         return self.kernel(variant)[0]
 
+    def kernel_now(self, variant: str | None = None) -> tuple[Any, ModelInfo]:
+        """The kernel for a few evaluations now (an initial state, a partition): its interpreted
+        copy while this process has not compiled a kernel it just wrote
+        (:func:`~nmkane_core.kernel.interpreted.at_once`), and its info."""
+        from .interpreted import at_once
+
+        module, info = self.kernel(variant)
+        return at_once(module), info
+
     def info(self, variant: str | None = None) -> ModelInfo:
         """What the numeric side knows of a variant's model: names and counts (no sympy)."""
         return self.kernel(variant)[1]

@@ -58,11 +58,30 @@ def start(module, loop: str = "integrate_fixed", projected: bool = False) -> Non
             _CHILDREN[key] = (child, projected)
 
 
+def compiling(module) -> bool:
+    """A child is compiling ``module``'s loop right now."""
+    key = module.__name__.removeprefix("nmkane_kernel_")
+    with _LOCK:
+        found = _CHILDREN.get(key)
+    return found is not None and found[0].poll() is None
+
+
+def uncompiled(module) -> bool:
+    """This process wrote ``module`` and its loop is not compiled yet (none started, or a
+    child is compiling it): a call into it would compile first."""
+    key = module.__name__.removeprefix("nmkane_kernel_")
+    with _LOCK:
+        if key in _FRESH:
+            return True
+    return compiling(module)
+
+
 def wait(module, timeout: float = 300.0) -> None:
     """Wait for the child compiling ``module``'s loop, if one is running (compiling meanwhile
     what the loop calls apart from its stage loop)."""
     key = module.__name__.removeprefix("nmkane_kernel_")
     with _LOCK:
+        _FRESH.pop(key, None)  # the caller compiles or loads the loop next
         found = _CHILDREN.pop(key, None)
     if found is None:
         return

@@ -44,7 +44,7 @@ FLOAT_MAX = sys.float_info.max
 
 def finish(plan: Plan, out: LoopOutput, wall: float, kernel_load_s: float = 0.0) -> Run:
     """The :class:`Run` of a driver's output (``wall``: integration wall time, s)."""
-    mod = built(plan.system).module(plan.variant)
+    mod = built(plan.system).kernel_now(plan.variant)[0]
     outputs = _outputs(plan, mod, out)
     out, outputs, overflow = _finite_rows(plan, out, outputs)
     notes = _finite_forces(out) + _unknown_multipliers(out)
@@ -201,6 +201,7 @@ def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float
         "rhs_evals": int(out.evals),
         "wall_time_s": wall,
         "kernel_load_s": load,
+        "kernel_tier": "interpreted" if plan.interpret else "compiled",
         "t_end": float(out.t_end),
         "max_abs_violation": {k: float(stats[STATS_VIOL + i]) for i, k in enumerate(md.viol_names)},
         "max_abs_energy_drift": float(stats[STATS_MAX_DRIFT]) if E is not None else None,

@@ -21,6 +21,7 @@ from ..errors import InputError
 from ..integrate.job import Alternative, Job
 from ..integrate.methods import ScipyMethod, Tableau, get_integrator
 from ..integrate.projection import ProjectionOptions, projection_options
+from ..kernel import interpreted as tier
 from ..kernel import precompile
 from ..kernel.built import built
 from ..kernel.info import ModelInfo
@@ -63,6 +64,7 @@ class Plan:
     solve: int = 2  # the constraint solve (kernels with the rank-robust one): 0 paper, 1 robust, 2 auto
     max_rank: int = -1  # independent constraint equations (n − p, or the rank at the default state)
     order: tuple[int, ...] = ()  # the partition to start with, as the kernel's column order
+    interpret: bool = False  # a new kernel, a short run: Python runs it while numba compiles (_interpret)
 
     @property
     def info(self) -> ModelInfo:
@@ -72,13 +74,15 @@ class Plan:
         """What the loop drivers integrate: the numbers and kernels of this plan (with the
         equivalent variants it may switch to, when switching is on)."""
         b = built(self.system)
+        first = tier.at_once if self.interpret else (lambda module: module)
         alternatives = tuple(
-            Alternative(v, b.module(v), b.param_vector(v, self.params))
+            Alternative(v, first(b.module(v)), b.param_vector(v, self.params))
             for v in (self.system.equivalents.get(self.variant, ()) if self.switching else ())
         )
+        module = b.module(self.variant)
         return Job(
             method=self.integrator,
-            module=b.module(self.variant),
+            module=tier.interpreted(module) if self.interpret else module,
             variant=self.variant,
             x0=self.x0,
             p=self.p,
@@ -155,7 +159,33 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         solve=solve,
         max_rank=rank,
         order=order,
+        interpret=_interpret(b.module(variant), method, dt, t_final, s.every, proj, x0, p, (G, G1, G2)),
     )
+
+
+#: a run of a kernel not compiled yet is left to the interpreter when it would take at most this (s)
+INTERPRET_MAX_S = 1.5
+#: the interpreter's time for a run over that of its right-hand sides (stage sums, rows, diagnostics)
+INTERPRET_OVERHEAD = 1.6
+
+
+def _interpret(module, method, dt: float, t_final: float, every: int, proj: ProjectionOptions, x0, p, gains) -> bool:
+    """A short fixed-step run of a kernel this process wrote and has not compiled yet: run it by
+    Python now (:mod:`nmkane_core.kernel.interpreted`) rather than wait seconds for numba (the
+    background child goes on compiling the loop for the runs after it).  Short: its estimated
+    time (right-hand sides × the interpreter's time for one, measured here) ≤ INTERPRET_MAX_S.
+    Adaptive and scipy runs are left to the compiled code (their work is not known ahead)."""
+    if not isinstance(method, Tableau) or method.adaptive:
+        return False
+    if not precompile.uncompiled(module) or not tier.interpretable(module):
+        return False
+    steps = math.ceil(t_final / dt - 1e-9)
+    evals = steps * method.stages + 2 * (steps // max(every, 1) + 1)  # + each row's diagnostics and forces
+    if proj.name != "none":  # a projection after each step: a Newton solve on the constraints
+        evals *= 2
+    if evals * 1e-5 > INTERPRET_MAX_S:  # not worth measuring: longer at any model's speed
+        return False
+    return evals * INTERPRET_OVERHEAD * tier.seconds_per_evaluation(module, x0, p, *gains) <= INTERPRET_MAX_S
 
 
 def _compile_ahead(module, method, proj: ProjectionOptions) -> None:
@@ -366,7 +396,7 @@ def _resolved(s: RunSettings, system: System, variant, method, dt, t_final, para
 def _check_finite_start(system: System, variant: str, p: np.ndarray, x0: np.ndarray, full: dict) -> None:
     """The energy, constraint violations and outputs at the initial state must be finite (a
     finite but huge state can overflow them: a run would have nothing finite to show)."""
-    mod = built(system).module(variant)
+    mod = built(system).kernel_now(variant)[0]
     E, V, O = np.empty(1), np.empty((1, mod.NV)), np.empty((1, mod.NO))
     mod.diagnostics_rows(np.zeros(1), x0[None, :], p, E, V)
     if mod.NO:
