@@ -150,6 +150,7 @@ def test_bench_quick_measures_every_workload():
         "called from Python",
         "fresh process",
         "first run after install",
+        "first short run after install",
         "interactive re-run",
         "adaptive Kutta–Merson",
         "Γ sweep",
