@@ -53,6 +53,28 @@ def pytest_sessionstart(session):
     _warm.warm(Path(os.environ["NMKANE_CACHE_DIR"]), processes=min(2, os.cpu_count() or 1), log=log)
 
 
+# ---------------------------------------------------------------- where the suite compiles
+# NMKANE_TEST_COMPILES=FILE: each test's seconds of numba compiling in the test's own process (its
+# threads included, not its subprocesses) appended to FILE, one "seconds<TAB>test id" line per test
+# that compiled: what the warm-up (tests/_warm.py) does not cover, or what a test compiles on purpose.
+_COMPILES = os.environ.get("NMKANE_TEST_COMPILES")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    if not _COMPILES:
+        yield
+        return
+    from numba.core import event
+
+    listener = event.TimingListener()
+    with event.install_listener("numba:compile", listener):
+        yield
+    if listener.done:
+        with open(_COMPILES, "a") as f:
+            f.write(f"{listener.duration:.2f}\t{item.nodeid}\n")
+
+
 # -------------------------------------------------------------------------------- shared state
 
 
