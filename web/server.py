@@ -49,7 +49,7 @@ from nmkane_core.run.simulate import simulate as core_simulate
 from . import fastpath
 from . import matrices as mx
 from .generic import warm_systems
-from .session import MechanismApp
+from .session import MechanismApp, racing_a_leave
 
 FPS = 40.0  # poses sent per second at most (the target is ≥ 30 for a few browsers, ≥ 20 for a classroom)
 DUTY = 0.6  # at most this share of the animation thread's time is work: many sessions lower the rate
@@ -261,12 +261,18 @@ class WebApp:
             self._admitted.discard(conn.client_id)
 
     def connected(self, client_id: int) -> bool:
-        """The browser is still connected (viser drops it before the disconnect callbacks run)."""
-        return client_id in self.server.get_clients()
+        """The browser is still connected: viser lists it (it drops it before the disconnect
+        callbacks run) and its connection is open (viser closes the connection first, then
+        drops the client: in between, what is sent to it is never delivered)."""
+        client = self.server.get_clients().get(client_id)
+        return client is not None and _backlog(client) >= 0
 
     def _connect(self, client: viser.ClientHandle) -> None:
         cid = client.client_id
-        session = MechanismApp(client, simulate=self._simulate, connected=lambda: self.connected(cid), scene=self.scene)
+        with racing_a_leave(client):  # the browser may leave while its page is built
+            session = MechanismApp(
+                client, simulate=self._simulate, connected=lambda: self.connected(cid), scene=self.scene
+            )
         with self._lock:  # viser pops a leaving client before its disconnect callbacks run
             if self.connected(cid):
                 self.sessions[cid] = session

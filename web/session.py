@@ -39,6 +39,18 @@ SHADOWS_HINT = (
 )
 
 
+def racing_a_leave(client):
+    """The scope of writes that may race the browser's leaving: a page being built, a run
+    being installed, an animation frame.  Messages queued there after viser closed the connection are dropped
+    with it, harmless, and viser's warning about them is silenced; it is kept for every other
+    write (a run installed after the browser left would still raise it).  ``client`` None (a
+    test's shared server) or a viser other than 1.1: no scope."""
+    try:
+        return client._websock_connection.get_message_buffer().sanctioned_dead_writes()
+    except AttributeError:
+        return contextlib.nullcontext()
+
+
 class MechanismApp:
     """The controls, scene, camera and trajectory of one browser (or of a test).
 
@@ -390,7 +402,7 @@ class MechanismApp:
     def install(self, traj: Trajectory) -> None:
         """Show a new trajectory: geometry that depends on it, trace, plots, summary."""
         view = self.views[traj.kind]
-        with self.lock:
+        with self.lock, racing_a_leave(self.client):  # it may leave while this is sent, not before
             if not self.alive():  # the browser left while this was computed
                 return
             with self._atomic():
@@ -420,18 +432,10 @@ class MechanismApp:
             yield
 
     def _frame_writes(self):
-        """The scope of one animation frame's pose messages.  viser closes a leaving browser's
-        connection before it drops the client (what :meth:`alive` asks), so a frame that began
-        while the browser was there can queue a few poses on the closed connection: dropped with
-        it, harmless, and the next frame is not drawn (:meth:`alive` is false).  viser's warning
-        about writes to a closed connection is kept for everything else (a run installed after
-        the browser left would still raise it)."""
-        if self.client is None:
-            return contextlib.nullcontext()
-        try:
-            return self.client._websock_connection.get_message_buffer().sanctioned_dead_writes()
-        except AttributeError:  # a viser other than 1.1
-            return contextlib.nullcontext()
+        """The scope of one animation frame's pose messages: a frame that began while the
+        browser was there can end after viser closed its connection (:func:`racing_a_leave`);
+        the next frame is not drawn (:meth:`alive` is false)."""
+        return racing_a_leave(self.client)
 
     # ---------------------------------------------------------------- animation
     def show_time(self, t_now: float) -> None:

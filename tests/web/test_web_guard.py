@@ -166,29 +166,32 @@ def test_nothing_is_sent_to_a_browser_that_left_mid_run():
             queued = buffer.message_counter
             _frames(app, 20)  # frames go on: 20 more animation frames, none for the browser that left
             assert buffer.message_counter == queued
-        # the late run's scene (install: positions, shapes) must not be sent; a GUI text update racing
-        # the disconnect inside viser (it closes the socket before dropping the client) is not ours,
-        # nor the poses of a frame begun before it (web.session: _frame_writes)
+        # nothing of ours is written to the closed connection; a GUI text update racing the disconnect
+        # inside viser (it closes the socket before dropping the client) is not ours; what races the
+        # leave by design (a page being built, a run being installed, a frame: web.session
+        # racing_a_leave) is silenced, so the late run's install is checked by what is shown below
         closed = [
             str(w.message)
             for w in caught
             if "closed connection" in str(w.message) and "GuiUpdateMessage" not in str(w.message)
         ]
         assert not closed, closed
-        assert session.traj.main.settings["gamma"] == 0.0  # the late run was not installed
+        assert session.traj.main.settings["gamma"] == 0.0  # the late run was not installed (its scene not sent)
     finally:
         app.stop()
 
 
-def test_a_frame_begun_before_the_browser_left_is_not_reported_as_a_write_to_a_closed_connection(served):
-    """viser closes a leaving browser's connection before it drops the client: a frame drawn
-    in between queues its poses on the closed connection.  That is the window, made to last."""
+def test_a_frame_begun_before_the_browser_left_is_not_reported_as_a_write_to_a_closed_connection(served, monkeypatch):
+    """viser can close a leaving browser's connection while a frame is being drawn for it:
+    the frame's poses go to the closed connection.  The window made to last: the frame's
+    check said the browser was there, the connection is closed."""
     app, _, s = served
     with app._lock:  # the animation thread leaves the session alone
         app.sessions.clear()
     buffer = s.client._websock_connection.get_message_buffer()
     buffer.done = True  # what viser does first when a browser leaves
-    assert s.alive()  # the client is still in viser's list
+    assert not s.alive()  # a frame starting now draws nothing
+    monkeypatch.setattr(s, "alive", lambda: True)  # one that started before
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         for k in range(3):
