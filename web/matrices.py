@@ -30,6 +30,8 @@ from pathlib import Path
 
 import numpy as np
 
+from nmkane_core.symbolic.shorten import Budget, within
+
 MATRICES = ("A1", "A2", "T")
 #: what a model without A = −J2⁻¹J1 shows instead (redundant constraints: no square J2)
 FALLBACK = ("J1", "J2", "Q")
@@ -40,8 +42,7 @@ ICON_PAD = 30  # px of white above a matrix: viser's expand icon sits in the ima
 FONT_SIZE = 11
 PARENT_ENV = "NMKANE_MATRICES_PARENT"  # the child stops when this process is gone
 TYPESET_OPS = 250  # an entry still longer than this (sympy count_ops) once simplified is drawn as ⋯
-SIMPLIFY_OPS = 400  # entries up to this long are simplified …
-SIMPLIFY_S = 4.0  # … each within this many seconds (else shown as derived)
+SIMPLIFY_OPS = 400  # entries up to this long are simplified, within a time budget (symbolic.shorten)
 
 
 @dataclass
@@ -181,37 +182,10 @@ def _store(path: Path | None, p: Panel) -> None:
 
 
 # --------------------------------------------------------------------------- algebra
-class _Late(Exception):
-    pass
-
-
-def _within(seconds: float, fn, fallback):
-    """``fn()``, or ``fallback`` when it takes longer than ``seconds`` (a timer signal: only
-    in a process's main thread — the panel's child process —, elsewhere without a limit)."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "setitimer"):
-        return fn()
-
-    def late(_sig, _frame):
-        raise _Late
-
-    old = signal.signal(signal.SIGALRM, late)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        return fn()
-    except _Late:
-        return fallback
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0)
-        signal.signal(signal.SIGALRM, old)
-
-
-def _nice(e):
+def _nice(e, budget: Budget):
     """A short form of one entry: the shortest of sympy's simplify and a trig-expanded
-    cancellation (which finds e.g. −ρ cos θ in the nonlinear model's A1), found within
-    :data:`SIMPLIFY_S` (else the entry as derived)."""
+    cancellation (which finds e.g. −ρ cos θ in the nonlinear model's A1), found within the
+    panel's time ``budget`` (else the entry as derived)."""
     import sympy as sp
 
     if e.is_number or sp.count_ops(e) > SIMPLIFY_OPS:
@@ -227,7 +201,7 @@ def _nice(e):
             pass
         return out
 
-    return min(_within(SIMPLIFY_S, forms, [e]), key=lambda f: (sp.count_ops(f), len(str(f))))
+    return min(within(budget.seconds(), forms, [e]), key=lambda f: (sp.count_ops(f), len(str(f))))
 
 
 def _abbreviate(mats: dict):
@@ -265,7 +239,8 @@ def _build(system: str, variant: str) -> Panel:
         raw = {name: d.matrix(name) for name in FALLBACK}
     shown = tuple(raw)
     elided = sp.Dummy("elided")  # stands for an entry too long to typeset
-    nice = {name: M.applyfunc(_nice) for name, M in raw.items()}
+    budget = Budget()  # the whole panel's (nmkane_core.symbolic.shorten)
+    nice = {name: M.applyfunc(lambda e: _nice(e, budget)) for name, M in raw.items()}
     longest = max((sp.count_ops(e) for M in nice.values() for e in M), default=0)
     mats = {name: M.applyfunc(lambda e: elided if sp.count_ops(e) > TYPESET_OPS else e) for name, M in nice.items()}
     short, defs = _abbreviate(mats)

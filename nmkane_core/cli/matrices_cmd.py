@@ -24,6 +24,7 @@ def _run(args: argparse.Namespace) -> int:
 
     from ..kernel.built import built
     from ..run.registry import get_system
+    from ..symbolic.shorten import Budget
 
     load_plugged_systems(args)
     system = get_system(args.system)
@@ -41,6 +42,7 @@ def _run(args: argparse.Namespace) -> int:
     for name in names:
         if name not in d.NAMES:
             raise InputError("--matrix", name, " | ".join(d.NAMES), "unknown matrix")
+    budget = Budget()  # sympy's simplify takes seconds an entry on a closed loop's matrices
     for name in names:
         if not args.matrix:  # the default set: what the model does not have is said, not raised
             try:
@@ -52,7 +54,7 @@ def _run(args: argparse.Namespace) -> int:
         if args.latex:
             print(d.latex(name))
         else:
-            mat = d.matrix(name).applyfunc(lambda e: sp.simplify(e) if sp.count_ops(e) < 300 else e)
+            mat = d.matrix(name).applyfunc(budget.simplified)
             print(f"{name} =")
             print(sp.pretty(mat, use_unicode=True, wrap_line=False))
         print()
