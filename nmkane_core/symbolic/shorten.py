@@ -1,7 +1,8 @@
 """Shorter forms of derived matrix entries for people to read, within a time budget.
 
-sympy's ``simplify`` takes milliseconds on the paper's entries and seconds on a closed loop's
-(IFToMM A03, A04: 40–48 entries, 26–27 s for a panel), mostly to find no shorter form.  What
+sympy's ``simplify`` takes milliseconds on the paper's entries and seconds on those of a
+closed loop of several bodies (40–48 entries, 26–27 s for a panel), mostly to find no
+shorter form.  What
 prints or draws matrices (``nmkane matrices``, the web page's panel) simplifies each entry
 within :data:`ENTRY_S` seconds and all of them within a :class:`Budget`; an entry not done in
 time is shown as derived.  The limit is a timer signal, so it holds in a process's main thread
@@ -21,8 +22,8 @@ __all__ = ["ENTRY_S", "PANEL_S", "Budget", "within"]
 
 #: seconds for one entry
 ENTRY_S = 4.0
-#: seconds for all the entries of one printout or panel: the paper's systems and the bicycle
-#: take 0.1–2.6 s, A02 5.4 s
+#: seconds for all the entries of one printout or panel: the paper's systems and the built-in
+#: open chains take 0.1–2.6 s, the slowest closed loop within it 5.4 s
 PANEL_S = 8.0
 
 T = TypeVar("T")
