@@ -3,7 +3,7 @@
 The first run after install waits for numba: a new kernel's stage and integrator loops take
 seconds to compile (4–5 s for the paper's mechanism on 2 cores) for a run that then takes
 milliseconds.  Yet the generated module is plain Python (numba's subset of it): imported again
-with ``njit`` as the identity (:func:`interpreted`), the same statements run at once in the
+with ``njit`` as a plain-Python wrapper (:func:`interpreted`), the same statements run at once in the
 interpreter, about a thousand times slower than compiled — 0.03–0.1 s for the paper's
 mechanism over 1 s at Δt = 0.01 (500 evaluations of the right-hand side).  Results agree with
 the compiled code's to rounding (the compiled code may fuse a multiply and an add: ``FM``).
@@ -183,7 +183,7 @@ def is_interpreted(module) -> bool:
 
 
 def interpreted(module) -> types.ModuleType:
-    """The kernel ``module`` imported again with ``njit`` as the identity (made once per kernel)."""
+    """The kernel ``module`` imported again with ``njit`` as a plain-Python wrapper (made once per kernel)."""
     if is_interpreted(module):
         return module
     with _LOCK:
