@@ -431,12 +431,6 @@ class MechanismApp:
         with self.target.atomic():
             yield
 
-    def _frame_writes(self):
-        """The scope of one animation frame's pose messages: a frame that began while the
-        browser was there can end after viser closed its connection (:func:`racing_a_leave`);
-        the next frame is not drawn (:meth:`alive` is false)."""
-        return racing_a_leave(self.client)
-
     # ---------------------------------------------------------------- animation
     def show_time(self, t_now: float) -> None:
         """Put every node where the state at time t_now puts it (and the camera, if following)."""
@@ -470,7 +464,7 @@ class MechanismApp:
                 self.t_now += dt_wall * float(self.speed.value)
                 if self.t_now > traj.t_end:
                     self.t_now = 0.0 if traj.t_end > 0 else traj.t_end
-            with self._frame_writes():
+            with racing_a_leave(self.client):  # a frame begun before the browser left
                 with self._atomic():
                     self.show_time(self.t_now)
                 if refresh:

@@ -157,8 +157,7 @@ numpy_math = types.SimpleNamespace(
 )
 
 
-def _source(module) -> str | None:
-    path = getattr(module, "__file__", None)
+def _source(path: str | None) -> str | None:
     if path is None:
         return None
     try:
@@ -174,7 +173,13 @@ def interpretable(module) -> bool:
         return True
     if _OFF.get() or os.environ.get("NMKANE_INTERPRET", "1") == "0":
         return False
-    source = _source(module)
+    return _python_only(module.__name__, getattr(module, "__file__", None))
+
+
+@functools.cache
+def _python_only(name: str, path: str | None) -> bool:
+    """The kernel's text has no C functions (read once per kernel)."""
+    source = _source(path)
     return source is not None and _IMPORT in source and "ExternalFunction" not in source
 
 
@@ -189,7 +194,7 @@ def interpreted(module) -> types.ModuleType:
     with _LOCK:
         found = _MODULES.get(module.__name__)
         if found is None:
-            source = _source(module)
+            source = _source(getattr(module, "__file__", None))
             if source is None or not interpretable(module):
                 raise ValueError(f"kernel {module.__name__} cannot be interpreted (C model functions)")
             found = types.ModuleType(module.__name__ + _SUFFIX)
@@ -205,8 +210,8 @@ def interpreted(module) -> types.ModuleType:
 def at_once(module):
     """The module to call for a few evaluations now: the interpreted copy while ``module`` is
     a kernel this process wrote and has not compiled yet, else ``module`` itself."""
-    if is_interpreted(module) or not interpretable(module) or not precompile.uncompiled(module):
-        return module
+    if is_interpreted(module) or not precompile.uncompiled(module) or not interpretable(module):
+        return module  # (the cheap test first: this is asked before every run)
     return interpreted(module)
 
 

@@ -34,6 +34,11 @@ _FRESH: dict[str, Path] = {}  # kernels this process wrote (never compiled yet):
 _LOCK = threading.Lock()
 
 
+def _key(module) -> str:
+    """A loaded kernel's cache key (its module is ``nmkane_kernel_<key>``)."""
+    return module.__name__.removeprefix("nmkane_kernel_")
+
+
 def written(folder: Path, key: str) -> None:
     """Record that this process has just written kernel ``key`` (its loops are not compiled)."""
     with _LOCK:
@@ -45,7 +50,7 @@ def start(module, loop: str = "integrate_fixed", projected: bool = False) -> Non
     when this process has just written the module (no-op otherwise, and when disabled)."""
     if os.environ.get("NMKANE_PRECOMPILE", "1") == "0" or (os.cpu_count() or 1) < 2:
         return
-    key = module.__name__.removeprefix("nmkane_kernel_")
+    key = _key(module)
     with _LOCK:
         folder = _FRESH.pop(key, None)
         if folder is None or key in _CHILDREN:
@@ -60,7 +65,7 @@ def start(module, loop: str = "integrate_fixed", projected: bool = False) -> Non
 
 def compiling(module) -> bool:
     """A child is compiling ``module``'s loop right now."""
-    key = module.__name__.removeprefix("nmkane_kernel_")
+    key = _key(module)
     with _LOCK:
         found = _CHILDREN.get(key)
     return found is not None and found[0].poll() is None
@@ -69,7 +74,7 @@ def compiling(module) -> bool:
 def uncompiled(module) -> bool:
     """This process wrote ``module`` and its loop is not compiled yet (none started, or a
     child is compiling it): a call into it would compile first."""
-    key = module.__name__.removeprefix("nmkane_kernel_")
+    key = _key(module)
     with _LOCK:
         if key in _FRESH:
             return True
@@ -79,7 +84,7 @@ def uncompiled(module) -> bool:
 def wait(module, timeout: float = 300.0) -> None:
     """Wait for the child compiling ``module``'s loop, if one is running (compiling meanwhile
     what the loop calls apart from its stage loop)."""
-    key = module.__name__.removeprefix("nmkane_kernel_")
+    key = _key(module)
     with _LOCK:
         _FRESH.pop(key, None)  # the caller compiles or loads the loop next
         found = _CHILDREN.pop(key, None)
