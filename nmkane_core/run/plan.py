@@ -180,7 +180,7 @@ def _interpret(module, method, dt: float, t_final: float, every: int, proj: Proj
     if not precompile.uncompiled(module) or not tier.interpretable(module):
         return False
     steps = math.ceil(t_final / dt - 1e-9)
-    evals = steps * method.stages + 2 * (steps // max(every, 1) + 1)  # + each row's diagnostics and forces
+    evals = steps * method.stages + 2 * output_rows(steps, every)  # + each row's diagnostics and forces
     if proj.name != "none":  # a projection after each step: a Newton solve on the constraints
         evals *= 2
     if evals * 1e-5 > INTERPRET_MAX_S:  # not worth measuring: longer at any model's speed
