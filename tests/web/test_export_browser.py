@@ -60,6 +60,13 @@ def offline_page(browser, exported):
     context.close()
 
 
+def _scrub(page, bar, fraction: float) -> None:
+    """Click the playback bar ``fraction`` along it, where the bar is now: content drawn late
+    above it (the plots' panel) can move it, and a click at a place read earlier then misses."""
+    box = bar.bounding_box()
+    page.mouse.click(box["x"] + fraction * box["width"], box["y"] + box["height"] / 2)
+
+
 def test_the_exported_page_plays_and_scrubs_offline_with_its_plots(offline_page):
     page, outside, requested = offline_page
     # the scene: a WebGL canvas of the page's size, the declared bodies in the scene tree
@@ -78,11 +85,11 @@ def test_the_exported_page_plays_and_scrubs_offline_with_its_plots(offline_page)
     paused = page.evaluate(BAR_TIME)
     page.wait_for_timeout(400)  # a paused bar stays where it is
     assert page.evaluate(BAR_TIME) == pytest.approx(paused, abs=1e-9)
-    box = bar.bounding_box()
-    page.mouse.click(box["x"] + 0.75 * box["width"], box["y"] + box["height"] / 2)
+    _scrub(page, bar, 0.75)
     until(lambda: abs(page.evaluate(BAR_TIME) - 4.5) < 0.4, 10, "the bar scrubbed to 3/4 of 6 s")
     at_scrub = page.evaluate(BODY)
-    page.mouse.click(box["x"] + 0.2 * box["width"], box["y"] + box["height"] / 2)
+    _scrub(page, bar, 0.2)
+    until(lambda: abs(page.evaluate(BAR_TIME) - 1.2) < 0.4, 10, "the bar scrubbed to 1/5 of 6 s")
     until(lambda: page.evaluate(BODY) != at_scrub, 10, "the body moved by scrubbing")
     # the plots: energy drift and violation drawn, their cursor at the bar's time
     titles = page.eval_on_selector_all("#nmk-panel .nmk-plot", "els => els.map(e => e.dataset.plot)")
@@ -90,8 +97,14 @@ def test_the_exported_page_plays_and_scrubs_offline_with_its_plots(offline_page)
     assert page.locator("#nmk-panel .nmk-plot svg").count() == len(titles)
     until(lambda: abs(float(page.inner_text("#nmk-time")) - page.evaluate(BAR_TIME)) < 0.05, 10, "the panel's time")
     left_early = page.evaluate(CURSOR_LEFT)
-    page.mouse.click(box["x"] + 0.9 * box["width"], box["y"] + box["height"] / 2)
-    until(lambda: page.evaluate(CURSOR_LEFT) > left_early + 20, 10, "the plot cursor following the bar")
+    _scrub(page, bar, 0.9)
+    until(lambda: abs(page.evaluate(BAR_TIME) - 5.4) < 0.4, 10, "the bar scrubbed to 9/10 of 6 s")
+    # (the cursor's left is a percentage of the plot's width: 1.2 s → 5.4 s moves it by ~60)
+    until(
+        lambda: page.evaluate(CURSOR_LEFT) > left_early + 20,
+        10,
+        f"the plot cursor following the bar (from {left_early:.1f} % at {page.evaluate(BAR_TIME):.2f} s)",
+    )
     # nothing but the file was asked for
     assert outside == []
     assert all(u.startswith(("file:", "data:", "blob:")) for u in requested), requested
