@@ -26,6 +26,7 @@ from .export_button import ExportButton
 from .forces import ForcePanel
 from .generic import GenericView, scene_choices
 from .keys import add_keys
+from .lighting import Lighting
 from .link import Link, LinkPanel, read_link, read_system
 from .numbers import HIDE_SLIDER_BOXES, ExpressionField, NumberField
 from .page import PageBridge, is_software
@@ -84,6 +85,7 @@ class MechanismApp:
         self.closed = False
         self._installs = 0
         self.renderer = ""  # the page's WebGL renderer, once it has said (web.page)
+        self.lighting = Lighting(self.client)  # plain lights until the page says a graphics card draws it
         self.run_status = "computing … (the first run loads the compiled kernels)"
         self._shown_t: float | None = None
         self.views: dict[str, GenericView] = {}
@@ -352,8 +354,11 @@ class MechanismApp:
     def _on_renderer(self, name: str) -> None:
         """The page draws with ``name``: without a graphics card (software WebGL), shadows more
         than double a frame's cost (measured in headless Chromium's SwiftShader at 1400 × 900:
-        3 frames a second with them, 7 without), so they start off there; the box turns them on."""
+        3 frames a second with them, 7 without), so they start off there; the box turns them on.
+        With a graphics card, the environment map lights the scene (web.lighting)."""
         self.renderer = name
+        if self.alive():
+            self.lighting.on_renderer(is_software(name))
         if is_software(name) and self.shadows.value:
             self.controls.set_quietly(self.shadows, False)
             self._light()
