@@ -132,7 +132,10 @@ def _write_model(path: Path, force: float) -> None:
 
 def test_kernels_are_cached_by_model_no_sympy_later_and_never_stale(tmp_path):
     cache = tmp_path / "cache"
-    env = {"NMKANE_CACHE_DIR": str(cache), "NUMBA_CACHE_DIR": str(cache)}
+    # no background compiling child (kernel.precompile): the second run, a moment after the first,
+    # compiled the loop again beside it, and the children of the edited model's runs compiled into
+    # caches no run reads; tests/kernel/test_interpreted.py checks the child
+    env = {"NMKANE_CACHE_DIR": str(cache), "NUMBA_CACHE_DIR": str(cache), "NMKANE_PRECOMPILE": "0"}
     systems = tmp_path / "bead.py"
     probe = (
         "import sys, json\nfrom nmkane_core.run.plugins import load_systems\nfrom nmkane_core import simulate\n"
@@ -162,8 +165,10 @@ def test_kernels_are_cached_by_model_no_sympy_later_and_never_stale(tmp_path):
     _write_model(systems, 2.0)  # the user edits the model: never the stale kernel
     changed = run()
     fresh = tmp_path / "fresh"  # the edited model made from scratch
-    truth = run({"NMKANE_CACHE_DIR": str(fresh), "NUMBA_CACHE_DIR": str(fresh)})
-    assert changed == truth and abs(changed["x"] - first["x"]) > 0.1 * first["x"]
+    truth = run({**env, "NMKANE_CACHE_DIR": str(fresh), "NUMBA_CACHE_DIR": str(fresh)})
+    # (to rounding: which tier a first run takes depends on the interpreter's measured speed)
+    assert changed["x"] == pytest.approx(truth["x"], rel=1e-12) and changed["sympy"] and truth["sympy"]
+    assert abs(changed["x"] - first["x"]) > 0.1 * first["x"]
 
 
 def test_threads_asking_at_once_all_see_the_builtin_systems():
