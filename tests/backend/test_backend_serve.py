@@ -26,7 +26,9 @@ def _serve(tmp_path, code, warm=True):
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
 def test_serve_starts_api_and_web_app_and_stops_both(tmp_path, sig):
-    server = _serve(tmp_path, "from backend.serve import serve; serve(api_port=0, viser_port=0)")
+    # the warm-up (every system's loops loaded before the ports are bound) once, with SIGTERM
+    code = "from backend.serve import serve; serve(api_port=0, viser_port=0)"
+    server = _serve(tmp_path, code, warm=sig == signal.SIGTERM)
     api, ui = server.port(REST_URL), server.port(WEB_URL)
     server.wait_for("Ctrl-C")
     assert f"http://127.0.0.1:{api}/docs" in server.output
