@@ -218,7 +218,7 @@ def _store_forces(w, row, out_F, out_L):
 def _project_step(t, x, p, w, ps, proj, stats, viol, perm):
     """The post-step projection of an accepted state; its status (a singular correction
     matrix; with the rank-robust solve also: the motion left the constraints)."""
-    code = project(t, x, p, w, ps, proj, stats[STATS_E0], viol, perm)
+    code = project(t, x, p, w, ps, proj, stats[STATS_E0], viol, perm)  # INLINE
     if ROBUST:
         if w[OSV + SV_LEAVE] > stats[STATS_MAX_LEAVE]:
             stats[STATS_MAX_LEAVE] = w[OSV + SV_LEAVE]
