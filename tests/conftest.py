@@ -152,6 +152,7 @@ HEAVY_TESTS = (
     "tests/web/test_web_guard.py::test_typed_text_over_the_websocket_is_read_exactly_or_refused_beside_the_box",
     "tests/cli/test_plot.py::test_bad_expression_exits_2_naming_the_option_and_the_names",
     "tests/backend/test_backend_limits.py::test_a_running_simulation_does_not_block_the_event_loop",
+    "tests/kernel/test_cache_keys.py::test_a_plugged_in_system_copied_to_another_folder_keeps_its_key",
 )
 
 

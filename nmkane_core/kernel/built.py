@@ -150,13 +150,11 @@ class Built:
         """Which function of those files builds the variant: its name, code and simple closure
         values (two models defined in one file, or one function called with other arguments
         in a lambda, must not share a cached kernel)."""
-        import marshal
-
         fn = self.system.variants[variant]
         code = getattr(fn, "__code__", None)
         parts = [getattr(fn, "__qualname__", repr(type(fn)))]
         if code is not None:
-            parts.append(marshal.dumps(code).hex())
+            parts.append(code_identity(code))
         for cell in getattr(fn, "__closure__", None) or ():
             try:
                 value = cell.cell_contents
@@ -233,3 +231,17 @@ def built(system: System) -> Built:
         made = Built(system)
         _BUILT[id(system)] = (weakref.ref(system), made)
         return made
+
+
+def code_identity(code) -> str:
+    """A function's compiled code as text, without the path of its file (nested functions'
+    too): the same model in another checkout of the repository, or after the folder moved,
+    keeps its cache keys (the files' text is hashed beside it)."""
+    import marshal
+    import types
+
+    def pathless(c: types.CodeType) -> types.CodeType:
+        consts = tuple(pathless(k) if isinstance(k, types.CodeType) else k for k in c.co_consts)
+        return c.replace(co_filename="", co_consts=consts)
+
+    return marshal.dumps(pathless(code)).hex()
