@@ -3,8 +3,8 @@ page, plain lights where it draws in software.
 
 The environment map (an HDR image, prefiltered on the page into a cube map at several
 roughness levels) is drawn once per page opened, at its start: in software WebGL (headless
-Chromium's SwiftShader, a machine without a graphics card) that took 7–8 s of a core per page
-at 1400 × 900 — twice the rest of the page's start (0.5–2 s).  So a page starts with a sky and
+Chromium's SwiftShader, a machine without a graphics card) the GPU process took 7–8 s of a core
+to open a page at 1400 × 900 with it, and 0.5–2 s without it.  So a page starts with a sky and
 ground light and a sun, which light the scene alike, and gets the environment map once it has
 said that a graphics card draws it (:meth:`Lighting.on_renderer`, from ``web.page``).
 """

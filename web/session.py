@@ -357,9 +357,10 @@ class MechanismApp:
         3 frames a second with them, 7 without), so they start off there; the box turns them on.
         With a graphics card, the environment map lights the scene (web.lighting)."""
         self.renderer = name
+        software = is_software(name)
         if self.alive():
-            self.lighting.on_renderer(is_software(name))
-        if is_software(name) and self.shadows.value:
+            self.lighting.on_renderer(software)
+        if software and self.shadows.value:
             self.controls.set_quietly(self.shadows, False)
             self._light()
 

@@ -61,8 +61,9 @@ def offline_page(browser, exported):
 
 
 def _scrub(page, bar, fraction: float) -> None:
-    """Click the playback bar ``fraction`` along it, where the bar is now: content drawn late
-    above it (the plots' panel) can move it, and a click at a place read earlier then misses."""
+    """Click the playback bar ``fraction`` along it, at its box as it is now (a run under CI
+    load missed the cursor moving after a click at a box read earlier; the box was stable in
+    the runs looked at since, so this only rules that cause out)."""
     box = bar.bounding_box()
     page.mouse.click(box["x"] + fraction * box["width"], box["y"] + box["height"] / 2)
 

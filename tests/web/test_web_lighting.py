@@ -61,4 +61,6 @@ def test_software_webgl_keeps_the_plain_lights():
 
 
 def test_a_session_without_a_browser_sends_nothing():
-    Lighting(None).on_renderer(software=False)  # a test's shared server scene: no client
+    lighting = Lighting(None)  # a test's shared server scene: no client to send to
+    lighting.on_renderer(software=False)  # (without its check for no client: AttributeError)
+    assert not lighting.environment
