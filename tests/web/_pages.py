@@ -12,6 +12,11 @@ import numpy as np
 #: whenever it pleases) left out of the picture
 HIDE_TOASTS = ".mantine-Notification-root, .mantine-Notifications-root { visibility: hidden !important; }"
 
+#: ``page.evaluate(DRAWN)``: two of the page's frames drawn now, whatever the pace of the tests'
+#: frame cap (tests/web/conftest.py FRAME_CAP): the first draws what the scene holds, the second
+#: what the first frame's updates changed
+DRAWN = "async () => { await window.__nmkaneFrameNow(); await window.__nmkaneFrameNow(); }"
+
 
 def png(data: bytes) -> np.ndarray:
     """A screenshot as an RGB array of floats in [0, 1]."""

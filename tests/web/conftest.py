@@ -26,10 +26,26 @@ def _chromium():
 #: the GPU process (166 ms a frame at 1400×900), most of the browser tests' CPU and a fifth of the
 #: whole suite's; at 500 ms and without multisampling, 0.34 (measured with the app's default page).
 #: The tests wait for what a page shows, never for a number of frames; Playwright's own waits run
-#: in a world of their own and keep their pace.
+#: in a world of their own and keep their pace.  A test that needs the canvas to show what the
+#: scene holds now (a screenshot compared pixel by pixel) calls ``window.__nmkaneFrameNow()``
+#: (``tests/web/_pages.py`` DRAWN): the frames the cap holds back are drawn at the next frame,
+#: and its promise resolves after them — two frames at the cap's pace took 2–6 s of each
+#: system's view in the catalogue's browser test.
 FRAME_CAP = """(() => {
   const raf = window.requestAnimationFrame.bind(window);
-  window.requestAnimationFrame = (callback) => setTimeout(() => raf(callback), 500);
+  const cancel = window.cancelAnimationFrame.bind(window);
+  const held = new Map();  // timer -> callback: frames asked for, held back by the cap
+  window.requestAnimationFrame = (callback) => {
+    const timer = setTimeout(() => { held.delete(timer); raf(callback); }, 500);
+    held.set(timer, callback);
+    return timer;
+  };
+  window.cancelAnimationFrame = (id) => { if (held.delete(id)) clearTimeout(id); else cancel(id); };
+  window.__nmkaneFrameNow = () => new Promise((resolve) => {
+    for (const [timer, callback] of held) { clearTimeout(timer); raf(callback); }
+    held.clear();
+    raf(() => resolve());
+  });
   const context = HTMLCanvasElement.prototype.getContext;
   HTMLCanvasElement.prototype.getContext = function (type, attributes) {
     if (type === "webgl2" || type === "webgl") attributes = Object.assign({}, attributes, {antialias: false});

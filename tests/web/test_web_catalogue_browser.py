@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from tests._helpers import require_browser
-from tests.web._pages import png, until
+from tests.web._pages import DRAWN, png, until
 from web.screenshot import close_toasts, open_page
 
 require_browser()
@@ -32,8 +32,9 @@ MIN_SPAN = 0.05  # the moving bodies' extent on the screen, of the free canvas' 
 
 
 def _drawn(page) -> None:
-    """Two animation frames: what the scene holds now is on the canvas."""
-    page.evaluate("() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)))")
+    """Two animation frames, drawn now (not at the tests' frame cap's pace): what the scene
+    holds now is on the canvas."""
+    page.evaluate(DRAWN)
 
 
 def _camera(page) -> np.ndarray:
