@@ -313,14 +313,20 @@ def _blit(canvas: np.ndarray, ink: np.ndarray, top: int, left: int) -> None:
     canvas[top : top + h, left : left + w] = np.maximum(canvas[top : top + h, left : left + w], ink)
 
 
+#: ink levels of :func:`_to_rgba`'s table (finer than the 256 of the PNGs the ink comes from)
+INK_LEVELS = 4096
+
+
 def _to_rgba(ink: np.ndarray, color=(20, 20, 30)) -> np.ndarray:
-    """Ink on an opaque white background (readable in light and dark panels alike)."""
-    out = np.empty((*ink.shape, 4), np.uint8)
-    a = np.clip(ink, 0.0, 1.0)[..., None]
-    rgb = (1 - a) * 255 + a * np.array(color, float)
-    out[..., :3] = rgb.clip(0, 255).astype(np.uint8)
-    out[..., 3] = 255
-    return out
+    """Ink on an opaque white background (readable in light and dark panels alike), through a
+    table of the blended colours: a closed loop's matrix is tens of millions of pixels wide
+    (IFToMM A04's Q: 475 × 29,073), where blending each pixel in floating point took 9 s of its
+    panel's 30 (the table: 0.2 s; the colours agree within one level of 255)."""
+    level = np.linspace(0.0, 1.0, INK_LEVELS + 1)[:, None]
+    table = np.empty((INK_LEVELS + 1, 4), np.uint8)
+    table[:, :3] = ((1 - level) * 255 + level * np.array(color, float)).clip(0, 255).astype(np.uint8)
+    table[:, 3] = 255
+    return table[np.rint(np.clip(ink, 0.0, 1.0) * INK_LEVELS).astype(np.intp)]
 
 
 def _matrix_image(title: str, cells: list[list[str]], pad: int = 10, gap: int = 16, vgap: int = 10) -> np.ndarray:
