@@ -2,9 +2,9 @@
 PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
-# packages are installed by uv (from PyPI, into the venv): the versions pip resolves, in a quarter
-# of the time (a fresh .venv with the dev extras: 82 s with pip, ~20 s with uv, 2 cores); where uv
-# cannot be had or fails (a machine that reaches only pip's own index), pip installs them
+# packages are installed by uv (from PyPI, into the venv): the versions pip resolves, a fresh .venv
+# with the dev extras in 15 s where pip took 66-82 s (2 cores, empty caches); where uv cannot be had
+# or fails (a machine that reaches only pip's own index), pip installs them
 install = ($(BIN)/python -m pip install -q uv >/dev/null 2>&1 && $(BIN)/uv pip install -q --python $(BIN)/python $(1)) \
 	|| $(BIN)/python -m pip install -q $(1)
 

@@ -56,6 +56,23 @@ def test_the_latex_is_the_simplified_form_and_nothing_is_elided():
     assert all(r"\cdots" not in v for v in p.latex.values())
 
 
+def test_ink_is_drawn_on_white_in_the_ink_colour_and_blended_between():
+    """The panel's colours (web.matrices._to_rgba, through a table): no ink is opaque white,
+    full ink the ink colour, and partial ink the blend of the two within one level of 255."""
+    import numpy as np
+
+    from web import matrices as mx
+
+    ink = np.array([[0.0, 1.0, 0.5, 0.25], [-0.5, 1.5, 0.1, 0.9]], np.float32)
+    rgba = mx._to_rgba(ink, color=(20, 40, 60))
+    assert rgba.dtype == np.uint8 and rgba.shape == (2, 4, 4) and (rgba[..., 3] == 255).all()
+    assert rgba[0, 0, :3].tolist() == [255, 255, 255] and rgba[1, 0, :3].tolist() == [255, 255, 255]
+    assert rgba[0, 1, :3].tolist() == [20, 40, 60] and rgba[1, 1, :3].tolist() == [20, 40, 60]
+    a = np.clip(ink, 0, 1)[..., None]
+    exact = (1 - a) * 255 + a * np.array([20, 40, 60], float)
+    assert np.abs(rgba[..., :3] - exact).max() <= 1.0
+
+
 def _alive(pid: int) -> bool:
     try:
         os.kill(pid, 0)
