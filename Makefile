@@ -3,11 +3,11 @@ PY ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 # packages are installed by uv (from PyPI, into the venv): the versions pip resolves, a fresh .venv
-# with the dev extras in 42 s where pip took 66-82 s (2 cores, empty caches); with their bytecode,
-# as pip writes it: where PYTHONDONTWRITEBYTECODE=1 is set (this project's CI machines), nothing
-# writes it later and every process would compile what it imports again (the tests' warm-up took
-# 259 s instead of 171). Where uv cannot be had or fails (a machine that reaches only pip's own
-# index), pip installs them
+# with the dev extras in 31-42 s where pip took 66-82 s (2 cores, empty caches); with their
+# bytecode, as pip writes it: where PYTHONDONTWRITEBYTECODE=1 is set (as on the machine these
+# numbers come from), nothing writes it later and every process would compile what it imports
+# again (the tests' warm-up took 259 s instead of 171). Where uv cannot be had or fails (a machine
+# that reaches only pip's own index), pip installs them
 install = ($(BIN)/python -m pip install -q uv >/dev/null 2>&1 && $(BIN)/uv pip install -q --compile-bytecode --python $(BIN)/python $(1)) \
 	|| $(BIN)/python -m pip install -q $(1)
 

@@ -319,9 +319,9 @@ INK_LEVELS = 4096
 
 def _to_rgba(ink: np.ndarray, color=(20, 20, 30)) -> np.ndarray:
     """Ink on an opaque white background (readable in light and dark panels alike), through a
-    table of the blended colours: a closed loop's matrices are millions of pixels (IFToMM A04's
-    Q: 475 × 29,073), where blending each pixel in floating point took 9.0 s of A04's 30 s panel
-    (the table: 1.9 s for its three matrices; the colours agree within one level of 255)."""
+    table of the blended colours: a closed loop's matrices are millions of pixels (one Q of the
+    catalogue: 475 × 29,073), where blending each pixel in floating point took 9.0 s of its 30 s
+    panel (the table: 1.9 s for its three matrices; the colours agree within one level of 255)."""
     level = np.linspace(0.0, 1.0, INK_LEVELS + 1)[:, None]
     table = np.empty((INK_LEVELS + 1, 4), np.uint8)
     table[:, :3] = ((1 - level) * 255 + level * np.array(color, float)).clip(0, 255).astype(np.uint8)
