@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import asyncio
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import msgspec
@@ -70,11 +71,17 @@ class ClientStats:
 
 
 async def run_client(
-    url: str, version: str, stop_at: float, stats: ClientStats, host: str | None = None, origin: str | None = None
+    url: str,
+    version: str,
+    stop_at: float,
+    stats: ClientStats,
+    host: str | None = None,
+    origin: str | None = None,
+    enough: Callable[[ClientStats], bool] | None = None,
 ) -> None:
     """Connect to ``url`` (``ws://host:port/``) as viser ``version``'s client and receive until
-    the monotonic time ``stop_at``; fills ``stats``.  ``host``/``origin``: headers to send
-    (None: the URL's host, no Origin)."""
+    the monotonic time ``stop_at``, or until ``enough(stats)`` holds; fills ``stats``.
+    ``host``/``origin``: headers to send (None: the URL's host, no Origin)."""
     import websockets.asyncio.client as wsc
     from websockets.exceptions import ConnectionClosed
 
@@ -111,6 +118,8 @@ async def run_client(
                     moved = moved or kind in POSE_TYPES
                 if moved:
                     stats.frames.append(now)
+                if enough is not None and enough(stats):
+                    break
     except ConnectionClosed as e:
         stats.close = f"{e.rcvd.code if e.rcvd else '?'} {e.rcvd.reason if e.rcvd else ''}".strip()
         stats.error = f"closed by the server: {stats.close}"
@@ -118,14 +127,21 @@ async def run_client(
         stats.error = f"{type(e).__name__}: {e}"
 
 
-async def run_clients(url: str, version: str, n: int, seconds: float, stagger_s: float = 0.1) -> list[ClientStats]:
+async def run_clients(
+    url: str,
+    version: str,
+    n: int,
+    seconds: float,
+    stagger_s: float = 0.1,
+    enough: Callable[[ClientStats], bool] | None = None,
+) -> list[ClientStats]:
     """``n`` clients connecting ``stagger_s`` apart, each receiving until ``seconds`` after
-    the first connected."""
+    the first connected, or until ``enough(its stats)`` holds."""
     stop_at = time.monotonic() + seconds
     stats = [ClientStats(i) for i in range(n)]
     tasks = []
     for s in stats:
-        tasks.append(asyncio.create_task(run_client(url, version, stop_at, s)))
+        tasks.append(asyncio.create_task(run_client(url, version, stop_at, s, enough=enough)))
         await asyncio.sleep(stagger_s)
     await asyncio.gather(*tasks)
     return stats
