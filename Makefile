@@ -11,7 +11,7 @@ BIN := $(VENV)/bin
 install = ($(BIN)/python -m pip install -q uv >/dev/null 2>&1 && $(BIN)/uv pip install -q --compile-bytecode --python $(BIN)/python $(1)) \
 	|| $(BIN)/python -m pip install -q $(1)
 
-.PHONY: setup setup-dev serve test test-shuffled check lint format docs docs-serve bench figures clean
+.PHONY: setup setup-dev serve test test-shuffled fuzz check lint format docs docs-serve bench figures clean
 
 # the app (library, REST service, web app, figures); the dev stamp adds tests and linters
 $(VENV)/.installed-all: pyproject.toml
@@ -42,6 +42,12 @@ test: setup-dev
 SEED ?=
 test-shuffled: setup-dev
 	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=15 $(if $(SEED),--randomly-seed=$(SEED))
+
+# the property tests (hypothesis, schemathesis) with new random examples: make test draws the same
+# ones on every run (tests/conftest.py), so that a green suite stays green; this looks further
+FUZZ_TESTS := tests/run/test_library_fuzz.py tests/symbolic/test_nonminimal_structure.py tests/backend/test_backend_schema_fuzz.py
+fuzz: setup-dev
+	HYPOTHESIS_PROFILE=explore $(BIN)/python -m pytest -q -p no:randomly $(FUZZ_TESTS)
 
 # a developer's quick loop: lint, then the tests that need no server, subprocess, browser or
 # system compiled of its own (markers: tests/conftest.py HEAVY); make test stays the whole suite

@@ -53,6 +53,21 @@ def pytest_sessionstart(session):
     _warm.warm(Path(os.environ["NMKANE_CACHE_DIR"]), processes=min(2, os.cpu_count() or 1), log=log)
 
 
+# ------------------------------------------------------------------------- property-based tests
+# The property tests (hypothesis; schemathesis builds on it) draw the same examples on every run
+# (derandomize, no example database): a suite green on one fresh machine is green on the next, a
+# failure repeats, and a run takes the same time.  `make fuzz` (HYPOTHESIS_PROFILE=explore) draws
+# new examples each time, to look for what the fixed ones miss.
+try:
+    from hypothesis import settings as _hypothesis_settings
+except ImportError:  # the dev extras are not installed: those tests are not collected either
+    pass
+else:
+    _hypothesis_settings.register_profile("deterministic", derandomize=True, database=None)
+    _hypothesis_settings.register_profile("explore", derandomize=False, database=None)
+    _hypothesis_settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
+
+
 # ---------------------------------------------------------------- where the suite compiles
 # NMKANE_TEST_COMPILES=FILE: each test's seconds of numba compiling in the test's own process (its
 # threads included, not its subprocesses) appended to FILE, one "seconds<TAB>test id" line per test
