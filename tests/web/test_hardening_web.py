@@ -232,9 +232,6 @@ def test_closed_sessions_leave_no_threads_sessions_or_memory_behind(web, monkeyp
             busy[0] = False
 
     monkeypatch.setattr(server_module, "_release_memory", counted_release)
-    # the release comes TRIM_DELAY_S after the last close; what is measured is that it comes and
-    # what it leaves, not the delay: 0.2 s instead of 2 s a cycle
-    monkeypatch.setattr(server_module, "TRIM_DELAY_S", 0.2)
     # what the app loads of every system, compiled first (if the cache is cold) by a process of
     # its own: numba compiling in this one left its heap fragmented, and each cycle below then grew
     # the process by 8-10 MB with the fix in place (the test failed on an empty cache and passed
