@@ -3,6 +3,7 @@
 
 import contextlib
 import gc
+import json
 import socket
 import subprocess
 import sys
@@ -207,67 +208,86 @@ def _rss_mb() -> float:
         return int(f.read().split("VmRSS:")[1].split()[0]) / 1024
 
 
-def test_closed_sessions_leave_no_threads_sessions_or_memory_behind(web, monkeypatch):
+def test_closed_sessions_leave_no_threads_sessions_or_memory_behind():
     """Measured before the fix: sessions opened and closed left the process larger each cycle
     (glibc kept the freed heap: +25–30 MB per cycle of 5 sessions, measured again with the fix
     taken out), and one closed session stayed referenced by the animation loop until the next
     one opened.
 
-    Cheap and deterministic: the app's background warm-up (every system's kernels and matrices,
-    which also grows the heap) is over before the first cycle, and each cycle waits for the app's
-    memory release to have run (an event), not for a fixed 4 s; a settling cycle, then three of
-    five sessions each (the same leak in a quarter of the sessions, measured three times).  With
-    the fix (web.server._release_memory) taken out this fails (+50 MB and more over the three)."""
+    Cheap and deterministic: measured in a process of its own (``python`` this file), so the heap
+    it measures is the app's and not what the worker's earlier tests left (in a pytest worker that
+    had compiled kernels it grew 14-20 MB a cycle with the fix in place: an empty-cache CI run
+    failed); the app's background warm-up is over before the first cycle; each cycle waits for
+    the app's memory release to have run (an event, not a fixed wait); a settling cycle, then
+    three of five sessions each.  With the fix (web.server._release_memory) taken out,
+    ``python tests/web/test_hardening_web.py --without-release`` shows the growth."""
+    # what the app loads of every system, compiled first (if the cache is cold) by a process of
+    # its own: numba compiling in the measuring one left its heap fragmented (each cycle then grew
+    # the process by 8-10 MB with the fix in place); on a warm cache the child only loads (2.4 s)
+    subprocess.run([sys.executable, "-c", "from web.server import warm; warm()"], check=True, timeout=1200)
+    out = subprocess.run([sys.executable, __file__], capture_output=True, text=True, check=True, timeout=900).stdout
+    found = json.loads(out.strip().splitlines()[-1])
+    assert found["sessions_left"] == 0  # none of the app's 20 sessions is left
+    assert found["clients_left"] == 0
+    assert found["resim_threads_left"] == 0
+    later = found["rss_mb"]
+    # without the fix each cycle kept 25–30 MB (the heap grows, then glibc returns some of it now and
+    # then: the highest of the later cycles, not the last); with it the cycles stay within a few MB
+    assert max(later) - later[0] < 25, later
+
+
+def _measure_closed_sessions(release: bool = True) -> dict:
+    """Open and close 5 sessions four times in a fresh app; the process's RSS after each of the
+    last three cycles and what the closed sessions left behind."""
     import web.server as server_module
     from web.session import MechanismApp
 
-    releases, busy, release = [0], [False], server_module._release_memory
+    releases, busy, release_memory = [0], [False], server_module._release_memory
 
     def counted_release():
         busy[0] = True
         try:
-            release()
+            if release:
+                release_memory()
         finally:
             releases[0] += 1
             busy[0] = False
 
-    monkeypatch.setattr(server_module, "_release_memory", counted_release)
-    # what the app loads of every system, compiled first (if the cache is cold) by a process of
-    # its own: numba compiling in this one left its heap fragmented, and each cycle below then grew
-    # the process by 8-10 MB with the fix in place (the test failed on an empty cache and passed
-    # on a warm one); on a warm cache the child only loads (2.4 s)
-    subprocess.run([sys.executable, "-c", "from web.server import warm; warm()"], check=True, timeout=1200)
-    app = web(max_sessions=100)
-    app._warm_thread.join(600)  # loading every system grows the heap too: not during the cycles
-    assert not app._warm_thread.is_alive()
+    server_module._release_memory = counted_release
+    app = WebApp(host="127.0.0.1", port=0, max_sessions=100)
+    try:
+        app._warm_thread.join(600)  # loading every system grows the heap too: not during the cycles
+        assert not app._warm_thread.is_alive()
 
-    def cycle(n=5):
-        socks = [_open(app) for _ in range(n)]
-        assert _wait(lambda: len(app.sessions) == n, 300)
-        for ws in socks:
-            _drain_briefly(ws, 0.05)
-        before = releases[0]
-        for ws in socks:
-            ws.close()
-        assert _wait(lambda: not app.sessions and resim_threads() <= threads_before, 60)
-        # the app releases the memory TRIM_DELAY_S after the last close (an event, not a fixed wait)
-        done = lambda: releases[0] > before and app._trim_due is None and not busy[0]  # noqa: E731
-        assert _wait(done, 60), "the memory of the closed sessions was not released"
-        return _rss_mb()
+        def resim_threads() -> int:
+            return sum(t.name == "nmkane-resim" for t in threading.enumerate())
 
-    def sessions_alive() -> int:  # in the whole process: other tests' apps may hold theirs
+        def cycle(n=5):
+            socks = [_open(app) for _ in range(n)]
+            assert _wait(lambda: len(app.sessions) == n, 300)
+            for ws in socks:
+                _drain_briefly(ws, 0.05)
+            before = releases[0]
+            for ws in socks:
+                ws.close()
+            assert _wait(lambda: not app.sessions and resim_threads() == 0, 60)
+            # the app releases the memory TRIM_DELAY_S after the last close (an event, not a fixed wait)
+            done = lambda: releases[0] > before and app._trim_due is None and not busy[0]  # noqa: E731
+            assert _wait(done, 60), "the memory of the closed sessions was not released"
+            return _rss_mb()
+
+        cycle()  # first uses: caches, allocator arenas settling
+        later = [cycle() for _ in range(3)]
         gc.collect()
-        return sum(issubclass(type(o), MechanismApp) for o in gc.get_objects())  # a dead weakref.proxy: no raise
+        return {
+            "rss_mb": later,
+            "sessions_left": sum(issubclass(type(o), MechanismApp) for o in gc.get_objects()),
+            "clients_left": len(app.server._websock_server._client_state_from_id) + len(app.server.get_clients()),
+            "resim_threads_left": resim_threads(),
+        }
+    finally:
+        app.stop()
 
-    def resim_threads() -> int:
-        return sum(t.name == "nmkane-resim" for t in threading.enumerate())
 
-    sessions_before, threads_before = sessions_alive(), resim_threads()
-    cycle()  # first uses: caches, allocator arenas, other tests' leftovers settling
-    later = [cycle() for _ in range(3)]
-    assert sessions_alive() <= sessions_before  # none of this app's 20 sessions is left
-    assert not app.server._websock_server._client_state_from_id and not app.server.get_clients()
-    assert resim_threads() <= threads_before
-    # without the fix each cycle kept 25–30 MB (the heap grows, then glibc returns some of it now and
-    # then: the highest of the later cycles, not the last); with it the cycles stay within a few MB
-    assert max(later) - later[0] < 25, later
+if __name__ == "__main__":  # the closed-sessions measurement, in a process of its own
+    print(json.dumps(_measure_closed_sessions(release="--without-release" not in sys.argv)))
