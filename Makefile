@@ -32,16 +32,16 @@ serve: setup
 
 # two xdist workers (CI has two cores); tests/conftest.py warms the shared kernel cache once first and
 # groups tests (a module, a session fixture, the browser tests) onto one worker each: --dist loadgroup;
-# the 15 slowest tests are listed at the end (what to shorten next)
+# the 30 slowest tests are listed at the end (what to shorten next)
 # in file order (-p no:randomly); make test-shuffled runs the same suite in a random order, to
 # find tests that pass only after others (it prints the seed: SEED=N make test-shuffled repeats it)
 TEST_WORKERS ?= 2
 test: setup-dev
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=15 -p no:randomly
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=30 -p no:randomly
 
 SEED ?=
 test-shuffled: setup-dev
-	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=15 $(if $(SEED),--randomly-seed=$(SEED))
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadgroup --durations=30 $(if $(SEED),--randomly-seed=$(SEED))
 
 # the property tests (hypothesis, schemathesis) with new random examples: make test draws the same
 # ones on every run (tests/conftest.py), so that a green suite stays green; this looks further
