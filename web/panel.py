@@ -7,6 +7,7 @@ Plot handles are keyed ``(view kind, plot key)``; a trajectory's curves are sent
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Callable
@@ -206,10 +207,13 @@ class MatricesPanel:
     """The derived matrices of the shown model, drawn in the background (:mod:`web.matrices`).
 
     ``lock`` is the session's lock and ``alive()`` says whether its browser is still there:
-    a panel finished after the browser left is not sent."""
+    a panel finished after the browser left is not sent; ``racing_a_leave()`` is the scope of the
+    writes of one that finishes as it leaves (web.session.racing_a_leave: the browser can go
+    between the check and the last image, and viser's warning about those dropped messages went
+    to the server's log)."""
 
-    def __init__(self, gui, lock, alive: Callable[[], bool]):
-        self.lock, self.alive = lock, alive
+    def __init__(self, gui, lock, alive: Callable[[], bool], racing_a_leave=contextlib.nullcontext):
+        self.lock, self.alive, self.racing_a_leave = lock, alive, racing_a_leave
         self.key: tuple[str, str] | None = None
         self.intro = gui.add_markdown("(computed in the background …)")
         blank = np.full((2, 2, 4), 255, np.uint8)
@@ -236,7 +240,7 @@ class MatricesPanel:
             panel = mx.panel(system, variant)
         except Exception as e:  # a teaching aid must never take the session down
             panel = e
-        with self.lock:  # not while the session closes
+        with self.lock, self.racing_a_leave():  # not while the session closes; it may leave while this is sent
             if self.key != (system, variant) or not self.alive():
                 return
             if isinstance(panel, Exception):

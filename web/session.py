@@ -140,7 +140,7 @@ class MechanismApp:
             self.plot_handles = self.plots.handles
 
         with gui.add_folder("Derived matrices", expand_by_default=False):
-            self.matrices = MatricesPanel(gui, self.lock, self.alive)
+            self.matrices = MatricesPanel(gui, self.lock, self.alive, lambda: racing_a_leave(self.client))
 
         # wiring: every simulation input re-simulates; playback controls do not
         self.scene_choice.on_update(lambda _: self._on_scene())
