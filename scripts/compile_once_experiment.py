@@ -29,24 +29,16 @@ import tempfile
 from pathlib import Path
 
 SOURCE = Path(__file__).resolve().parents[1] / "nmkane_core" / "kernel" / "source" / "paper.py"
+LOOPS = SOURCE.with_name("loops.py")
 DIMS = ("N", "M", "MNH", "MH", "PI", "OJ", "OB", "OPHIN", "OPSID", "OPSI", "OQ", "OP", "OQD", "OR", "OW", "OMR")
 DIMS += ("OY", "OUI", "ORC")
 HEAD = 'import math\nimport numpy as np\nfrom numba import njit, types\nFM = {"contract"}\nBAND_MIN = 8\n'
 JIT = '@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")\n'
-LOOP = """def km(t0, h, steps, x, p, G, G1, G2, TA, TC, TB, K, xs, w):
-    S = TC.shape[0]
-    n2 = 2 * N
+LOOP_HEAD = """def km(t0, h, steps, x, p, G, G1, G2, TA, TC, TB, K, xs, w):
     t = t0
     for s in range(steps):
-        for i in range(S):
-            for j in range(n2):
-                xs[j] = x[j]
-            for l in range(i):
-                ha = h * TA[i, l]
-                if ha != 0.0:
-                    for j in range(n2):
-                        xs[j] += ha * K[l, j]
-            rhs(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)
+"""
+LOOP_TAIL = """            rhs(t + TC[i] * h, xs, p, G, G1, G2, K, i, w)
             if w[ORC] <= 1e-12 or w[ORC + 1] <= 1e-12:
                 return -1
         for j in range(n2):
@@ -62,9 +54,8 @@ import json, sys, time
 t0 = time.perf_counter()
 import numpy as np
 build, steps = sys.argv[1], int(sys.argv[2])
-TA = np.zeros((5, 5)); TA[1, 0] = 1/3; TA[2, 0] = TA[2, 1] = 1/6; TA[3, 0] = 1/8; TA[3, 2] = 3/8
-TA[4, 0] = 1/2; TA[4, 2] = -3/2; TA[4, 3] = 2
-TC = np.array([0, 1/3, 1/3, 1/2, 1.0]); TB = np.array([1/6, 0, 0, 2/3, 1/6])
+from nmkane_core.integrate.methods import KUTTA_MERSON as KM
+TA, TB, TC = KM.A, KM.b, KM.c
 x0 = np.array([0.1, 0.2, 0.0, 0.0, -0.3, 1.0, 0.5, 0.2, 0.3, 0.1])
 p = np.array([0.5, 0.1, 0.6, 1.0, 2.0, 0.3, 9.81, 0.0])
 G, G1, G2 = np.zeros((2, 2)), np.zeros((1, 1)), np.zeros((1, 1))
@@ -103,6 +94,14 @@ def _paper_parts() -> tuple[str, str, str]:
     return function("lu_solve_flat"), rhs, function("_reduced_solve")
 
 
+def _loop() -> str:
+    """A fixed-step loop around the stage states of loops.py's ``_stages`` (their lines, not a copy)."""
+    src = LOOPS.read_text()
+    stages = src[src.index("def _stages(") :]
+    lines = stages[stages.index("    S = TC.shape[0]") : stages.index("        total = 0.0")]
+    return LOOP_HEAD + "".join("    " + line + "\n" for line in lines.splitlines()) + LOOP_TAIL
+
+
 def _at_run_time(src: str, name: str, extra: str) -> str:
     """A function of the generic code with ``d`` (the dimensions) and ``perm`` as its first arguments."""
     head, rest = src.split("\n", 1)
@@ -119,7 +118,7 @@ def write_builds(folder: Path, module_file: str) -> None:
     defs = "".join(f"{k} = {v}\n" for k, v in consts.items())
     lu, rhs, reduced = _paper_parts()
     (folder / "build_per_model.py").write_text(
-        HEAD + defs + "PERM = np.arange(N)\n" + terms + "".join("\n" + JIT + f for f in (lu, rhs, reduced, LOOP))
+        HEAD + defs + "PERM = np.arange(N)\n" + terms + "".join("\n" + JIT + f for f in (lu, rhs, reduced, _loop()))
     )
     signature = "types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1])"
     arrays = "A1 = types.float64[::1]\nA2 = types.float64[:, ::1]\nI1 = types.int64[::1]\n"
@@ -131,7 +130,7 @@ def write_builds(folder: Path, module_file: str) -> None:
     once = _at_run_time(rhs, "rhs", "terms, ").replace(
         "_reduced_solve(w, K, row)", "_reduced_solve(d, perm, w, K, row)"
     )
-    loop = _at_run_time(LOOP, "km", "terms, ").replace("rhs(t + TC[i]", "rhs(d, perm, terms, t + TC[i]")
+    loop = _at_run_time(_loop(), "km", "terms, ").replace("rhs(t + TC[i]", "rhs(d, perm, terms, t + TC[i]")
     body = HEAD + f"FT = types.FunctionType({signature})\n" + arrays + JIT + lu + JIT
     body += _at_run_time(reduced, "_reduced_solve", "")
     body += f"@njit({rhs_sig}, " + typed + once + f"@njit({loop_sig}, " + typed + loop

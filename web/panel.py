@@ -7,10 +7,10 @@ Plot handles are keyed ``(view kind, plot key)``; a trajectory's curves are sent
 
 from __future__ import annotations
 
-import contextlib
 import threading
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 
 import numpy as np
 from viser import uplot
@@ -212,7 +212,7 @@ class MatricesPanel:
     between the check and the last image, and viser's warning about those dropped messages went
     to the server's log)."""
 
-    def __init__(self, gui, lock, alive: Callable[[], bool], racing_a_leave=contextlib.nullcontext):
+    def __init__(self, gui, lock, alive: Callable[[], bool], racing_a_leave: Callable[[], AbstractContextManager]):
         self.lock, self.alive, self.racing_a_leave = lock, alive, racing_a_leave
         self.key: tuple[str, str] | None = None
         self.intro = gui.add_markdown("(computed in the background …)")
