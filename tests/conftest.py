@@ -90,6 +90,50 @@ def pytest_runtest_call(item):
             f.write(f"{listener.duration:.2f}\t{item.nodeid}\n")
 
 
+# NMKANE_TEST_CPU=FILE: each test's wall seconds and CPU seconds (setup, call and teardown) appended
+# to FILE as "wall<TAB>cpu<TAB>test id": the test's process (its threads included), the children it
+# waited for, and what its live descendants (a browser, a server) used meanwhile; what to shorten.
+_CPU = os.environ.get("NMKANE_TEST_CPU")
+
+
+def _cpu_so_far() -> float:
+    import resource
+
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    waited = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + waited.ru_utime + waited.ru_stime + _live_descendants_cpu()
+
+
+def _live_descendants_cpu() -> float:
+    parent_of, ticks = {}, {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:  # it ended meanwhile
+            continue
+        pid = int(stat.parent.name)
+        parent_of[pid], ticks[pid] = int(fields[1]), int(fields[11]) + int(fields[12])
+    mine, total = {os.getpid()}, 0
+    for pid in sorted(parent_of):  # parents have lower pids, nearly always: enough for a measurement
+        if parent_of[pid] in mine:
+            mine.add(pid)
+            total += ticks[pid]
+    return total / os.sysconf("SC_CLK_TCK")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    if not _CPU:
+        yield
+        return
+    import time
+
+    wall, cpu = time.perf_counter(), _cpu_so_far()
+    yield
+    with open(_CPU, "a") as f:
+        f.write(f"{time.perf_counter() - wall:.2f}\t{_cpu_so_far() - cpu:.2f}\t{item.nodeid}\n")
+
+
 # -------------------------------------------------------------------------------- shared state
 
 
