@@ -44,6 +44,16 @@ GENERIC_FILES = (
     "source/robust_projection.py",
 )
 
+#: numba's ``fastmath`` flags of every generated function: none.  With ``{'contract'}`` LLVM
+#: fused multiplies and adds where the host CPU has FMA instructions, so one kernel rounded
+#: differently on different machines, and symmetric expressions (the cranks of a chain) rounded
+#: differently from each other: a round-off asymmetry that a singular position amplifies (the
+#: IFToMM A02 step-size test failed on one x86-64 machine at Δt = 2e-4, 1.2e-6 m/s off, and
+#: passed on another, 4.1e-7; docs/closed-loops.md §7.4).  Without fast-math flags LLVM neither
+#: contracts nor reassociates, whatever CPU it compiles for: results are the same bits on every
+#: x86-64 machine (tests/systems/test_closed_loops_compiled.py compiles for a generic CPU and
+#: compares), for ≈ 8 % more time per evaluation on the paper's small model
+FASTMATH: frozenset[str] = frozenset()
 #: expression trees larger than this (nodes, summed over one function) skip cse's pre-optimizations
 #: (factoring, which costs time that grows fast with the size; the functions of most built-in
 #: models are below it, the largest terms and those of large closed loops above)
@@ -267,9 +277,8 @@ def _head(kt, d: dict[str, int], derivation, off: dict[str, int], wsize: int, ro
         "",
         f"from nmkane_core.kernel.constants import {', '.join(constants.NAMES)}",
         "",
-        "# IEEE-safe fast-math subset: contraction (FMA), reassociation, reciprocals; NaN/Inf",
-        "# semantics are kept so that divergence is still detected",
-        "FM = {'contract'}",
+        "# no fast-math flags: plain IEEE arithmetic, the same on every x86-64 CPU (see FASTMATH)",
+        f"FM = {set(FASTMATH)!r}",
     ]
     head += [f"{k} = {v}" for k, v in d.items()]
     p = derivation.p

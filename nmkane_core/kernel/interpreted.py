@@ -6,7 +6,8 @@ milliseconds.  Yet the generated module is plain Python (numba's subset of it): 
 with ``njit`` as a plain-Python wrapper (:func:`interpreted`), the same statements run at once in the
 interpreter, about a thousand times slower than compiled — 0.03–0.1 s for the paper's
 mechanism over 1 s at Δt = 0.01 (500 evaluations of the right-hand side).  Results agree with
-the compiled code's to rounding (the compiled code may fuse a multiply and an add: ``FM``).
+the compiled code's to rounding (the compiled code fuses no multiply and add, ``codegen.FASTMATH``;
+the math functions here are numpy's, the compiled code's the C library's).
 The kernels are compiled with ``error_model="numpy"``: a square root of a negative number or a
 division by zero gives NaN or ±inf, which the loops turn into a status.  The interpreted copy
 keeps that: its ``math`` functions are numpy's (NaN, float64 results) and numpy's warnings are

@@ -34,8 +34,10 @@ __all__ = ["NativeBuildError", "c_function", "c_module", "compiler", "load", "nu
 
 #: -O1: the functions are straight lines (no loops to vectorize); -O2 took half as long again to
 #: compile for no measurable gain.  No -ffast-math: NaN and ±inf must come through (the loops'
-#: finiteness checks turn them into a status), so only errno is dropped.
-FLAGS = ("-O1", "-fPIC", "-shared", "-fno-math-errno")
+#: finiteness checks turn them into a status), so only errno is dropped.  -ffp-contract=off: no
+#: fused multiply-add where the target has one (gcc's default in GNU C fuses): the same bits on
+#: every machine, as the numba code (codegen.FASTMATH)
+FLAGS = ("-O1", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off")
 #: the C type of each argument kind of the generated functions
 _C_ARGS = {"t": "const double t", "x": "const double *x", "p": "const double *p"}
 
