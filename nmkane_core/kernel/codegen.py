@@ -46,13 +46,13 @@ GENERIC_FILES = (
 
 #: numba's ``fastmath`` flags of every generated function: none.  With ``{'contract'}`` LLVM
 #: fused multiplies and adds where the host CPU has FMA instructions, so one kernel rounded
-#: differently on different machines, and symmetric expressions (the cranks of a chain) rounded
-#: differently from each other: a round-off asymmetry that a singular position amplifies (the
-#: IFToMM A02 step-size test failed on one x86-64 machine at Δt = 2e-4, 1.2e-6 m/s off, and
-#: passed on another, 4.1e-7; docs/closed-loops.md §7.4).  Without fast-math flags LLVM neither
-#: contracts nor reassociates, whatever CPU it compiles for: results are the same bits on every
-#: x86-64 machine (tests/systems/test_closed_loops_compiled.py compiles for a generic CPU and
-#: compares), for ≈ 8 % more time per evaluation on the paper's small model
+#: differently on different machines, and expressions equal in exact arithmetic (the links of a
+#: symmetric chain) rounded differently from each other: a round-off asymmetry that a singular
+#: position amplifies (a closed-loop step-size test failed on one x86-64 machine, 1.2e-6 m/s off,
+#: and passed on another, 4.1e-7; docs/closed-loops.md §7.4).  Without fast-math flags LLVM
+#: neither contracts nor reassociates, whatever CPU it compiles for: results are the same bits on
+#: every x86-64 machine (tests/systems/test_closed_loops_compiled.py compiles for a generic CPU
+#: and compares), for ≈ 8 % more time per evaluation on the paper's small model
 FASTMATH: frozenset[str] = frozenset()
 #: expression trees larger than this (nodes, summed over one function) skip cse's pre-optimizations
 #: (factoring, which costs time that grows fast with the size; the functions of most built-in
