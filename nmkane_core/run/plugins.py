@@ -10,8 +10,9 @@ Three ways in, all loaded by the same function:
 
 A systems file is ordinary Python that calls :func:`nmkane_core.register`: it runs with the
 rights of the process that loads it (the service's, for ``nmkane serve``) — load only files
-you trust.  A file that fails to import or to register is reported in one line naming the
-file and the error, and the others load all the same.
+you trust.  A file that fails to import or to register — any exception, or ``sys.exit()``
+while it loads — is reported in one line naming the file and the error, and the others load
+all the same (``--systems``: the command's error, exit code 2).
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ class PluginError:
 
 
 def _one_line(e: BaseException) -> str:
+    if isinstance(e, SystemExit):  # sys.exit(3), exit(): would end the whole command, silently
+        return f"SystemExit: it called sys.exit({e.code!r}) while loading"
     text = " ".join(str(e).split())
     return f"{type(e).__name__}: {text}" if text else type(e).__name__
 
@@ -96,7 +99,7 @@ def load_systems(specs, *, strict: bool = False) -> list[PluginError]:
                 continue
             try:
                 _LOADED[key] = _load_one(str(spec))
-            except Exception as e:
+            except (Exception, SystemExit) as e:  # not KeyboardInterrupt: Ctrl-C still stops
                 err = PluginError(str(spec), _one_line(e))
                 if strict:
                     raise InputError(
@@ -123,7 +126,7 @@ def _from_entry_points() -> list[PluginError]:
             obj = ep.load()
             if callable(obj):
                 obj()
-        except Exception as e:
+        except (Exception, SystemExit) as e:
             errors.append(PluginError(f"entry point {ep.name} ({ep.value})", _one_line(e)))
     return errors
 

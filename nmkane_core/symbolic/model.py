@@ -18,10 +18,14 @@ Two ways to give the holonomic equations:
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping, Sequence
+from collections import Counter
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import sympy as sp
+from sympy.core.function import AppliedUndef
+
+from ..errors import InputError
 
 __all__ = ["MechanicalModel", "plain_symbols"]
 
@@ -55,7 +59,10 @@ class MechanicalModel:
     """A constrained system: kinematics, holonomic equations, constraints, partition.
 
     Every argument is keyword-only; all expressions are sympy expressions in ``q``, ``u``,
-    ``params`` and ``t`` (nothing else may appear in them).
+    ``params`` and ``t`` (nothing else may appear in them: construction refuses any other
+    symbol, a function of time such as a ``dynamicsymbol`` and a derivative, naming the
+    field and the symbol; the symbols of ``q``, ``u``, ``params`` and ``t`` are all distinct,
+    by name too).
 
     Parameters
     ----------
@@ -114,8 +121,9 @@ class MechanicalModel:
 
     Raises
     ------
-    ValueError
-        Naming the field, when the shapes or symbols do not fit.
+    InputError
+        Naming the field, the value and what is allowed, when the shapes or symbols do not
+        fit (a ``ValueError``).
     """
 
     name: str = ""
@@ -156,16 +164,20 @@ class MechanicalModel:
 
     # ------------------------------------------------------------------ checks
     def validate(self) -> None:
-        """Check shapes, the partition and the symbols of every expression (run on creation).
+        """Check the symbols, shapes, partition and the symbols of every expression (run on creation).
 
         Raises
         ------
-        ValueError
-            Naming the model and what does not fit.
+        InputError
+            Naming the model's field (``q``, ``P[1]``, ``energy``, ``nonholonomic['speed']``),
+            the offending value and what is allowed.
         """
+        self._check_symbols()
         n = len(self.q)
         if len(self.u) != n:
-            raise ValueError(f"model {self.name!r}: {n} coordinates but {len(self.u)} speeds")
+            raise InputError(
+                self._where("u"), self._names(self.u), f"one speed per coordinate ({n})", f"{len(self.u)} speeds"
+            )
         for label, mat, shape in (
             ("C", self.C, (n, n)),
             ("D", self.D, (n, 1)),
@@ -173,40 +185,141 @@ class MechanicalModel:
             ("P", self.P, (n, 1)),
         ):
             if mat.shape != shape:
-                raise ValueError(f"model {self.name!r}: {label} has shape {mat.shape}, expected {shape}")
+                raise InputError(self._where(label), mat.shape, f"shape {shape}", "wrong shape")
         m = self.m
         p = len(self.u_independent)
         # p = 0: the library picks the partition; p + m > n: redundant equations (the rank,
         # n − p, is checked numerically at the default state: see docs/closed-loops.md)
         if m and p and (p >= n or p + m < n):
-            raise ValueError(
-                f"model {self.name!r}: {m} constraints and {p} independent speeds for {n} speeds: "
-                f"u_I must leave at least one dependent speed and at most m = {m} (n − p ≤ m; more "
-                "constraints than dependent speeds means redundant ones), or be left out"
+            raise InputError(
+                self._where("u_independent"),
+                self._names(self.u_independent),
+                f"at least one dependent speed and at most m = {m} (n − p ≤ m; more constraints than "
+                "dependent speeds means redundant ones), or u_independent left out",
+                f"{m} constraints and {p} independent speeds for {n} speeds",
             )
-        if len(set(self.u_independent)) != p:
-            raise ValueError(f"model {self.name!r}: u_independent names a speed twice")
-        unknown = [s for s in self.u_independent if s not in self.u]
-        if unknown:
-            raise ValueError(f"model {self.name!r}: u_independent {unknown} are not speeds of the model")
-        allowed = set(self.q) | set(self.params) | {self.t}
-        for name, psi in self.holonomic.items():
-            extra = sp.sympify(psi).free_symbols - allowed
-            if extra:
-                raise ValueError(
-                    f"model {self.name!r}: holonomic constraint {name!r} depends on "
-                    f"{sorted(map(str, extra))}; ψ may depend on q, t and parameters only"
-                )
-        allowed |= set(self.u)
-        for name, phi in self.nonholonomic.items():
-            extra = sp.sympify(phi).free_symbols - allowed
-            if extra:
-                raise ValueError(
-                    f"model {self.name!r}: constraint {name!r} has unknown symbols {sorted(map(str, extra))}"
+        for label, syms, among, what in (
+            ("u_independent", self.u_independent, self.u, "speeds"),
+            ("q_dependent", self.q_dependent, self.q, "coordinates"),
+        ):
+            names = self._names(syms)
+            if len(set(names)) != len(names):
+                twice = sorted({s for s in names if names.count(s) > 1})
+                raise InputError(self._where(label), names, f"{what} of the model, each once", f"{twice} repeated")
+            unknown = [s for s in syms if s not in among]
+            if unknown:
+                raise InputError(
+                    self._where(label),
+                    self._names(unknown),
+                    f"{what} of the model: {', '.join(self._names(among))}",
+                    f"not {what} of the model",
                 )
         dup = set(self.nonholonomic) & set(self.holonomic)
         if dup:
-            raise ValueError(f"model {self.name!r}: constraint names used twice: {sorted(dup)}")
+            raise InputError(
+                self._where("holonomic"), sorted(dup), "names not used by a nonholonomic constraint", "names used twice"
+            )
+        self._check_expressions()
+
+    def _where(self, label: str) -> str:
+        """The field path of an error: ``model 'nonlinear': P[1]`` (``model: P[1]`` unnamed)."""
+        return f"model {self.name!r}: {label}" if self.name else f"model: {label}"
+
+    @staticmethod
+    def _names(syms: Iterable) -> list[str]:
+        return [str(s) for s in syms]
+
+    def _check_symbols(self) -> None:
+        """q, u and params are sympy Symbols, t a Symbol, and every name appears once among them."""
+        hint = "plain sympy symbols (plain_symbols(...)); a model of dynamicsymbols: MechanicalModel.from_mechanics"
+        for label, syms in (("q", self.q), ("u", self.u), ("params", self.params), ("t", (self.t,))):
+            for s in syms:
+                if not isinstance(s, sp.Symbol):
+                    raise InputError(self._where(label), str(s), hint, "not a symbol")
+        owner: dict[str, str] = {}
+        role = {"q": "a coordinate", "u": "a speed", "params": "a parameter", "t": "the time symbol"}
+        for label, syms in (("q", self.q), ("u", self.u), ("params", self.params), ("t", (self.t,))):
+            names = self._names(syms)
+            counts = Counter(names)
+            for s in syms:
+                first = owner.setdefault(s.name, label)
+                if first == label and counts[s.name] == 1:
+                    continue
+                if first == label:
+                    why = f"{s.name} appears {counts[s.name]} times in {label}"
+                else:
+                    why = f"{s.name} is {role[label]} and already {role[first]} ({first})"
+                value = names if label != "t" else s.name
+                raise InputError(
+                    self._where(label),
+                    value,
+                    "distinct symbols: each coordinate, speed and parameter named once, none of them "
+                    f"named like the time symbol {self.t}",
+                    why,
+                )
+
+    def _expressions(self) -> Iterator[tuple[str, sp.Expr, bool]]:
+        """Every expression of the model: (its field, itself, whether speeds may appear in it)."""
+        for label, mat in (("C", self.C), ("D", self.D), ("Q", self.Q), ("P", self.P)):
+            rows, cols = mat.shape
+            for i in range(rows):
+                for j in range(cols):
+                    yield (f"{label}[{i}]" if cols == 1 else f"{label}[{i}, {j}]"), mat[i, j], True
+        for name, e in self.nonholonomic.items():
+            yield f"nonholonomic[{name!r}]", e, True
+        for name, e in self.holonomic.items():
+            yield f"holonomic[{name!r}]", e, False  # ψ(q, t)
+        if self.energy is not None:
+            yield "energy", self.energy, True
+        for name, e in self.outputs.items():
+            yield f"outputs[{name!r}]", e, True
+        for name, e in self.monitors.items():
+            yield f"monitors[{name!r}]", e, True
+
+    def _check_expressions(self) -> None:
+        """Every expression uses q, u (not in ψ), params and t only: no other symbol, no function
+        of time (a ``dynamicsymbol`` left in) and no derivative — the generated code knows
+        nothing else (another name would fail there with a ``NameError``, at the first run)."""
+        q, params = ", ".join(self._names(self.q)), ", ".join(self._names(self.params)) or "none"
+        speeds = f"the speeds ({', '.join(self._names(self.u))}), "
+        by_name = {s.name: s for s in (*self.q, *self.u, *self.params, self.t)}
+        allowed_q = set(self.q) | set(self.params) | {self.t}
+        allowed_qu = allowed_q | set(self.u)
+        for label, expr, with_u in self._expressions():
+            try:
+                e = sp.sympify(expr)
+            except (sp.SympifyError, TypeError):
+                raise InputError(self._where(label), expr, "a sympy expression", "not an expression") from None
+            if not isinstance(e, sp.Basic):
+                raise InputError(self._where(label), expr, "a sympy expression", "not an expression")
+            allowed = (
+                f"expressions of the coordinates ({q}), {speeds if with_u else ''}the time {self.t} and the "
+                f"parameters ({params}); a symbol that stands for a number belongs in params"
+            )
+            funcs = sorted(map(str, e.atoms(AppliedUndef, sp.Derivative)))
+            if funcs:
+                raise InputError(
+                    self._where(label),
+                    funcs,
+                    allowed + " (a model of dynamicsymbols: MechanicalModel.from_mechanics converts them)",
+                    "a function of time or a derivative, which the generated code cannot evaluate",
+                )
+            extra = e.free_symbols - (allowed_qu if with_u else allowed_q)
+            if not extra:
+                continue
+            names = sorted(s.name for s in extra)
+            in_psi = sorted(s.name for s in extra & set(self.u))
+            unknown = sorted(s.name for s in extra - set(self.u))
+            whys = [f"ψ(q, t) may not depend on the speeds {', '.join(in_psi)}"] if in_psi else []
+            if unknown:
+                whys.append(f"unknown symbol{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}")
+            twins = [s for s in unknown if s in by_name]
+            if twins:
+                whys.append(
+                    f"{', '.join(twins)}: named like a symbol of the model but with other assumptions "
+                    "(make every symbol with plain_symbols, or with the same assumptions)"
+                )
+            raise InputError(self._where(label), names, allowed, "; ".join(whys))
 
     # ------------------------------------------------------------- properties
     @property
