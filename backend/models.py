@@ -61,6 +61,8 @@ class Catalog(BaseModel):
     )
     integrators: dict[str, str] = Field(description="name: description")
     projections: list[str]
-    limits: dict[str, float] = Field(description="the library's limits")
-    service_limits: dict[str, float] = Field(description="this service's limits (see service_limit_descriptions)")
+    limits: dict[str, int | float] = Field(description="the library's limits (counts are integers)")
+    service_limits: dict[str, int | float] = Field(
+        description="this service's limits (see service_limit_descriptions; counts are integers)"
+    )
     service_limit_descriptions: dict[str, str]

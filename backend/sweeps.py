@@ -38,7 +38,7 @@ from nmkane_core.run.registry import system_names
 from nmkane_core.sweep.executors import _Executor, run_batch
 from nmkane_core.sweep.output import columns as output_columns
 from nmkane_core.sweep.runner import constraint_columns, run_sweep
-from nmkane_core.sweep.spec import SweepSpec, sweep_spec
+from nmkane_core.sweep.spec import MAX_POINTS, SEED_MAX, SweepSpec, sweep_spec
 
 from .config import Settings
 from .deps import AppSettings
@@ -85,8 +85,10 @@ class SweepRequest(BaseModel):
     )
     log_grid: list[str] = Field(default_factory=list, max_length=8, description="NAME=START:STOP:NUM, log-spaced")
     sample: list[str] = Field(default_factory=list, max_length=8, description="NAME=LOW:HIGH (Latin hypercube)")
-    samples: int | None = Field(None, ge=1, description="Latin-hypercube points")
-    seed: int = Field(0, description="Latin-hypercube seed")
+    samples: int | None = Field(
+        None, ge=1, le=MAX_POINTS, description="Latin-hypercube points (and at most the service's max_sweep_runs)"
+    )
+    seed: int = Field(0, ge=0, le=SEED_MAX, description="Latin-hypercube seed, an integer in [0, 2³² − 1]")
 
 
 class SweepCreated(BaseModel):
@@ -201,7 +203,7 @@ async def get_sweeps(request: Request) -> SweepManager:
 
 Sweeps = Annotated[SweepManager, Depends(get_sweeps)]
 _LOCK = threading.Lock()
-_FIELDS = {"--grid": "grid", "--log-grid": "log_grid", "--sample": "sample", "--samples": "samples"}
+_FIELDS = {"--grid": "grid", "--log-grid": "log_grid", "--sample": "sample", "--samples": "samples", "--seed": "seed"}
 
 
 def _unprocessable(e: InputError):
@@ -318,7 +320,7 @@ def get_sweep_csv(sweeps: Sweeps, sweep_id: str = SWEEP_ID):
 def get_sweep(
     sweeps: Sweeps,
     sweep_id: str = SWEEP_ID,
-    offset: int = Query(0, ge=0, description="rows to skip"),
+    offset: int = Query(0, ge=0, le=2**62, description="rows to skip"),
     limit: int = Query(1000, ge=1, le=10_000, description="rows to return"),
 ):
     """Status, progress (``done`` of ``total``) and the rows so far, in completion order."""

@@ -8,7 +8,9 @@ Exit code 0 when the run's status is ``ok``, 1 when it ended ``singular``, ``div
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+from pathlib import Path
 
 from ..errors import InputError
 from .argtypes import finite
@@ -59,10 +61,29 @@ def _add_arguments(run: argparse.ArgumentParser) -> None:
     run.add_argument("--plot-out", dest="plot_out", metavar="FILE.png", help="where --plot draws (<system>-plot.png)")
 
 
+def check_writable(field: str, path: str) -> None:
+    """Refuse, before any work, an output file that could not be written: in a folder that does
+    not exist or that this user may not write, the name of a folder, or a file not writable
+    (an :class:`InputError` naming ``field``, the path and why)."""
+    p = Path(path)
+    folder = p.parent  # Path("r.json").parent is Path("."), the working folder
+    if not folder.is_dir():
+        why = f"{folder} is not a folder" if folder.exists() else f"no folder {folder}"
+        raise InputError(field, path, "a file in an existing folder", why)
+    if p.is_dir():
+        raise InputError(field, path, "a file name", "a folder")
+    if not os.access(p if p.exists() else folder, os.W_OK):
+        raise InputError(field, path, "a file this user may write", f"{p if p.exists() else folder} is not writable")
+
+
 def _run(args: argparse.Namespace) -> int:
     if args.out and not args.out.endswith((".json", ".csv", ".npz")):
         raise InputError("out", args.out, "a file name ending in .json, .csv or .npz", "unknown format")
+    if args.out:
+        check_writable("out", args.out)
     check_plot_out(args.plot_out)
+    if args.plot:
+        check_writable("plot_out", plot_file(args.system, args.plot_out))
     for text in args.plot:
         split_plot(text)
     run = simulate_from_args(args)

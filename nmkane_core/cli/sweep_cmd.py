@@ -14,6 +14,7 @@ from ..errors import InputError
 from .argtypes import finite, positive_int
 from .command import Command
 from .common import load_plugged_systems
+from .run_cmd import check_writable
 from .run_options import add_run_options, settings_from_args
 
 
@@ -59,7 +60,12 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         help="a Latin-hypercube dimension (with --samples N)",
     )
     p.add_argument("--samples", type=positive_int, help="Latin-hypercube points")
-    p.add_argument("--seed", type=int, default=0, help="Latin-hypercube seed (default 0; resuming needs the same)")
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="Latin-hypercube seed, an integer in [0, 2**32 - 1] (default 0; resuming needs the same)",
+    )
     p.add_argument("--out", required=True, help="FILE.csv or FILE.parquet (pyarrow); an existing file is resumed")
     p.add_argument("--restart", action="store_true", help="start --out anew instead of resuming it")
     p.add_argument("--plot", metavar="FILE.png", help="draw --metric over the varied names (one: lines, two: heatmap)")
@@ -77,8 +83,11 @@ def _run(args: argparse.Namespace) -> int:
     from ..sweep.output import check_out
 
     check_out(args.out)
+    check_writable("out", args.out)
     if args.plot and not args.plot.endswith((".png", ".svg", ".pdf")):
         raise InputError("--plot", args.plot, "a file name ending in .png, .svg or .pdf", "unknown format")
+    if args.plot:
+        check_writable("plot", args.plot)
     spec = sweep_spec(args.grid, args.log_grid, args.sample, args.samples, args.seed)
     if args.plot and len(spec.names) not in (1, 2):
         raise InputError(

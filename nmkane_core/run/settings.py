@@ -68,7 +68,19 @@ def _input_error(err) -> InputError:
         else:
             reason = "not an integer" if err["type"].startswith("int") else "not a number"
         return InputError(field, value, allowed(name), reason)
-    return InputError(field, value, err["msg"].replace("Input should be", "a value"))
+    return InputError(field, value, _allowed_words(err["msg"]))
+
+
+def _allowed_words(msg: str) -> str:
+    """pydantic's "Input should be ..." as what is allowed: ``a finite number``, ``an integer``
+    (from "a valid integer"), ``a value greater than 0``, ``'rk4' or 'dop853'``."""
+    rest = msg.removeprefix("Input should be ")
+    if rest == msg:
+        return msg
+    if rest.startswith("a valid "):
+        noun = rest.removeprefix("a valid ")
+        rest = ("an " if noun[:1] in "aeiou" else "a ") + noun
+    return rest if rest.startswith(("a ", "an ", "'")) else f"a value {rest}"
 
 
 def raise_all(errors: list[InputError]) -> None:

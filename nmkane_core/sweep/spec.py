@@ -12,6 +12,11 @@ value).  Values come from
 Grids combine as a Cartesian product; samples are drawn jointly (one hypercube) and, if
 grids are given too, every sample point is combined with every grid point.  Every error is
 an [`InputError`][nmkane_core.InputError] naming the option, the text and what is allowed.
+
+A sweep's size is counted from its text (NUM, a list's length, ``samples``) and checked
+against ``max_points`` before any value is made: ``gamma1=0:1:10000000`` over a limit of
+10,000 is refused at once, not after building ten million values.  A sample's ``seed`` is an
+integer in [0, `SEED_MAX`] (2³² − 1).
 """
 
 from __future__ import annotations
@@ -27,6 +32,7 @@ from ..errors import InputError
 
 __all__ = [
     "MAX_POINTS",
+    "SEED_MAX",
     "SETTINGS_FIELDS",
     "Axis",
     "SweepSpec",
@@ -60,6 +66,9 @@ SETTINGS_FIELDS = (
 _WORD_FIELDS = ("integrator", "model", "formulation", "projection", "projection_weight", "projection_jacobian")
 _INT_FIELDS = ("projection_iterations", "every")
 MAX_POINTS = 10_000_000
+#: The largest Latin-hypercube seed (seeds are integers in [0, SEED_MAX]; numpy takes any
+#: non-negative integer, JSON and the service's store only 64-bit ones).
+SEED_MAX = 2**32 - 1
 FORMS = {
     "grid": "NAME=START:STOP:NUM or NAME=V1,V2,...",
     "log-grid": "NAME=START:STOP:NUM (START, STOP of one sign, not 0)",
@@ -149,8 +158,22 @@ def _count(text: str, option: str, whole: str) -> int:
     return n
 
 
-def parse_axis(text: str, log: bool = False) -> Axis:
-    """``NAME=START:STOP:NUM`` (linear, or log with ``log``) or ``NAME=V1,V2,...`` (linear only)."""
+@dataclass(frozen=True)
+class _AxisText:
+    """An axis as written: checked and counted, its values not made yet (`_values` makes them)."""
+
+    name: str
+    option: str
+    text: str
+    count: int
+    ends: tuple[float, float] | None = None  # START, STOP of NAME=START:STOP:NUM
+    log: bool = False
+    items: tuple = ()  # the values of NAME=V1,V2,...
+
+
+def _read_axis(text: str, log: bool = False) -> _AxisText:
+    """Check the form of ``--grid``/``--log-grid`` ``text`` and count its values (NUM, or the
+    list's length) without making them."""
     option = "--log-grid" if log else "--grid"
     name, sep, rest = text.partition("=")
     if not sep or not rest.strip():
@@ -163,30 +186,52 @@ def parse_axis(text: str, log: bool = False) -> Axis:
             raise InputError(option, text, FORMS[option[2:]], f"{len(parts)} fields between ':'")
         start, stop = (_number(p, option, text, "") for p in parts[:2])
         num = _count(parts[2], option, text)
-        if log:
-            if start == 0 or stop == 0 or (start > 0) != (stop > 0):
-                raise InputError(option, text, FORMS["log-grid"], "START and STOP must be nonzero, of one sign")
+        if log and (start == 0 or stop == 0 or (start > 0) != (stop > 0)):
+            raise InputError(option, text, FORMS["log-grid"], "START and STOP must be nonzero, of one sign")
+        return _AxisText(name, option, text, num, ends=(start, stop), log=log)
+    if log:
+        raise InputError(option, text, FORMS["log-grid"], "a list is not a log grid; use --grid NAME=V1,V2,...")
+    items = [s.strip() for s in rest.split(",")]
+    if any(not s for s in items):
+        raise InputError(option, text, FORMS["grid"], "an empty list entry")
+    if name in _WORD_FIELDS:
+        return _AxisText(name, option, text, len(items), items=tuple(items))
+    return _AxisText(name, option, text, len(items), items=tuple(_number(s, option, text, name) for s in items))
+
+
+def _values(a: _AxisText) -> Axis:
+    """The axis of a counted text, its values made (``a.count`` of them)."""
+    values: tuple = a.items
+    if a.ends is not None:
+        start, stop = a.ends
+        if a.log:
             sign = 1.0 if start > 0 else -1.0
-            vals = sign * np.logspace(math.log10(abs(start)), math.log10(abs(stop)), num)
+            vals = sign * np.logspace(math.log10(abs(start)), math.log10(abs(stop)), a.count)
             vals[0], vals[-1] = start, stop  # the ends exactly as written
         else:
-            vals = np.linspace(start, stop, num)
-        values: tuple = tuple(float(v) for v in vals)
-        if name in _INT_FIELDS:
+            vals = np.linspace(start, stop, a.count)
+        values = tuple(float(v) for v in vals)
+        if a.name in _INT_FIELDS:
             values = tuple(round(v) for v in values)
-    elif log:
-        raise InputError(option, text, FORMS["log-grid"], "a list is not a log grid; use --grid NAME=V1,V2,...")
-    else:
-        items = [s.strip() for s in rest.split(",")]
-        if any(not s for s in items):
-            raise InputError(option, text, FORMS["grid"], "an empty list entry")
-        if name in _WORD_FIELDS:
-            values = tuple(items)
-        else:
-            values = tuple(_number(s, option, text, name) for s in items)
     if len(set(values)) != len(values):
-        raise InputError(option, text, "distinct values", "a value repeats")
-    return Axis(name, values)
+        raise InputError(a.option, a.text, "distinct values", "a value repeats")
+    return Axis(a.name, values)
+
+
+def _too_many(size: int, max_points: int, parts: list[str]) -> InputError:
+    # a product of many NUMs is written by its order of magnitude (str() of a huge int is refused)
+    runs = f"{size:,} runs" if size < 10**15 else f"about 10^{int(size.bit_length() * math.log10(2))} runs"
+    shown = parts if len(parts) <= 8 else [*parts[:8], f"… {len(parts) - 8} more"]
+    return InputError("--grid", runs, f"at most {max_points:,} runs per sweep", "too many: " + " × ".join(shown))
+
+
+def parse_axis(text: str, log: bool = False, max_points: int = MAX_POINTS) -> Axis:
+    """``NAME=START:STOP:NUM`` (linear, or log with ``log``) or ``NAME=V1,V2,...`` (linear only);
+    more than ``max_points`` values are refused before any is made."""
+    a = _read_axis(text, log)
+    if a.count > max_points:
+        raise _too_many(a.count, max_points, [f"{a.name} {a.count:,}"])
+    return _values(a)
 
 
 def parse_sample(text: str) -> tuple[str, tuple[float, float]]:
@@ -208,24 +253,35 @@ def parse_sample(text: str) -> tuple[str, tuple[float, float]]:
     return name, (lo, hi)
 
 
+def _check_seed(seed) -> None:
+    if seed is None:
+        return
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+        raise InputError("--seed", seed, f"an integer in [0, {SEED_MAX}]", "not an integer")
+    if not 0 <= seed <= SEED_MAX:
+        raise InputError("--seed", seed, f"an integer in [0, {SEED_MAX}]", "out of range")
+
+
 def sweep_spec(
     grid=(), log_grid=(), sample=(), samples: int | None = None, seed: int | None = None, max_points: int = MAX_POINTS
 ) -> SweepSpec:
-    """A `SweepSpec` from the texts of ``--grid``, ``--log-grid`` and ``--sample`` options."""
+    """A `SweepSpec` from the texts of ``--grid``, ``--log-grid`` and ``--sample`` options.
+
+    The number of runs (the product of the axes' NUMs and list lengths, times ``samples``) is
+    counted from the texts and refused over ``max_points`` before any value is made; ``seed``
+    is an integer in [0, `SEED_MAX`] (or None: a fresh sample each time)."""
+    texts = [_read_axis(t) for t in grid] + [_read_axis(t, log=True) for t in log_grid]
     spec = SweepSpec()
-    for text in grid:
-        spec.axes.append(parse_axis(text))
-    for text in log_grid:
-        spec.axes.append(parse_axis(text, log=True))
     for text in sample:
         name, rng = parse_sample(text)
         spec.sample[name] = rng
-    names = spec.names
+    names = [a.name for a in texts] + list(spec.sample)
     for n in names:
         if names.count(n) > 1:
             raise InputError("--grid", n, "each NAME varied once", f"{n} is varied twice")
     if not names:
         raise InputError("--grid", None, "at least one --grid, --log-grid or --sample NAME=...", "nothing varies")
+    _check_seed(seed)
     if spec.sample:
         if samples is None:
             raise InputError("--samples", None, "a positive integer with --sample", "missing")
@@ -234,8 +290,11 @@ def sweep_spec(
         spec.samples, spec.seed = samples, seed
     elif samples is not None:
         raise InputError("--samples", samples, "--samples only with --sample NAME=LOW:HIGH", "nothing to sample")
-    if len(spec) > max_points:
-        raise InputError("--grid", f"{len(spec):,} runs", f"at most {max_points:,} runs per sweep", "too many")
+    counts = [(a.name, a.count) for a in texts] + ([("samples", spec.samples)] if spec.sample else [])
+    size = math.prod(n for _, n in counts)  # exact: Python's integers do not overflow
+    if size > max_points:
+        raise _too_many(size, max_points, [f"{name} {n:,}" for name, n in counts])
+    spec.axes = [_values(a) for a in texts]  # only now, at most max_points values each
     return spec
 
 
