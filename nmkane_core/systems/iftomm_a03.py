@@ -105,8 +105,10 @@ REFERENCE_003 = (
 WHAT_TO_TRY = (
     "A 0.033 N·m motor drives a linkage of grams and centimetres: in 0.03 s the crank β turns "
     "two and a half times. The reported energy is the benchmark's balance T + V − τβ: its drift is "
-    "ΔU, zero in theory. Try larger steps (dt = 1e-4) and watch ΔU grow; set mom = 0 and nothing "
-    "moves but the spring; soften the spring (c0 = 100) and the squeezing slows down."
+    "ΔU, zero in theory, 2.5e-6 J at the page's step (dt = 1e-4). Try larger steps and watch ΔU grow "
+    "(1e-3 J at dt = 5e-4; at dt = 2e-3 the run blows up); set mom = 0 and nothing moves: the spring is "
+    "balanced at the start (nudge β by 0.01 rad and it alone turns the crank once round); soften the "
+    "spring (c0 = 100) and the squeezing slows down."
 )
 
 
