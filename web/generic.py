@@ -158,8 +158,10 @@ def _choosers(core, prefix: str, show: dict) -> list[Control]:
     integ = show.get("integrator", core.default_integrator)
     integ = integ if integ in INTEGRATORS else INTEGRATORS[0]
     out.append(Control(f"{prefix}integrator", "Integrator", "integrator", integ, kind="dropdown", options=INTEGRATORS))
+    proj = show.get("projection", core.default_projection)  # the system's own (A02 declares one)
+    proj = proj if proj in PRESETS else "none"
     out.append(
-        Control(f"{prefix}projection", "Projection", "projection", "none", kind="dropdown", options=tuple(PRESETS))
+        Control(f"{prefix}projection", "Projection", "projection", proj, kind="dropdown", options=tuple(PRESETS))
     )
     return out
 

@@ -22,7 +22,7 @@ import pytest
 
 from nmkane_core import simulate
 from nmkane_core.errors import InputError
-from nmkane_core.run.registry import get_system
+from nmkane_core.run.registry import get_system, system_names
 from nmkane_core.systems import iftomm_a01
 from web.controls import settings_from
 from web.generic import generic_controls
@@ -438,3 +438,12 @@ def test_iftomm_a05_a_faster_shaft_flings_the_balls_out_and_lifts_the_slider():
 def test_iftomm_a05_softer_springs_stretch():
     stiff, soft = run("iftomm-a05"), run("iftomm-a05", params={"k": 1e3})
     assert np.abs(_stretch(soft)).max() > 50 * np.abs(_stretch(stiff)).max()  # 8 mm against 0.06 mm
+
+
+def test_the_page_starts_with_each_systems_declared_projection():
+    """A02's paragraph speaks of its defaults' projection: the page's chooser starts at the
+    system's ``default_projection`` (it started at "none" whatever the system declared)."""
+    for name in system_names():
+        core = get_system(name)
+        chosen = {c.field: c.default for c in generic_controls(core, "p_")}.get("projection")
+        assert chosen == core.default_projection, name
