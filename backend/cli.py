@@ -98,6 +98,7 @@ def _add_store_arguments(p: argparse.ArgumentParser) -> None:
         help="delete the runs stored more than DAYS days ago",
     )
     sub.add_parser("info", help="runs stored, their size, and the store's cap")
+    sub.add_parser("check", help="read every page of the store: 'ok', or what is damaged and how to recover (exit 2)")
 
 
 def _store(args: argparse.Namespace) -> int:
@@ -112,7 +113,9 @@ def _store(args: argparse.Namespace) -> int:
         raise InputError(
             "db", args.db, "an existing run store (an SQLite file written by `nmkane serve`)", "no such file"
         )
-    store = RunStore(settings.database)
+    # a store that cannot be opened (a folder, a damaged or read-only file): one line naming the
+    # file and what to do, exit 2 (a StoreError is an NmkaneError); info and check only read
+    store = RunStore(settings.database, writable=args.action == "prune")
     try:
         if args.action == "info":
             cap = settings.store_cap
@@ -120,6 +123,10 @@ def _store(args: argparse.Namespace) -> int:
                 f"{settings.database}: {store.count():,} runs, {store.size / 1e6:,.1f} MB of rows "
                 f"(cap: {cap.max_runs:,} runs, {cap.max_bytes / 1e6:,.0f} MB; when full: {cap.policy})"
             )
+            return 0
+        if args.action == "check":
+            store.check()
+            print(f"{settings.database}: ok ({store.count():,} runs, every page read)")
             return 0
         if args.keep is not None and args.keep < 0:
             raise InputError("keep", args.keep, "an integer ≥ 0")
@@ -133,4 +140,6 @@ def _store(args: argparse.Namespace) -> int:
         store.close()
 
 
-STORE = Command("store", "manage the REST service's run store (prune old runs, info)", _add_store_arguments, _store)
+STORE = Command(
+    "store", "manage the REST service's run store (prune old runs, info, check)", _add_store_arguments, _store
+)

@@ -8,7 +8,8 @@
 
 Schema errors found by pydantic (types, NaN/Infinity, ranges, unknown fields), checks
 made by nmkane (``InputError``: unknown system or model, steps over the cap, an
-inconsistent initial state), oversize bodies, unknown ids and overload all answer this
+inconsistent initial state), oversize bodies, unknown ids, overload and a run store whose disk
+or file failed (507 for a full disk, 503 otherwise) all answer this
 way: ``loc`` is the path (FastAPI's convention, starting with ``body``, ``query`` or
 ``path``), ``field`` the same path as the CLI writes it, ``value`` what was given
 (JSON-safe, long values shortened), ``reason`` what is wrong with it, ``allowed`` what
@@ -32,7 +33,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from nmkane_core.errors import InconsistentStateError, InputError
 from nmkane_core.schema import RunSettings, allowed, field_range
 
-from .store import StoreFull
+from .store import StoreError, StoreFull
 
 __all__ = [
     "ErrorItem",
@@ -282,6 +283,14 @@ async def on_store_full(request: Request, exc: StoreFull) -> JSONResponse:
     )
 
 
+async def on_store_error(request: Request, exc: StoreError) -> JSONResponse:
+    """The run store's disk or file failed (:class:`~backend.store.StoreError`): 507 for a full
+    disk, 503 otherwise; the message names the file and what to do.  Logged in one line too:
+    whoever runs the service has to act."""
+    log.warning("%s %s: %s", request.method, request.url.path, exc)
+    return error_response(exc.status, [item(["store"], exc.kind, None, exc.reason, exc.remedy, msg=str(exc))])
+
+
 async def on_http_error(request: Request, exc: StarletteHTTPException) -> JSONResponse:
     """HTTP errors raised by FastAPI and starlette (413, 400, 404, 405, others) in the one shape."""
     headers = dict(exc.headers or {})
@@ -352,6 +361,7 @@ HANDLERS: dict[type[Exception], Any] = {
     RequestValidationError: on_validation_error,
     InputError: on_input_error,
     StoreFull: on_store_full,
+    StoreError: on_store_error,
     StarletteHTTPException: on_http_error,
     Exception: on_unexpected,
 }

@@ -50,6 +50,7 @@ from nmkane_core.access import allowed_host_names, is_loopback, new_token
 from .app import create_app
 from .config import Settings
 from .guard import read_deadline_protocol
+from .store import RunStore
 
 __all__ = ["serve", "AppProcess", "APP_GROUP", "WARM_JOIN_S"]
 
@@ -85,6 +86,14 @@ def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server
         )
     bound = server.servers[0].sockets[0].getsockname()[1] if server.servers else port
     return server, thread, bound
+
+
+def _check_store(settings: Settings) -> None:
+    """Open the run store read-write once before anything starts: one that cannot be (a folder
+    in its place, a damaged or read-only file) raises its :class:`~backend.store.StoreError`,
+    one line naming the file and what to do (``nmkane serve`` prints it and exits 2), instead
+    of failing inside the API's start with a traceback."""
+    RunStore(settings.database, settings.store_cap).close()
 
 
 def _stop_api(server: uvicorn.Server, thread: threading.Thread) -> None:
@@ -311,6 +320,7 @@ def serve(
     reason (the API stopped).
     """
     settings = _exposed(settings if settings is not None else Settings(), host, auth, allow_hosts)
+    _check_store(settings)
     options = dict(app_options or {})
     if max_sessions is not None:
         options["max_sessions"] = max_sessions

@@ -16,20 +16,63 @@ stored is touched — an acknowledged run is never deleted behind anyone's back;
 deletes the oldest runs, in the same transaction as the insert, until the new one fits.  Runs
 are deleted explicitly with :meth:`RunStore.delete` and :meth:`RunStore.prune`.  (SQLite
 reuses the pages of deleted rows; the file itself shrinks only with ``VACUUM``.)
+
+Faults of the file and the disk (:mod:`backend.store_disk`) become a :class:`StoreError` naming
+the file and what to do: one line in the CLI; from the service 507 for a full disk, 503 otherwise.
+A store that cannot be opened read-write is refused when it is opened (a write that changes
+nothing is tried then).  After an error SQLite may have rolled the transaction back itself; the
+store rolls back only one still open.  On a full disk a new run is refused before anything is
+written, and deleting still works: a delete does not overwrite the freed pages with zeros
+(``secure_delete=FAST``; Debian's SQLite zeroes them by default, so deleting a run wrote as much
+as the run), one that meets a full disk releases the store's reserve and tries again, and
+:meth:`RunStore.prune` deletes in transactions of a few hundred runs.  New runs reuse the pages
+of deleted ones.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import sqlite3
 import threading
 import time
 import zlib
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TypeVar
 
 import orjson
 import zstandard
 
-__all__ = ["POLICIES", "RunStore", "StoreCap", "StoreFull"]
+from .store_disk import (
+    RESERVE_BYTES,
+    DiskRoom,
+    StoreCorrupt,
+    StoreDiskFull,
+    StoreError,
+    StoreReadOnly,
+    StoreUnavailable,
+    cannot_open,
+    corrupt,
+    store_fault,
+)
+
+__all__ = [
+    "POLICIES",
+    "RESERVE_BYTES",
+    "RunStore",
+    "StoreCap",
+    "StoreFull",
+    "StoreError",
+    "StoreDiskFull",
+    "StoreReadOnly",
+    "StoreCorrupt",
+    "StoreUnavailable",
+    "store_fault",
+]
+
+log = logging.getLogger("nmkane.backend")
+_T = TypeVar("_T")
 
 #: what a full store does with a new run
 POLICIES = ("refuse", "evict-oldest")
@@ -59,6 +102,10 @@ class StoreCap:
 
 
 UNCAPPED = StoreCap(2**62, 2**62)
+
+_PRUNE_BATCH = 200  # runs deleted per transaction by prune (the log is reused between them)
+
+
 _ROW_BYTES = "length(settings) + length(summary) + length(document)"
 
 SCHEMA = """
@@ -74,31 +121,74 @@ CREATE TABLE IF NOT EXISTS runs (
 CREATE INDEX IF NOT EXISTS runs_created ON runs(created DESC);
 """
 
+#: a write that changes nothing: a read-only store refuses it (BEGIN IMMEDIATE alone it does not)
+_PROBE = "DELETE FROM runs WHERE 0"
+
 _ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
 _ZSTD_LEVEL = 1  # 570 kB of JSON -> 210 kB in ~1 ms (zlib level 1: 226 kB in ~6 ms)
 
 
 class RunStore:
-    """The run table of one SQLite file."""
+    """The run table of one SQLite file.
 
-    def __init__(self, path: Path, cap: StoreCap | None = None):
+    ``writable=False`` (reading only, e.g. ``nmkane store info``): no write is tried at
+    opening and no reserve is made; otherwise a store that cannot be written is refused."""
+
+    def __init__(self, path: Path, cap: StoreCap | None = None, *, writable: bool = True):
         self.path = Path(path)
         self.cap = cap if cap is not None else UNCAPPED
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        #: the fault of the last write, None after a write that succeeded (``/api/health``)
+        self.fault: StoreError | None = None
         self._write_lock = threading.Lock()
-        self._db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
-        mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
-        if mode.lower() != "wal":
-            raise RuntimeError(f"{self.path}: SQLite could not switch to WAL mode (got {mode!r})")
-        self._db.execute("PRAGMA synchronous=FULL")
-        self._db.executescript(SCHEMA)
         self._local = threading.local()
         self._readers: list[sqlite3.Connection] = []
         self._readers_lock = threading.Lock()
         self._closed = False
-        self._count, self._bytes = self._db.execute(
-            f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs"
-        ).fetchone()
+        self._disk = DiskRoom(self.path)
+        try:
+            self._db = self._open(writable)
+        except StoreDiskFull:  # no room even for SQLite's index of the log: what the reserve is for
+            if not self._disk.release_reserve():
+                raise
+            log.warning("%s: the disk is full; its reserve was released to open it", self.path)
+            self._db = self._open(writable)
+        self._disk.page = self._db.execute("PRAGMA page_size").fetchone()[0]
+        if writable:
+            self._disk.keep_reserve()
+
+    def _open(self, writable: bool) -> sqlite3.Connection:
+        """The writer connection, set up; one :class:`StoreError` line for whatever fails."""
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise cannot_open(self.path, f"its directory cannot be made ({e.strerror})") from e
+        db = None
+        try:
+            db = sqlite3.connect(self.path, check_same_thread=False, isolation_level=None, timeout=30)
+            mode = db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+            if mode.lower() != "wal":
+                raise StoreUnavailable(
+                    self.path, f"SQLite could not switch it to WAL mode (got {mode!r})", "put it on a local disk"
+                )
+            db.execute("PRAGMA synchronous=FULL")
+            db.execute("PRAGMA secure_delete=FAST")  # a delete writes a few pages, not the run in zeros
+            db.executescript(SCHEMA)
+            if writable:  # refused now rather than at the first run
+                db.execute("BEGIN IMMEDIATE")
+                try:
+                    db.execute(_PROBE)
+                finally:
+                    db.execute("ROLLBACK")
+            self._count, self._bytes = db.execute(
+                f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs"
+            ).fetchone()
+            return db
+        except (sqlite3.Error, StoreError) as e:
+            if db is not None:
+                db.close()
+            if isinstance(e, StoreError):
+                raise
+            raise (store_fault(e, self.path) or cannot_open(self.path, "the run store cannot be opened", str(e))) from e
 
     # -- the cap --------------------------------------------------------------------
     @property
@@ -175,24 +265,25 @@ class RunStore:
         created = time.time()
         row = (run_id, created, system, status, settings, summary, blob)
         need = len(settings) + len(summary) + len(blob)
+
+        def write() -> None:
+            self._refresh_totals()  # another process (`nmkane store prune`) may have deleted
+            self._make_room(need)
+            self._db.execute(
+                "INSERT INTO runs (id, created, system, status, settings, summary, document) "
+                "VALUES (?, ?, ?, ?, ?, ?, ?)",
+                row,
+            )
+
         with self._write_lock:
-            if self._closed:
-                raise RuntimeError("the run store is closed")
-            self._db.execute("BEGIN IMMEDIATE")
+            self._check_open()
             try:
-                self._refresh_totals()  # another process (`nmkane store prune`) may have deleted
-                self._make_room(need)
-                self._db.execute(
-                    "INSERT INTO runs (id, created, system, status, settings, summary, document) "
-                    "VALUES (?, ?, ?, ?, ?, ?, ?)",
-                    row,
-                )
-                self._db.execute("COMMIT")
-            except BaseException:
-                self._db.execute("ROLLBACK")
-                raise
+                self._disk.keep_reserve()
+                self._check_disk(need)
+                self._transaction(write)
             finally:
-                self._refresh_totals()
+                with contextlib.suppress(sqlite3.Error):
+                    self._refresh_totals()
         return created
 
     def _refresh_totals(self) -> None:
@@ -200,19 +291,93 @@ class RunStore:
             f"SELECT COUNT(*), COALESCE(SUM({_ROW_BYTES}), 0) FROM runs"
         ).fetchone()
 
+    def _check_open(self) -> None:
+        if self._closed:
+            raise RuntimeError("the run store is closed")
+
+    @contextlib.contextmanager
+    def _faults(self) -> Iterator[None]:
+        """SQLite errors of a known kind raised as their :class:`StoreError`."""
+        try:
+            yield
+        except sqlite3.Error as e:
+            fault = store_fault(e, self.path)
+            if fault is None:
+                raise
+            raise fault from e
+
+    def _transaction(self, work: Callable[[], _T]) -> _T:
+        """``work()`` in one write transaction (the caller holds the write lock).  On an error
+        the transaction is rolled back unless SQLite did so already; an SQLite error of a known
+        kind is raised as its :class:`StoreError` and kept in :attr:`fault`."""
+        db = self._db
+        try:
+            db.execute("BEGIN IMMEDIATE")
+            result = work()
+            db.execute("COMMIT")
+        except BaseException as e:
+            if db.in_transaction:  # after SQLITE_FULL, SQLite may have rolled back itself
+                try:
+                    db.execute("ROLLBACK")
+                except sqlite3.Error as again:
+                    log.warning("%s: rollback after %s failed: %s", self.path, e, again)
+            fault = store_fault(e, self.path) if isinstance(e, sqlite3.Error) else None
+            if fault is None:
+                raise
+            self.fault = fault
+            raise fault from e
+        self.fault = None
+        return result
+
+    def _check_disk(self, need: int) -> None:
+        """:class:`StoreDiskFull` (kept in :attr:`fault`) before anything is written, when the disk
+        cannot take a row of ``need`` bytes (:meth:`DiskRoom.check`)."""
+        try:
+            with self._faults():
+                self._disk.check(self._db, need)
+        except StoreDiskFull as e:
+            self.fault = e
+            raise
+
+    def check_writable(self) -> None:
+        """Raise the store's :attr:`fault` again if its last write failed for another reason than
+        a full disk and an empty write transaction still fails (``/api/health``)."""
+        if self.fault is None or isinstance(self.fault, StoreDiskFull):
+            return
+        with self._write_lock:
+            self._check_open()
+            self._transaction(lambda: self._db.execute(_PROBE))
+
     # -- deleting -------------------------------------------------------------------
+    def _freeing(self, work: Callable[[], int]) -> int:
+        """A delete (``work()`` returns how many rows).  On a full disk: copy the log into the
+        file (the next write starts it over in its own space), release the reserve and try once
+        more.  Near a full disk the log is copied after the delete too, ready for the next one."""
+        try:
+            gone = self._transaction(work)
+        except StoreDiskFull:
+            self._disk.checkpoint(self._db)
+            if self._disk.release_reserve():
+                log.warning("%s: the disk is full; its reserve was released for a delete", self.path)
+            gone = self._transaction(work)
+        self._disk.after_delete(self._db)
+        return gone
+
     def delete(self, run_id: str) -> bool:
         """Delete one run; False when there is none with this id."""
         with self._write_lock:
-            if self._closed:
-                raise RuntimeError("the run store is closed")
-            gone = self._db.execute("DELETE FROM runs WHERE id = ?", (run_id,)).rowcount
-            self._refresh_totals()
+            self._check_open()
+            try:
+                gone = self._freeing(lambda: self._db.execute("DELETE FROM runs WHERE id = ?", (run_id,)).rowcount)
+            finally:
+                with contextlib.suppress(sqlite3.Error):
+                    self._refresh_totals()
         return gone > 0
 
     def prune(self, keep: int | None = None, older_than_s: float | None = None) -> int:
         """Delete all but the newest ``keep`` runs, and/or the runs older than ``older_than_s``
-        seconds; returns how many were deleted."""
+        seconds; returns how many were deleted (in transactions of a few hundred runs, so that a
+        full disk needs room for one of them only)."""
         cond: list[str] = []
         args: list[float] = []
         if keep is not None:
@@ -224,30 +389,41 @@ class RunStore:
         if not cond:
             return 0
         with self._write_lock:
-            if self._closed:
-                raise RuntimeError("the run store is closed")
-            gone = self._db.execute("DELETE FROM runs WHERE " + " AND ".join(cond), args).rowcount
-            self._refresh_totals()
+            self._check_open()
+            with self._faults():
+                ids = [r[0] for r in self._db.execute("SELECT id FROM runs WHERE " + " AND ".join(cond), args)]
+            gone = 0
+            try:
+                for start in range(0, len(ids), _PRUNE_BATCH):
+                    gone += self._freeing(self._deleting(ids[start : start + _PRUNE_BATCH]))
+            finally:
+                with contextlib.suppress(sqlite3.Error):
+                    self._refresh_totals()
         return gone
+
+    def _deleting(self, ids: list[str]) -> Callable[[], int]:
+        return lambda: self._db.executemany("DELETE FROM runs WHERE id = ?", [(i,) for i in ids]).rowcount
 
     # -- reading --------------------------------------------------------------------
     def document(self, run_id: str) -> bytes | None:
         """The run result document (JSON bytes) as it was served, or None."""
-        row = self._reader().execute("SELECT document FROM runs WHERE id = ?", (run_id,)).fetchone()
+        with self._faults():
+            row = self._reader().execute("SELECT document FROM runs WHERE id = ?", (run_id,)).fetchone()
         return None if row is None else self._decode(row[0])
 
     def list(self, limit: int, offset: int, system: str | None = None, status: str | None = None) -> list[dict]:
         """Newest first: id, created, system, status, settings, summary."""
         where, args = self._where(system, status)
-        rows = (
-            self._reader()
-            .execute(
-                f"SELECT id, created, system, status, settings, summary FROM runs{where} "
-                "ORDER BY created DESC, rowid DESC LIMIT ? OFFSET ?",
-                (*args, limit, offset),
+        with self._faults():
+            rows = (
+                self._reader()
+                .execute(
+                    f"SELECT id, created, system, status, settings, summary FROM runs{where} "
+                    "ORDER BY created DESC, rowid DESC LIMIT ? OFFSET ?",
+                    (*args, limit, offset),
+                )
+                .fetchall()
             )
-            .fetchall()
-        )
         return [
             {
                 "id": r[0],
@@ -262,7 +438,16 @@ class RunStore:
 
     def count(self, system: str | None = None, status: str | None = None) -> int:
         where, args = self._where(system, status)
-        return self._reader().execute(f"SELECT COUNT(*) FROM runs{where}", args).fetchone()[0]
+        with self._faults():
+            return self._reader().execute(f"SELECT COUNT(*) FROM runs{where}", args).fetchone()[0]
+
+    def check(self) -> None:
+        """Read every page of the file (``PRAGMA quick_check``); :class:`StoreCorrupt` naming
+        the first problem found, with how to recover."""
+        with self._faults():
+            found = [r[0] for r in self._reader().execute("PRAGMA quick_check").fetchall()]
+        if found != ["ok"]:
+            raise corrupt(self.path, "; ".join(found[:3]) + (f" (and {len(found) - 3} more)" if len(found) > 3 else ""))
 
     @staticmethod
     def _where(system, status):

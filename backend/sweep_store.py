@@ -6,6 +6,10 @@ start time).  When the store opens — at the service's start — a sweep left `
 marked ``interrupted``: it is not resumed (its rows so far stay readable; POST the request
 again to run it anew).  A sweep of another live service sharing the file is left alone; a
 process on another host counts as gone (a SQLite file is not shared between machines).
+
+Faults of the file and the disk are raised as the run store's :class:`~backend.store.StoreError`
+(a full disk: :class:`~backend.store.StoreDiskFull`, 507 from ``POST /api/sweeps``), and a
+transaction is rolled back only while SQLite has not done so itself.
 """
 
 from __future__ import annotations
@@ -16,8 +20,12 @@ import socket
 import sqlite3
 import threading
 import time
+from collections.abc import Iterator
+from pathlib import Path
 
 import orjson
+
+from .store import StoreUnavailable, store_fault
 
 __all__ = ["SCHEMA", "SweepStore", "owner_alive", "process_owner"]
 
@@ -86,20 +94,38 @@ class SweepStore:
     Opening it marks the sweeps of processes that are gone ``interrupted`` (:meth:`interrupt_orphans`)."""
 
     def __init__(self, path):
+        self.path = Path(path)
         self._lock = threading.Lock()
-        self._db = sqlite3.connect(path, check_same_thread=False, isolation_level=None, timeout=30)
-        self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.executescript(SCHEMA)
-        cols = {r[1] for r in self._db.execute("PRAGMA table_info(sweeps)")}
-        if "owner" not in cols:  # a file from before the column
-            with contextlib.suppress(sqlite3.OperationalError):  # another process added it meanwhile
-                self._db.execute("ALTER TABLE sweeps ADD COLUMN owner TEXT NOT NULL DEFAULT ''")
+        with self._faults(opening=True):
+            self._db = sqlite3.connect(path, check_same_thread=False, isolation_level=None, timeout=30)
+            self._db.execute("PRAGMA journal_mode=WAL")
+            self._db.executescript(SCHEMA)
+            cols = {r[1] for r in self._db.execute("PRAGMA table_info(sweeps)")}
+            if "owner" not in cols:  # a file from before the column
+                with contextlib.suppress(sqlite3.OperationalError):  # another process added it meanwhile
+                    self._db.execute("ALTER TABLE sweeps ADD COLUMN owner TEXT NOT NULL DEFAULT ''")
         self.owner = process_owner()
         self.interrupted = self.interrupt_orphans()
 
+    @contextlib.contextmanager
+    def _faults(self, opening: bool = False) -> Iterator[None]:
+        """SQLite errors of a known kind (any kind, ``opening``) raised as the run store's
+        :class:`~backend.store.StoreError`."""
+        try:
+            yield
+        except sqlite3.Error as e:
+            if opening and getattr(self, "_db", None) is not None:
+                self._db.close()
+            fault = store_fault(e, self.path)
+            if fault is None and opening:
+                fault = StoreUnavailable(self.path, "the sweeps' tables cannot be opened", "check the file", str(e))
+            if fault is None:
+                raise
+            raise fault from e
+
     def interrupt_orphans(self) -> list[str]:
         """Mark ``interrupted`` every queued or running sweep whose process is gone; their ids."""
-        with self._lock:
+        with self._lock, self._faults():
             found = self._db.execute(
                 "SELECT id, owner, done, total FROM sweeps WHERE status IN ('queued', 'running')"
             ).fetchall()
@@ -122,7 +148,7 @@ class SweepStore:
         return [r[0] for r in gone]
 
     def _tx(self, statements):
-        with self._lock:
+        with self._lock, self._faults():
             self._db.execute("BEGIN IMMEDIATE")
             try:
                 for sql, args in statements:
@@ -132,7 +158,9 @@ class SweepStore:
                         self._db.execute(sql, args or ())
                 self._db.execute("COMMIT")
             except BaseException:
-                self._db.execute("ROLLBACK")
+                if self._db.in_transaction:  # after SQLITE_FULL, SQLite may have rolled back itself
+                    with contextlib.suppress(sqlite3.Error):
+                        self._db.execute("ROLLBACK")
                 raise
 
     def create(self, sweep_id, system, total, request: dict, columns: list[str]) -> float:
@@ -162,7 +190,7 @@ class SweepStore:
         )
 
     def get(self, sweep_id) -> dict | None:
-        with self._lock:
+        with self._lock, self._faults():
             r = self._db.execute(
                 "SELECT id, created, system, status, total, done, columns, message FROM sweeps WHERE id = ?",
                 (sweep_id,),
@@ -181,7 +209,7 @@ class SweepStore:
         }
 
     def rows(self, sweep_id, offset=0, limit=-1) -> list[dict]:
-        with self._lock:
+        with self._lock, self._faults():
             got = self._db.execute(
                 "SELECT row FROM sweep_rows WHERE sweep_id = ? ORDER BY seq LIMIT ? OFFSET ?", (sweep_id, limit, offset)
             ).fetchall()

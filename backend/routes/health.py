@@ -6,6 +6,7 @@ from fastapi import APIRouter, Request
 from fastapi.responses import RedirectResponse
 
 from ..deps import AppSettings, Service, Store
+from ..errors import error_doc
 from ..models import Health
 
 __all__ = ["router"]
@@ -18,8 +19,20 @@ def root():
     return RedirectResponse("/docs")
 
 
-@router.get("/api/health", response_model=Health, operation_id="health")
+@router.get(
+    "/api/health",
+    response_model=Health,
+    operation_id="health",
+    responses={
+        503: error_doc(
+            "the run store cannot be read, or its last write failed and it still cannot be written "
+            "(read-only, damaged, I/O error): the message names the file and what to do"
+        )
+    },
+)
 def health(request: Request, svc: Service, store: Store, settings: AppSettings):
+    # a store that stopped taking writes answers 503 (a full disk does not: reads and deletes work)
+    store.check_writable()
     return Health(
         status="ok",
         version=request.app.version,
