@@ -51,7 +51,33 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
     add_systems_option(p)
 
 
+def _check_address(args: argparse.Namespace) -> None:
+    """Ports in [0, 65535] and a host that is an IP address or a name this machine resolves,
+    refused with the range before anything starts (99999 bound port 34463, its value modulo
+    2¹⁶; -5 and 999.1.1.1 failed as "is the port in use?")."""
+    import ipaddress
+    import socket
+
+    for option, port in (("--api-port", args.api_port), ("--viser-port", args.viser_port)):
+        if not 0 <= port <= 65535:
+            raise InputError(option, port, "a port in [0, 65535] (0: a free one)")
+    try:
+        ipaddress.ip_address(args.host)
+        return
+    except ValueError:
+        pass
+    looks_numeric = all(part.isdigit() for part in args.host.split(".")) or ":" in args.host
+    if not looks_numeric:
+        try:
+            socket.getaddrinfo(args.host, None)
+            return
+        except (OSError, UnicodeError):
+            pass
+    raise InputError("--host", args.host, "an IPv4 or IPv6 address, or a host name this machine resolves")
+
+
 def _run(args: argparse.Namespace) -> int:
+    _check_address(args)
     load_plugged_systems(args, strict=False)  # a bad systems file: one line, the others still load
     if args.max_sessions is not None and args.max_sessions < 1:
         raise InputError("max_sessions", args.max_sessions, "an integer ≥ 1")
