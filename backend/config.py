@@ -154,6 +154,20 @@ class Settings(BaseSettings):
     )
     warm_kernels: bool = Field(True, description="load the compiled kernels when the app starts, so no request pays")
     max_sweep_runs: int = Field(10_000, ge=1, description="runs per sweep (POST /api/sweeps); a larger one gets 422")
+    max_sweeps: int = Field(
+        2,
+        ge=1,
+        description="sweeps admitted at once, running plus queued (they run one at a time); past it "
+        "POST /api/sweeps answers 503 with a Retry-After header: the running sweep's remaining runs × "
+        "the measured seconds per run ÷ sweep_workers",
+    )
+    sweep_workers: int | None = Field(
+        None,
+        ge=1,
+        json_schema_extra={"allowed": "an integer ≥ 1 (at most max_concurrent_runs are used)"},
+        description="run workers a sweep may use at once; unset: half of max_concurrent_runs, at least 1. "
+        "A sweep also starts no run while an interactive run waits for a worker (runs first)",
+    )
     dask_scheduler: str | None = Field(
         None,
         pattern=r"^(local(:[1-9][0-9]*)?|[a-z][a-z0-9+.-]*://\S+)$",
@@ -219,6 +233,12 @@ class Settings(BaseSettings):
     def database(self) -> Path:
         """The SQLite file the runs are stored in."""
         return self.db_path if self.db_path is not None else self.data_dir / "runs.sqlite3"
+
+    @property
+    def sweep_share(self) -> int:
+        """Run workers a sweep may use at once (``sweep_workers``, or half the workers, at least 1)."""
+        share = self.sweep_workers if self.sweep_workers is not None else self.max_concurrent_runs // 2
+        return max(1, min(share, self.max_concurrent_runs))
 
     @property
     def store_cap(self) -> StoreCap:
@@ -316,6 +336,8 @@ def _shown(field: str) -> str:
     """A field's default as the docs write it."""
     if field == "max_concurrent_runs":
         return "the number of CPU cores"
+    if field == "sweep_workers":
+        return "half of max_concurrent_runs"
     default = Settings.model_fields[field].get_default()
     if field == "max_store_bytes":
         return f"{default // MEGABYTE:,} MB"

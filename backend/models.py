@@ -30,6 +30,12 @@ class Health(BaseModel):
     runs_in_flight: int = Field(description="runs admitted: running plus waiting for a worker")
     runs_running: int = Field(description="runs being simulated now")
     queue_limit: int = Field(description="runs admitted at once before POST /api/runs answers 503")
+    sweeps_running: int = Field(0, description="sweeps running now (one at a time)")
+    sweeps_queued: int = Field(0, description="sweeps admitted and waiting for the running one")
+    sweep_runs_pending: int = Field(0, description="runs of the admitted sweeps not done yet")
+    sweep_runs_running: int = Field(0, description="sweep runs on the run workers now")
+    max_sweeps: int = Field(0, description="sweeps admitted at once before POST /api/sweeps answers 503")
+    sweep_workers: int = Field(0, description="run workers a sweep may use at once")
 
 
 class RunListItem(BaseModel):

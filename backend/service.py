@@ -26,9 +26,9 @@ from nmkane_core.run.simulate import simulate
 from nmkane_core.schema import RunSettings
 
 from .config import Settings
-from .store import RunStore
+from .store import RunStore, StoreFull
 
-__all__ = ["RunService", "OutputGuard", "checked_summary", "encode_document", "new_run_id"]
+__all__ = ["RunService", "OutputGuard", "SweepAdmission", "checked_summary", "encode_document", "new_run_id"]
 
 
 def new_run_id() -> str:
@@ -118,6 +118,74 @@ class OutputGuard:
             )
 
 
+class SweepAdmission:
+    """Sweeps under the service's admission: at most ``max_sweeps`` admitted (running plus
+    queued; they run one at a time, in order), what is left of each, their runs on the run
+    workers now, and the measured seconds per sweep run (for Retry-After and /api/health).
+
+    ``stored_bytes``: the bytes of every sweep's stored rows and request, counted with the
+    runs' against ``max_store_bytes`` (kept by the sweep manager)."""
+
+    MAX_RETRY_S = 3600
+
+    def __init__(self, max_sweeps: int, workers: int):
+        self.max_sweeps, self.workers = max_sweeps, workers
+        self._lock = threading.Lock()
+        self.remaining: dict[str, int] = {}  # admitted sweeps, in queue order: runs not done yet
+        self.started: set[str] = set()
+        self.runs_running = 0  # sweep runs on the run workers now
+        self.mean_run_s = 0.05  # moving average of a sweep run's time in a worker
+        self.stored_bytes = 0
+
+    def admit(self, sweep_id: str, total: int) -> bool:
+        with self._lock:
+            if len(self.remaining) >= self.max_sweeps:
+                return False
+            self.remaining[sweep_id] = total
+            return True
+
+    def start(self, sweep_id: str) -> None:
+        with self._lock:
+            self.started.add(sweep_id)
+
+    def progress(self, sweep_id: str, runs: int) -> None:
+        with self._lock:
+            if sweep_id in self.remaining:
+                self.remaining[sweep_id] = max(0, self.remaining[sweep_id] - runs)
+
+    def release(self, sweep_id: str) -> None:
+        with self._lock:
+            self.remaining.pop(sweep_id, None)
+            self.started.discard(sweep_id)
+
+    def stored(self, nbytes: int) -> None:
+        with self._lock:
+            self.stored_bytes += nbytes
+
+    def run_started(self) -> None:
+        with self._lock:
+            self.runs_running += 1
+
+    def run_ended(self, seconds: float) -> None:
+        with self._lock:
+            self.runs_running -= 1
+            self.mean_run_s += 0.1 * (seconds - self.mean_run_s)
+
+    def counts(self) -> tuple[int, int, int]:
+        """(sweeps running, sweeps queued, their runs not done yet)."""
+        with self._lock:
+            running = len(self.started & self.remaining.keys())
+            return running, len(self.remaining) - running, sum(self.remaining.values())
+
+    def retry_after(self) -> int:
+        """Seconds until a place frees: the first admitted sweep's (the running one's) remaining
+        runs × the measured seconds per run ÷ the sweep's workers (at least 1, at most an hour)."""
+        with self._lock:
+            head = next(iter(self.remaining.values()), 0)
+            wait = head * self.mean_run_s / self.workers
+        return int(min(self.MAX_RETRY_S, max(1, math.ceil(wait))))
+
+
 class RunService:
     """Worker pool, admission control and the run store of one app."""
 
@@ -130,6 +198,9 @@ class RunService:
         self.warmed.set()
         self.admitted = 0  # running + waiting
         self.running = 0
+        self.waiting = 0  # admitted runs waiting for a worker (a sweep starts no run meanwhile)
+        self._worker_freed = threading.Condition(self._lock)
+        self.sweeps = SweepAdmission(settings.max_sweeps, settings.sweep_share)
         self._mean_run_s = 0.05  # moving average of a run's time in a worker (for Retry-After)
         self.store: RunStore | None = None
         self.pool: ThreadPoolExecutor | None = None  # simulations (CPU)
@@ -259,9 +330,42 @@ class RunService:
         pool, writer, store = self.pool, self.writer, self.store
         if pool is None or writer is None or store is None:
             raise RuntimeError("the run service is not running")
-        run_id, body, record = await loop.run_in_executor(pool, self.execute, settings)
+        ticket = [True]  # waiting for a worker
+        with self._lock:
+            self.waiting += 1
+        try:
+            run_id, body, record = await loop.run_in_executor(pool, self._execute_waited, settings, ticket)
+        finally:
+            self._unwait(ticket)  # also when the run never started (cancelled)
+        self.check_store_room(store, len(record[3]) + len(record[4]) + len(record[5]))
         await loop.run_in_executor(writer, store.insert, record)
         return run_id, body
+
+    def _execute_waited(self, settings: RunSettings, ticket: list[bool]) -> tuple[str, bytes, tuple]:
+        self._unwait(ticket)
+        return self.execute(settings)
+
+    def _unwait(self, ticket: list[bool]) -> None:
+        with self._lock:
+            if ticket[0]:
+                ticket[0] = False
+                self.waiting -= 1
+                self._worker_freed.notify_all()
+
+    def sweep_may_start_run(self, timeout: float = 0.0) -> bool:
+        """Whether a sweep may hand the run workers another run now: no interactive run waits
+        for a worker (runs first); waits up to ``timeout`` s for that."""
+        with self._lock:
+            if self.waiting and timeout > 0 and not self._stopping.is_set():
+                self._worker_freed.wait(timeout)
+            return self.waiting == 0
+
+    def check_store_room(self, store: RunStore, need: int) -> None:
+        """:class:`StoreFull` when a run of ``need`` bytes would pass ``max_store_bytes`` with the
+        sweeps' rows counted too (policy ``refuse``; the store checks its runs again)."""
+        cap = store.cap
+        if cap.policy == "refuse" and store.size + self.sweeps.stored_bytes + need > cap.max_bytes:
+            raise StoreFull(cap, store.count(), store.size + self.sweeps.stored_bytes, need)
 
     def release(self) -> None:
         with self._lock:

@@ -189,6 +189,13 @@ class SweepStore:
             ]
         )
 
+    def size(self) -> int:
+        """Bytes of the sweeps' stored rows and requests (counted against ``max_store_bytes``)."""
+        with self._lock, self._faults():
+            rows = self._db.execute("SELECT COALESCE(SUM(length(row)), 0) FROM sweep_rows").fetchone()[0]
+            requests = self._db.execute("SELECT COALESCE(SUM(length(request)), 0) FROM sweeps").fetchone()[0]
+        return int(rows) + int(requests)
+
     def get(self, sweep_id) -> dict | None:
         with self._lock, self._faults():
             r = self._db.execute(

@@ -7,12 +7,23 @@
 
 A sweep is checked before the 202 (every varied value against the system; its size against
 the setting ``max_sweep_runs``, ``NMKANE_MAX_SWEEP_RUNS``, default 10,000; its longest run
-against the service's ``max_steps``): bad input answers 422 naming the field.  Sweeps run one
-at a time, their batches on the service's worker pool, or on the Dask scheduler of the
-setting ``dask_scheduler``, ``NMKANE_DASK_SCHEDULER`` (``tcp://HOST:PORT``; its workers need
-nmkane installed).  Rows are
-stored in the service's SQLite file (tables ``sweeps`` and ``sweep_rows``), batch by batch,
-each batch in one transaction.
+against the service's ``max_steps``): bad input answers 422 naming the field.
+
+Sweeps are under the service's admission (:class:`backend.service.SweepAdmission`): at most
+``max_sweeps`` (``NMKANE_MAX_SWEEPS``, default 2) are admitted, running plus queued; a further
+POST answers 503 with a Retry-After of the running sweep's remaining runs × the measured
+seconds per run ÷ its workers.  Sweeps run one at a time, their runs on the service's run
+workers — at most ``sweep_workers`` (``NMKANE_SWEEP_WORKERS``; unset, half of them) at once,
+one run per task, and none started while an interactive run waits for a worker (runs first)
+— or on the Dask scheduler of the setting ``dask_scheduler``, ``NMKANE_DASK_SCHEDULER``
+(``tcp://HOST:PORT``; its workers need nmkane installed).  ``/api/health`` counts them.
+
+Rows are stored in the service's SQLite file (tables ``sweeps`` and ``sweep_rows``), batch by
+batch, each batch in one transaction, and count with the runs against ``max_store_bytes``: a
+sweep whose rows would pass it stops ``failed``, saying so (its rows so far kept), and a new
+one is refused with 507.  A sweep whose rows cannot be written (a full disk) ends ``failed``
+with the store's message; when even that cannot be written, the state is kept in memory and
+served until the store takes it.
 
 A sweep left ``queued`` or ``running`` by a process that is gone (killed, the machine
 restarted) is marked ``interrupted`` when the service starts; see :mod:`backend.sweep_store`.
@@ -24,11 +35,14 @@ import concurrent.futures as cf
 import contextlib
 import csv
 import io
+import logging
 import math
 import secrets
 import threading
+import time
 from typing import Annotated
 
+import orjson
 from fastapi import APIRouter, Depends, FastAPI, Path, Query, Request
 from fastapi.responses import JSONResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
@@ -45,6 +59,7 @@ from .deps import AppSettings
 from .errors import error_doc, error_response, item, not_found
 from .models import RunSettings
 from .service import RunService
+from .store import StoreError, StoreFull
 from .sweep_store import SweepStore, owner_alive, process_owner
 
 __all__ = ["SweepManager", "SweepRequest", "SweepStore", "owner_alive", "process_owner", "router"]
@@ -59,6 +74,7 @@ async def _lifespan(app):
     yield
 
 
+log = logging.getLogger("nmkane.backend")
 router = APIRouter(lifespan=_lifespan)
 SWEEP_ID = Path(description="the sweep's id, as returned by POST /api/sweeps", min_length=1, max_length=64)
 
@@ -111,57 +127,91 @@ class SweepState(BaseModel):
 
 
 class _Sink:
-    """run_sweep's output: rows into the store (``done`` is empty: a REST sweep starts fresh)."""
+    """run_sweep's output: rows into the store, within ``max_store_bytes`` (``done`` is empty:
+    a REST sweep starts fresh)."""
 
-    def __init__(self, store: SweepStore, sweep_id: str):
-        self.store, self.id, self.n = store, sweep_id, 0
+    def __init__(self, manager: SweepManager, sweep_id: str):
+        self.manager, self.store, self.id, self.n = manager, manager.store, sweep_id, 0
         self.done: set = set()
 
     def write(self, rows):
         clean = [
             {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in r.items()} for r in rows
         ]
-        self.store.add_rows(self.id, self.n, clean)
-        self.n += len(rows)
+        sizes = [len(orjson.dumps(r)) for r in clean]
+        fit = self.manager.rows_that_fit(sizes)
+        if fit:
+            self.store.add_rows(self.id, self.n, clean[:fit])
+            self.n += fit
+            self.manager.admission.stored(sum(sizes[:fit]))
+            self.manager.admission.progress(self.id, fit)
+        if fit < len(rows):
+            self.manager.check_room(sum(sizes[fit:]))  # raises StoreFull, saying how full
 
 
 class PoolExecutor(_Executor):
-    """Batches on the service's thread pool (the compiled loops release the GIL)."""
+    """A sweep's runs on the service's run workers (the compiled loops release the GIL), under its
+    admission: one run per task, at most ``workers`` (the sweep's share) in flight, none started
+    while an interactive run waits for a worker.  Rows are handed on ``size`` at a time (one
+    transaction each), or each second."""
 
     name = "service-pool"
 
-    def __init__(self, pool: cf.ThreadPoolExecutor, workers: int, **kw):
+    def __init__(self, service: RunService, workers: int, **kw):
         super().__init__(**kw)
-        self.pool, self.workers = pool, workers
+        self.service, self.workers = service, workers
+
+    def _run(self, base: dict, point: dict) -> list[dict]:
+        admission = self.service.sweeps
+        admission.run_started()
+        t0 = time.perf_counter()
+        try:
+            return run_batch(self.systems, base, [point], (), self.time_limit)
+        finally:
+            admission.run_ended(time.perf_counter() - t0)
+
+    def _submit(self, base: dict, point: dict) -> cf.Future:
+        pool = self.service.pool
+        if pool is None:
+            raise RuntimeError("the run service is stopping")
+        return pool.submit(self._run, base, point)
 
     def rows(self, base, points, size):
-        from nmkane_core.sweep.executors import _batches
-
         pending: set = set()
-        it = _batches(points, size)
-
-        def fill():
-            for batch in it:
-                pending.add(self.pool.submit(run_batch, self.systems, base, batch, (), self.time_limit))
-                if len(pending) >= self.workers:
-                    break
-
-        fill()
-        while pending:
+        it, more, ready, last = iter(points), True, [], time.perf_counter()
+        while more or pending:
+            while more and len(pending) < self.workers and self.service.sweep_may_start_run(0 if pending else 0.1):
+                point = next(it, None)
+                if point is None:
+                    more = False
+                else:
+                    pending.add(self._submit(base, point))
+            if not pending:  # interactive runs have the workers: wait for them (or the service's stop)
+                if self.service.pool is None:
+                    raise RuntimeError("the run service is stopping")
+                continue
             done, _ = cf.wait(pending, return_when=cf.FIRST_COMPLETED)
             for f in done:
                 pending.discard(f)
-                yield f.result()
-            fill()
+                ready.extend(f.result())
+            if ready and (len(ready) >= size or time.perf_counter() - last >= 1.0 or not (more or pending)):
+                yield ready
+                ready, last = [], time.perf_counter()
 
 
 class SweepManager:
-    """The store and the one thread that runs sweeps in order."""
+    """The store, the admission (the run service's :class:`~backend.service.SweepAdmission`)
+    and the one thread that runs sweeps in order."""
 
     def __init__(self, settings: Settings, service: RunService):
         self.settings, self.service = settings, service
         self.store = SweepStore(settings.database)
+        self.admission = service.sweeps
+        self.admission.stored_bytes = self.store.size()
         self.queue = cf.ThreadPoolExecutor(max_workers=1, thread_name_prefix="nmkane-sweep")
+        self._lock = threading.Lock()
+        #: final states the store could not take (a full disk): served by GET, written when it can
+        self.unwritten: dict[str, tuple[str, str]] = {}
 
     def executor(self):
         limit = self.settings.max_wall_time_s
@@ -171,20 +221,74 @@ class SweepManager:
             return DaskExecutor(self.settings.dask_scheduler, time_limit=limit)
         if self.service.pool is None:
             self.service.start()
-        pool = self.service.pool
-        if pool is None:  # stopped meanwhile
+        if self.service.pool is None:  # stopped meanwhile
             raise RuntimeError("the run service is stopping")
-        return PoolExecutor(pool, self.settings.max_concurrent_runs, time_limit=limit)
+        return PoolExecutor(self.service, self.settings.sweep_share, time_limit=limit)
+
+    def check_room(self, need: int) -> None:
+        """:class:`StoreFull` when the runs, the sweeps' rows and ``need`` more bytes would pass
+        ``max_store_bytes`` (the store's policy for runs aside: sweep rows are never evicted)."""
+        cap, store = self.settings.store_cap, self.service.store
+        size = (store.size if store is not None else 0) + self.admission.stored_bytes
+        if size + need > cap.max_bytes:
+            raise StoreFull(cap, store.count() if store is not None else 0, size, need)
+
+    def rows_that_fit(self, sizes: list[int]) -> int:
+        """How many of these rows (their sizes, bytes) fit under ``max_store_bytes`` now."""
+        store = self.service.store
+        room = self.settings.max_store_bytes - (store.size if store is not None else 0) - self.admission.stored_bytes
+        fit = 0
+        for size in sizes:
+            room -= size
+            if room < 0:
+                break
+            fit += 1
+        return fit
 
     def run(self, sweep_id: str, base: dict, spec: SweepSpec) -> None:
-        self.store.set_status(sweep_id, "running")
+        self.flush()
+        sink = _Sink(self, sweep_id)
         try:
+            self.admission.start(sweep_id)
+            self.store.set_status(sweep_id, "running")
             with self.executor() as ex:
-                res = run_sweep(base, spec, _Sink(self.store, sweep_id), executor=ex, progress=False)
+                res = run_sweep(base, spec, sink, executor=ex, progress=False)
             counts = ", ".join(f"{k} {v}" for k, v in sorted(res.statuses.items()))
-            self.store.set_status(sweep_id, "done", f"{res.ran} runs in {res.wall_s:.2f} s: {counts}")
+            self.end(sweep_id, "done", f"{res.ran} runs in {res.wall_s:.2f} s: {counts}")
+        except (StoreFull, StoreError) as e:  # the cap or the disk: what was stored stays
+            self.end(sweep_id, "failed", f"stopped after {sink.n} of {len(spec)} runs (their rows are kept): {e}")
         except Exception as e:  # the service stopping, a lost scheduler
-            self.store.set_status(sweep_id, "failed", f"{type(e).__name__}: {e}")
+            self.end(sweep_id, "failed", f"{type(e).__name__}: {e}")
+        finally:
+            self.admission.release(sweep_id)
+
+    def end(self, sweep_id: str, status: str, message: str) -> None:
+        """Record a sweep's end; when the store cannot take it (its disk full), keep it here."""
+        try:
+            self.store.set_status(sweep_id, status, message)
+        except StoreError as e:
+            log.warning("sweep %s ended %s, not recorded in the store yet: %s", sweep_id, status, e)
+            with self._lock:
+                self.unwritten[sweep_id] = (status, message)
+
+    def flush(self) -> None:
+        """Write the ends the store could not take before (kept if it still cannot)."""
+        with self._lock:
+            waiting = dict(self.unwritten)
+        for sweep_id, (status, message) in waiting.items():
+            with contextlib.suppress(StoreError):
+                self.store.set_status(sweep_id, status, message)
+                with self._lock:
+                    self.unwritten.pop(sweep_id, None)
+
+    def state(self, sweep_id: str) -> dict | None:
+        """A sweep's state from the store, with an end the store has not taken yet."""
+        state = self.store.get(sweep_id)
+        with self._lock:
+            end = self.unwritten.get(sweep_id)
+        if state is not None and end is not None:
+            state["status"], state["message"] = end
+        return state
 
 
 def _manager_of(app: FastAPI) -> SweepManager:
@@ -203,6 +307,7 @@ async def get_sweeps(request: Request) -> SweepManager:
 
 Sweeps = Annotated[SweepManager, Depends(get_sweeps)]
 _LOCK = threading.Lock()
+ROW_ESTIMATE = 32  # bytes per column of a stored row, for the room a new sweep needs at least
 _FIELDS = {"--grid": "grid", "--log-grid": "log_grid", "--sample": "sample", "--samples": "samples", "--seed": "seed"}
 
 
@@ -258,6 +363,12 @@ def _check_limits(base: dict, spec: SweepSpec, settings: Settings) -> None:
         413: error_doc("request body larger than max_request_bytes"),
         415: error_doc("the body is not declared as JSON (Content-Type)"),
         422: error_doc("a bad specification, or a sweep over this service's limits"),
+        503: error_doc(
+            "max_sweeps sweeps already admitted (running plus queued); retry after Retry-After seconds "
+            "(the running sweep's remaining runs × the measured seconds per run ÷ its workers)",
+            headers={"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}},
+        ),
+        507: error_doc("the store is full (max_store_bytes, runs and sweep rows) or its disk is"),
     },
 )
 def create_sweep(body: SweepRequest, sweeps: Sweeps, settings: AppSettings):
@@ -275,13 +386,30 @@ def create_sweep(body: SweepRequest, sweeps: Sweeps, settings: AppSettings):
     except InputError as e:
         return _unprocessable(e)
     sweep_id = secrets.token_urlsafe(12)
+    if not sweeps.admission.admit(sweep_id, len(spec)):
+        return _sweeps_full(settings.max_sweeps, sweeps.admission.retry_after())
     system = base.get("system") or system_names()[0]  # left out: the catalogue's first, as a run
-    sweeps.store.create(sweep_id, system, len(spec), body.model_dump(mode="json"), columns)
-    sweeps.queue.submit(sweeps.run, sweep_id, base, spec)
+    request = body.model_dump(mode="json")
+    try:
+        sweeps.check_room(len(orjson.dumps(request)) + ROW_ESTIMATE * len(columns))  # room for a row at least
+        sweeps.store.create(sweep_id, system, len(spec), request, columns)
+        sweeps.admission.stored(len(orjson.dumps(request)))
+        sweeps.queue.submit(sweeps.run, sweep_id, base, spec)
+    except BaseException:
+        sweeps.admission.release(sweep_id)
+        raise
     return JSONResponse(
         {"id": sweep_id, "status": "queued", "total": len(spec)},
         status_code=202,
         headers={"Location": f"/api/sweeps/{sweep_id}"},
+    )
+
+
+def _sweeps_full(max_sweeps: int, wait: int) -> JSONResponse:
+    return error_response(
+        503,
+        [item([], "overloaded", None, f"{max_sweeps} sweeps already admitted", f"retry after {wait} s")],
+        headers={"Retry-After": str(wait)},
     )
 
 
@@ -296,7 +424,7 @@ def _no_sweep(sweep_id: str):
 )
 def get_sweep_csv(sweeps: Sweeps, sweep_id: str = SWEEP_ID):
     """The rows so far as CSV (the columns of ``nmkane sweep --out FILE.csv``)."""
-    state = sweeps.store.get(sweep_id)
+    state = sweeps.state(sweep_id)
     if state is None:
         return _no_sweep(sweep_id)
     buf = io.StringIO()
@@ -324,7 +452,8 @@ def get_sweep(
     limit: int = Query(1000, ge=1, le=10_000, description="rows to return"),
 ):
     """Status, progress (``done`` of ``total``) and the rows so far, in completion order."""
-    state = sweeps.store.get(sweep_id)
+    sweeps.flush()
+    state = sweeps.state(sweep_id)
     if state is None:
         return _no_sweep(sweep_id)
     return {**state, "rows": sweeps.store.rows(sweep_id, offset, limit), "offset": offset}

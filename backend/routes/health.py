@@ -33,6 +33,7 @@ def root():
 def health(request: Request, svc: Service, store: Store, settings: AppSettings):
     # a store that stopped taking writes answers 503 (a full disk does not: reads and deletes work)
     store.check_writable()
+    sweeps_running, sweeps_queued, sweep_runs_pending = svc.sweeps.counts()
     return Health(
         status="ok",
         version=request.app.version,
@@ -40,4 +41,10 @@ def health(request: Request, svc: Service, store: Store, settings: AppSettings):
         runs_in_flight=svc.admitted,
         runs_running=svc.running,
         queue_limit=settings.queue_limit,
+        sweeps_running=sweeps_running,
+        sweeps_queued=sweeps_queued,
+        sweep_runs_pending=sweep_runs_pending,
+        sweep_runs_running=svc.sweeps.runs_running,
+        max_sweeps=settings.max_sweeps,
+        sweep_workers=settings.sweep_share,
     )
