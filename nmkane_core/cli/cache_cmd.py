@@ -14,7 +14,7 @@ def _add_arguments(p: argparse.ArgumentParser) -> None:
         "action",
         choices=("info", "clear", "prune"),
         help="info: size and entries; clear: remove everything; "
-        "prune: remove kernels whose sources changed and kernels nothing uses",
+        "prune: remove kernels whose sources changed, damaged kernels and kernels nothing uses",
     )
     p.add_argument(
         "--unused-days",
@@ -53,6 +53,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"kernels  {len(data['kernels'])} compiled, {len(data['entries'])} index entries")
         for e in data["entries"]:
             print(f"  {e['system'] or '?'} / {e['variant'] or '?'}  -> kernel {e['key']}")
+        for k in data["kernels"]:
+            if k.get("damaged"):
+                d = k["damaged"]
+                print(f"damaged  {d['path']} ({d['reason']}): `nmkane cache prune` removes it")
         for name, size in data["other"].items():
             print(f"{name:8s} {_mb(size)}")
         return 0
@@ -66,9 +70,11 @@ def _run(args: argparse.Namespace) -> int:
     else:
         for e in done["entries"]:
             print(f"removed {e['system']} / {e['variant']} ({e['reason']})")
+        for d in done["damaged"]:
+            print(f"removed damaged {d['path']} ({d['reason']})")
         print(
-            f"pruned {len(done['entries'])} index entries and {len(done['kernels'])} kernels, "
-            f"{_mb(done['bytes'])} freed"
+            f"pruned {len(done['entries'])} index entries and {len(done['kernels'])} kernels "
+            f"({len(done['damaged'])} damaged), {_mb(done['bytes'])} freed"
         )
     return 0
 

@@ -15,7 +15,16 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["cache_root", "declared_data", "kernel_dir", "write_kernel", "import_kernel"]
+from .native import library_damage
+
+__all__ = [
+    "cache_root",
+    "declared_data",
+    "import_kernel",
+    "kernel_damage",
+    "kernel_dir",
+    "write_kernel",
+]
 
 
 def cache_root() -> Path:
@@ -111,16 +120,55 @@ def _kernel_file(folder: Path, key: str) -> Path:
     return folder / f"nmkane_kernel_{key}.py"
 
 
+#: the first line of a cached module: the SHA-256 of the rest of its text (a truncated or
+#: overwritten file is found before Python imports half a kernel)
+_CHECKSUM = "# nmkane-sha256: "
+
+
+def _sha256(text: str) -> str:
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 def write_kernel(folder: Path, key: str, source: str) -> bool:
-    """Write a generated kernel module unless the same text is there; True if written."""
+    """Write a generated kernel module, its checksum on its first line, unless the same text is
+    there (a damaged file is replaced); True if written."""
     path = _kernel_file(folder, key)
-    if path.exists() and path.read_text() == source:
-        return False
+    text = f"{_CHECKSUM}{_sha256(source)}\n{source}"
+    try:
+        if path.read_text() == text:
+            return False
+    except (OSError, ValueError):  # not there, or not text
+        pass
     folder.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(f".tmp{os.getpid()}")
-    tmp.write_text(source)
+    tmp.write_text(text)
     os.replace(tmp, path)  # atomic: a parallel process never sees half a file
     return True
+
+
+def kernel_damage(folder: Path, key: str, key_of: Callable[[str], str] | None = None) -> str | None:
+    """Why the cached module of kernel ``key`` in ``folder`` cannot be used (damaged: truncated,
+    overwritten), or None when it is whole.  A module written before modules carried a
+    checksum is checked with ``key_of`` (its text's key, valid with the tools that wrote it:
+    :func:`nmkane_core.kernel.loader.source_key`), else for Python syntax.  Raises OSError
+    when the file cannot be read (missing)."""
+    path = _kernel_file(folder, key)
+    try:
+        text = path.read_text()
+    except ValueError:
+        return "not text"
+    head, newline, body = text.partition("\n")
+    if head.startswith(_CHECKSUM):
+        if not newline or _sha256(body) != head.removeprefix(_CHECKSUM):
+            return f"checksum mismatch, {len(text.encode())} bytes"
+        return None
+    if key_of is not None:
+        return None if key_of(text) == key else "no checksum, and its text does not match its key"
+    try:
+        compile(text, str(path), "exec", dont_inherit=True)
+    except (SyntaxError, ValueError) as e:
+        return f"{type(e).__name__}: {getattr(e, 'msg', e)}"
+    return None
 
 
 def import_kernel(folder: Path, key: str):
@@ -172,15 +220,38 @@ def _kernel_folders() -> list[Path]:
     return sorted(p for p in kernel_dir().glob("*") if p.is_dir() and p.name != "index")
 
 
+def _damaged() -> dict[str, dict]:
+    """The kernel folders whose module or C library is damaged: key → {"path", "reason"}."""
+    out = {}
+    for folder in _kernel_folders():
+        key = folder.name
+        found = []
+        if _kernel_file(folder, key).exists():
+            try:
+                found.append((_kernel_file(folder, key), kernel_damage(folder, key)))
+            except OSError as e:
+                found.append((_kernel_file(folder, key), e.strerror or str(e)))
+        found += [(lib, library_damage(lib)) for lib in sorted(folder.glob("native_*.so"))]
+        for path, reason in found:
+            if reason is not None:
+                out[key] = {"path": str(path), "reason": reason}
+                break
+    return out
+
+
 def info() -> dict:
-    """What the cache holds: its root, size, kernels and index entries."""
+    """What the cache holds: its root, size, kernels, index entries and damaged kernels."""
     root = cache_root()
     entries = _entries()
     folders = _kernel_folders()
+    damaged = _damaged()
     return {
         "root": str(root),
         "bytes": _size(root) if root.exists() else 0,
-        "kernels": [{"key": p.name, "bytes": _size(p)} for p in folders],
+        "kernels": [
+            {"key": p.name, "bytes": _size(p), **({"damaged": damaged[p.name]} if p.name in damaged else {})}
+            for p in folders
+        ],
         "entries": [{k: (str(v) if k == "path" else v) for k, v in e.items()} for e in entries],
         "other": {p.name: _size(p) for p in sorted(root.glob("*")) if p.is_dir() and p.name != "kernels"}
         if root.exists()
@@ -206,18 +277,22 @@ def prune(current: dict[tuple[str, str], str | None], unused_days: float | None 
     ``current`` maps (system, variant) of every system known here to its fingerprint now:
     an index entry of a known system with another fingerprint was built from sources that
     have changed since (stale).  Entries of systems not known here are kept, unless unused
-    for ``unused_days``.  Kernel folders that no remaining entry points to are removed."""
+    for ``unused_days``.  A damaged kernel (its module fails its checksum, its C library does
+    not load) and the entries pointing to it are removed (``damaged`` lists them).  Kernel
+    folders that no remaining entry points to are removed."""
     import shutil
     import time
 
     removed_entries, removed_kernels, freed = [], [], 0
     now = time.time()
     keep_keys = set()
+    damaged = _damaged()
     for e in _entries():
         label = (e["system"], e["variant"])
         stale = label in current and current[label] != e["fingerprint"]
         old = unused_days is not None and now - e["last_used"] > unused_days * 86400
-        if stale or old or e["key"] is None:
+        broken = e["key"] is None or e["key"] in damaged
+        if stale or old or broken:
             freed += _size(e["path"])
             e["path"].unlink(missing_ok=True)
             removed_entries.append(
@@ -234,4 +309,9 @@ def prune(current: dict[tuple[str, str], str | None], unused_days: float | None 
             freed += _size(folder)
             shutil.rmtree(folder, ignore_errors=True)
             removed_kernels.append(folder.name)
-    return {"entries": removed_entries, "kernels": removed_kernels, "bytes": freed}
+    return {
+        "entries": removed_entries,
+        "kernels": removed_kernels,
+        "damaged": [{"key": k, **v} for k, v in damaged.items()],
+        "bytes": freed,
+    }

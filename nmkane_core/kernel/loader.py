@@ -21,10 +21,10 @@ from collections.abc import Callable
 from pathlib import Path
 
 from . import precompile
-from .cache import import_kernel, kernel_dir, write_kernel
+from .cache import import_kernel, kernel_damage, kernel_dir, write_kernel
 from .codegen import GENERIC_FILES, generate_source
 from .info import ModelInfo
-from .native import NativeBuildError
+from .native import NativeBuildError, report_damaged
 
 __all__ = ["compiled_kernel", "fingerprint", "kernel", "model_fingerprint", "source_key"]
 
@@ -50,6 +50,28 @@ def _import(folder: Path, key: str, source: str | None):
     if source is not None and write_kernel(folder, key, source):
         precompile.written(folder, key)  # a run resolved with it may compile its loop next door
     return import_kernel(folder, key)
+
+
+class _Damaged(Exception):
+    """A cached module failed its check (already reported): it is generated again."""
+
+
+def _import_cached(folder: Path, key: str):
+    """Import cached kernel ``key`` after checking its text (:func:`~.cache.kernel_damage`).  A
+    damaged module, or one whose import fails with a SyntaxError or ImportError, is reported in
+    one line and raises :class:`_Damaged`: the caller generates it again, and writing it
+    replaces the damaged file atomically (numba's cache beside it, keyed by the file's time and
+    size, compiles again).  Raises OSError when the module is not there."""
+    path = folder / f"nmkane_kernel_{key}.py"
+    reason = kernel_damage(folder, key, key_of=source_key)
+    if reason is None:
+        try:
+            return _import(folder, key, None)
+        except (SyntaxError, ImportError) as e:
+            sys.modules.pop(f"nmkane_kernel_{key}", None)
+            reason = f"{type(e).__name__}: {e}"
+    report_damaged(path, reason)
+    raise _Damaged(reason)
 
 
 def compiled_kernel(derivation, source: str | None = None):
@@ -167,15 +189,12 @@ def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] 
             key = entry["key"]
             with _LOCK:
                 if key not in _LOADED:
-                    folder = kernel_dir() / key
-                    if not (folder / f"nmkane_kernel_{key}.py").exists():
-                        raise FileNotFoundError(key)
-                    _LOADED[key] = _import(folder, key, None)
+                    _LOADED[key] = _import_cached(kernel_dir() / key, key)
                     with contextlib.suppress(OSError):
                         os.utime(index)  # last use, for `nmkane cache prune --unused-days`
                 return _LOADED[key], ModelInfo.from_json(json.dumps(entry["info"]))
-        except (OSError, KeyError, ValueError, TypeError):
-            pass  # a damaged entry: regenerate below
+        except (OSError, KeyError, ValueError, TypeError, _Damaged, NativeBuildError):
+            pass  # a damaged entry (said by _import_cached), or a C library that does not build: regenerate below
     d = derive()
     source = generate_source(d)
     module = compiled_kernel(d, source)

@@ -15,14 +15,19 @@ paper's) keep their numba body pasted into the stage loop, which is faster there
 
 Without a C compiler (``cc``, ``gcc`` or ``clang`` on the PATH, or ``$CC``), or with
 ``NMKANE_NATIVE=0``, every model is compiled by numba alone, as before.  An expression the C
-printer cannot write, or a compiler that fails, does the same for that model.
+printer cannot write, or a compiler that fails, does the same for that model.  A cached library
+that does not load, or lacks a function (a truncated or overwritten file), is built again
+with a one-line notice (:func:`load`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import hashlib
+import logging
 import os
+import re
 import shutil
 import subprocess
 import threading
@@ -30,7 +35,16 @@ from pathlib import Path
 
 from .printing import c_printer
 
-__all__ = ["NativeBuildError", "c_function", "c_module", "compiler", "load", "numba_wrapper"]
+__all__ = [
+    "NativeBuildError",
+    "c_function",
+    "c_module",
+    "compiler",
+    "library_damage",
+    "load",
+    "numba_wrapper",
+    "report_damaged",
+]
 
 #: -O1: the functions are straight lines (no loops to vectorize); -O2 took half as long again to
 #: compile for no measurable gain.  No -ffast-math: NaN and ±inf must come through (the loops'
@@ -42,6 +56,16 @@ FLAGS = ("-O1", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off")
 _C_ARGS = {"t": "const double t", "x": "const double *x", "p": "const double *p"}
 
 _BUILD_LOCK = threading.Lock()
+
+#: where the kernel cache says what it did (a damaged entry rebuilt): one line on stderr when
+#: nothing configured logging (Python's last-resort handler), the service's log otherwise
+log = logging.getLogger("nmkane.kernel")
+
+
+def report_damaged(path: Path, reason: str) -> None:
+    """Say, in one line, that a damaged kernel cache entry (a module, a library) was found and
+    is built again (:mod:`nmkane_core.kernel.cache`)."""
+    log.warning("nmkane: kernel cache entry %s was damaged (%s); rebuilt", path, reason)
 
 
 class NativeBuildError(RuntimeError):
@@ -122,16 +146,16 @@ def _library(module_file: str, tag: str) -> Path:
     return Path(module_file).with_name(f"native_{tag}.so")
 
 
-def build(module_file: str, tag: str, source: str) -> Path:
+def build(module_file: str, tag: str, source: str, again: bool = False) -> Path:
     """Compile the library of the module at ``module_file`` beside it, unless it is there
-    (atomic: a parallel process sees the whole library or none).  Raises
-    :class:`NativeBuildError` with the compiler's message."""
+    (``again``: replace the one there; atomic: a parallel process sees a whole library).
+    Raises :class:`NativeBuildError` with the compiler's message."""
     path = _library(module_file, tag)
-    if path.exists():
+    if path.exists() and not again:
         return path
     cc = compiler() or shutil.which("cc") or "cc"  # a cached module asks for its library: any compiler
     with _BUILD_LOCK:
-        if path.exists():
+        if path.exists() and not again:
             return path
         path.parent.mkdir(parents=True, exist_ok=True)
         src = path.with_suffix(f".{os.getpid()}.c")
@@ -154,9 +178,29 @@ def build(module_file: str, tag: str, source: str) -> Path:
     return path
 
 
+def library_damage(path: Path, source: str | None = None) -> str | None:
+    """Why the library at ``path`` cannot be used (it does not load, or lacks a function of its C
+    ``source``), or None when it loads whole."""
+    try:
+        lib = ctypes.CDLL(str(path))
+    except OSError as e:
+        return str(e).removeprefix(f"{path}: ")
+    for name in re.findall(r"\b(nmk_[0-9a-f]+_\w+)\(", source or ""):
+        if not hasattr(lib, name):
+            return f"no function {name}"
+    return None
+
+
 def load(module_file: str, tag: str, source: str) -> None:
     """Make the symbols of the module's library known to numba's JIT linker (building the
-    library first when it is not there yet)."""
+    library first when it is not there yet, and again when the one there is damaged)."""
     import llvmlite.binding as llvm
 
-    llvm.load_library_permanently(str(build(module_file, tag, source)))
+    path = build(module_file, tag, source)
+    reason = library_damage(path, source)
+    if reason is not None:
+        report_damaged(path, reason)
+        path = build(module_file, tag, source, again=True)
+        if (reason := library_damage(path, source)) is not None:
+            raise NativeBuildError(f"{path}: rebuilt, still {reason}")
+    llvm.load_library_permanently(str(path))

@@ -1,0 +1,102 @@
+"""A damaged kernel cache entry (a truncated module, a garbage C library) is found, rebuilt with
+one line that names it, and counted by ``nmkane cache prune`` (issue 44, item 8).
+
+Each case runs in fresh processes on a temporary cache (``NMKANE_CACHE_DIR`` and
+``NUMBA_CACHE_DIR``), with the smallest system, the sliding particle."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from nmkane_core.kernel import native
+
+RUN = """
+import sys
+from nmkane_core.kernel import codegen
+if sys.argv[1] == "c":  # the model's functions in C, as a large model's are (kernel.native)
+    codegen.INLINE_TERMS_MAX_STATEMENTS = 0
+from nmkane_core import simulate
+run = simulate({"system": "sliding-particle", "t_final": 0.2, "dt": 0.01}, progress=False)
+print(run.summary["status"])
+"""
+
+
+def _env(cache: Path) -> dict[str, str]:
+    return {
+        **os.environ,
+        "NMKANE_CACHE_DIR": str(cache),
+        "NUMBA_CACHE_DIR": str(cache),
+        "NMKANE_PRECOMPILE": "0",  # no child left writing into the cache
+    }
+
+
+def _simulate(cache: Path, kind: str = "numba") -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-c", RUN, kind], env=_env(cache), capture_output=True, text=True, timeout=600
+    )
+
+
+def _cached(cache: Path, kind: str = "numba") -> Path:
+    """The cache's only kernel folder after a first run."""
+    done = _simulate(cache, kind)
+    assert done.returncode == 0, done.stderr
+    (folder,) = [p for p in (cache / "kernels").iterdir() if p.name != "index"]
+    return folder
+
+
+def _truncate(path: Path) -> None:
+    text = path.read_bytes()
+    path.write_bytes(text[: len(text) // 2])
+
+
+def _one_notice(stderr: str, path: Path) -> None:
+    lines = [line for line in stderr.splitlines() if line.strip()]
+    assert "Traceback" not in stderr
+    assert lines == [f"nmkane: kernel cache entry {path} was damaged ({lines[0].split('(', 1)[1]}"]
+    assert lines[0].endswith("); rebuilt")
+
+
+def test_a_truncated_cached_module_is_rebuilt_with_one_line_naming_it(tmp_path):
+    folder = _cached(tmp_path)
+    module = next(folder.glob("nmkane_kernel_*.py"))
+    _truncate(module)
+    done = _simulate(tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["ok"]
+    _one_notice(done.stderr, module)
+    again = _simulate(tmp_path)  # rebuilt whole: the next process says nothing
+    assert again.returncode == 0 and again.stderr == "", again.stderr
+
+
+@pytest.mark.skipif(native.compiler() is None, reason="no C compiler")
+def test_a_garbage_c_library_is_rebuilt_with_one_line_naming_it(tmp_path):
+    folder = _cached(tmp_path, "c")
+    (library,) = folder.glob("native_*.so")
+    library.write_bytes(os.urandom(4096))
+    done = _simulate(tmp_path, "c")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["ok"]
+    _one_notice(done.stderr, library)
+    assert library.read_bytes()[:4] == b"\x7fELF"
+
+
+def test_cache_prune_counts_and_removes_a_damaged_kernel(tmp_path):
+    folder = _cached(tmp_path)
+    module = next(folder.glob("nmkane_kernel_*.py"))
+    _truncate(module)
+    cli = [sys.executable, "-m", "nmkane_core.cli", "cache"]
+    info = subprocess.run([*cli, "info"], env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert info.returncode == 0, info.stderr
+    assert f"damaged  {module}" in info.stdout
+    done = subprocess.run([*cli, "prune"], env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert f"removed damaged {module}" in done.stdout
+    assert "(1 damaged)" in done.stdout
+    assert "removed sliding-particle / nonminimal (damaged)" in done.stdout
+    assert not folder.exists()
+    assert list((tmp_path / "kernels" / "index").glob("*.json")) == []
