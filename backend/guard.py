@@ -19,7 +19,10 @@ The rule for hosts and tokens is the one the web app's server keeps too,
 * :func:`read_deadline_protocol`: uvicorn's HTTP protocol with a deadline on reading a
   request — its head and its body — so a client that stops sending is answered 408 and
   disconnected instead of holding a connection for ever (uvicorn's own ``timeout_keep_alive``
-  only covers the idle time between requests).
+  only covers the idle time between requests); and the symmetric deadline on the client's
+  reading of the answer: a connection whose unsent answer has waited that long for the client
+  to take any of it is dropped (asyncio's transport pauses the answer past its 64 KiB
+  high-water mark; a client that reads nothing never resumes it).
 """
 
 from __future__ import annotations
@@ -115,17 +118,24 @@ _TIMEOUT_BODY = (
 )
 
 
-def read_deadline_protocol(seconds: float):
-    """uvicorn's httptools protocol with a deadline of ``seconds`` on reading each request.
+def read_deadline_protocol(seconds: float, write_seconds: float | None = None):
+    """uvicorn's httptools protocol with a deadline of ``seconds`` on reading each request, and
+    one of ``write_seconds`` (the same by default) on the client's reading of each answer.
 
-    The clock starts when a connection opens (and again when a keep-alive connection starts
-    its next request) and stops when the request's body is complete; at the deadline the
-    client gets 408 (if nothing was answered yet) and the connection is closed."""
+    The read clock starts when a connection opens (and again when a keep-alive connection
+    starts its next request) and stops when the request's body is complete; at the deadline the
+    client gets 408 (if nothing was answered yet) and the connection is closed.  The write clock
+    starts when the transport pauses the answer (more than its high-water mark waits unsent)
+    and stops when the client has taken enough of it to resume; at the deadline the connection
+    is dropped with what waited unsent, so a client that stops reading holds neither a
+    connection nor the answer's bytes for longer than that."""
     from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
     class ReadDeadlineProtocol(HttpToolsProtocol):
         read_timeout = seconds
+        write_timeout = seconds if write_seconds is None else write_seconds
         _deadline: asyncio.TimerHandle | None = None
+        _write_deadline: asyncio.TimerHandle | None = None
 
         def connection_made(self, transport):
             super().connection_made(transport)
@@ -142,7 +152,26 @@ def read_deadline_protocol(seconds: float):
 
         def connection_lost(self, exc):
             self._cancel_deadline()
+            self._cancel_write_deadline()
             super().connection_lost(exc)
+
+        def pause_writing(self) -> None:
+            super().pause_writing()
+            if self._write_deadline is None:
+                self._write_deadline = self.loop.call_later(self.write_timeout, self._not_reading)
+
+        def resume_writing(self) -> None:
+            self._cancel_write_deadline()
+            super().resume_writing()
+
+        def _cancel_write_deadline(self) -> None:
+            if self._write_deadline is not None:
+                self._write_deadline.cancel()
+                self._write_deadline = None
+
+        def _not_reading(self) -> None:
+            self._write_deadline = None
+            self.transport.abort()  # close() would wait for the client to take the unsent bytes
 
         def _cancel_deadline(self) -> None:
             deadline = getattr(self, "_deadline", None)

@@ -61,6 +61,11 @@ WARM_THREAD_PREFIX = "nmkane-warm"
 log = logging.getLogger("nmkane.serve")
 
 
+#: open connections to the REST API (idle keep-alive ones included); each slow reader holds
+#: about 1 MB (a piece of the document and the decompressor's window) until the read deadline
+MAX_CONNECTIONS = 256
+
+
 def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server, threading.Thread, int]:
     config = uvicorn.Config(
         create_app(settings),
@@ -69,8 +74,11 @@ def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server
         log_level="warning",
         lifespan="on",
         server_header=False,
-        # a client must send each request (head and body) within read_timeout_s
+        # a client must send each request (head and body) within read_timeout_s, and take some
+        # of an answer waiting for it within as long (a client that stops reading is dropped)
         http=read_deadline_protocol(settings.read_timeout_s),
+        # at most this many connections (and requests in progress): past it uvicorn answers 503
+        limit_concurrency=MAX_CONNECTIONS,
         # let runs in flight finish (each is stored before its 201), within bounds
         timeout_graceful_shutdown=int(settings.max_wall_time_s) + 5,
     )

@@ -411,6 +411,24 @@ class RunStore:
             row = self._reader().execute("SELECT document FROM runs WHERE id = ?", (run_id,)).fetchone()
         return None if row is None else self._decode(row[0])
 
+    def document_piece(self, run_id: str, offset: int, size: int) -> bytes | None:
+        """``size`` bytes of the *stored* (compressed) document of ``run_id`` from ``offset``
+        (b"" past its end), or None when there is no such run: each piece in a read transaction
+        of its own (the row found by id, then an incremental read of its blob), so a slow
+        download keeps no transaction open (the REST route streams a document with it)."""
+        with self._faults():
+            con = self._reader()
+            con.execute("BEGIN")
+            try:
+                row = con.execute("SELECT rowid FROM runs WHERE id = ?", (run_id,)).fetchone()
+                if row is None:
+                    return None
+                with con.blobopen("runs", "document", row[0], readonly=True) as blob:
+                    blob.seek(min(offset, len(blob)))
+                    return blob.read(size)
+            finally:
+                con.execute("COMMIT")
+
     def list(self, limit: int, offset: int, system: str | None = None, status: str | None = None) -> list[dict]:
         """Newest first: id, created, system, status, settings, summary."""
         where, args = self._where(system, status)

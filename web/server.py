@@ -43,6 +43,7 @@ from urllib.parse import parse_qs, quote, urlsplit
 import viser
 
 from nmkane_core.access import HostAllowList, host_name, token_matches
+from nmkane_core.heap import malloc_trim
 from nmkane_core.run.registry import get_system
 from nmkane_core.run.simulate import simulate as core_simulate
 
@@ -74,17 +75,6 @@ def _reachable(host: str) -> str:
         return "127.0.0.1"
 
 
-def _libc_trim():
-    """glibc's ``malloc_trim`` (None elsewhere)."""
-    try:
-        import ctypes
-
-        return ctypes.CDLL("libc.so.6").malloc_trim
-    except (OSError, AttributeError):
-        return None
-
-
-_TRIM = _libc_trim()
 _trim_lock = threading.Lock()
 
 
@@ -93,10 +83,10 @@ def _release_memory() -> None:
     objects, but glibc keeps freed heap pages in its per-thread arenas (every session's
     threads allocate): measured, 25 sessions opened and closed left the process 25–30 MB
     larger per cycle, and ``malloc_trim(0)`` returned it all."""
-    if _TRIM is not None and _trim_lock.acquire(blocking=False):
+    if malloc_trim is not None and _trim_lock.acquire(blocking=False):
         try:
             gc.collect()  # a session's objects are in reference cycles: free them first
-            _TRIM(0)
+            malloc_trim(0)
         finally:
             _trim_lock.release()
 

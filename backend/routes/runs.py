@@ -5,24 +5,39 @@ Route functions are thin: the work is in :class:`backend.service.RunService` (wo
 admission, limits, encoding) and :class:`backend.store.RunStore` (SQLite).  Run documents
 are encoded once, when the run finishes, and served as stored bytes; the OpenAPI document
 still describes them as the core's ``RunResult``.
+
+A stored document is streamed: read from the store's file a piece at a time and decompressed
+as it is sent (:func:`document_chunks`), so a client that reads slowly, or not at all, holds
+one piece and the decompressor's window (about 1 MB), not the document (a 100,000-row run is
+20 MB); the read deadline of :func:`backend.guard.read_deadline_protocol` drops a client
+that stops reading.
 """
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import datetime as dt
+import threading
+import zlib
+from collections.abc import AsyncIterator, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 import orjson
+import zstandard
 from fastapi import APIRouter, Path, Query
 from fastapi.responses import JSONResponse, Response, StreamingResponse
 
+from nmkane_core.heap import malloc_trim
 from nmkane_core.run.result import Run
 from nmkane_core.schema import RunResult
 
 from ..deps import AppSettings, Service, Store
 from ..errors import error_doc, error_response, item, not_found
 from ..models import STATUSES, RunList, RunSettings
+from ..store import RunStore
 
 __all__ = ["router", "CSVResponse", "JSONBytes"]
 
@@ -50,20 +65,27 @@ POST_RESPONSES: dict[int | str, dict[str, Any]] = {
     413: error_doc("request body larger than max_request_bytes"),
     415: error_doc("the body is not declared as JSON (Content-Type)"),
     422: error_doc("invalid settings: field path, value, reason and what is allowed"),
-    507: error_doc("the run store is full (max_stored_runs or max_store_bytes); delete runs or raise the cap"),
+    507: error_doc(
+        "the run store is full (max_stored_runs or max_store_bytes: delete runs or raise the cap), or its "
+        "disk is (disk_full: free disk space there or delete runs)"
+    ),
     503: error_doc(
-        "queue_limit runs already admitted; retry after Retry-After seconds",
-        headers={"Retry-After": {"schema": {"type": "integer"}, "description": "seconds"}},
+        "queue_limit runs already admitted (retry after Retry-After seconds); or the run store cannot be "
+        "written (store_read_only) or read (store_corrupt)",
+        headers={"Retry-After": {"schema": {"type": "integer"}, "description": "seconds (overloaded only)"}},
     ),
 }
+_STORE_FAULT = "the run store cannot be read or written (store_read_only, store_corrupt)"
 NOT_FOUND: dict[int | str, dict[str, Any]] = {
     404: error_doc("no run with this id"),
     422: error_doc("malformed id"),
+    503: error_doc(_STORE_FAULT),
 }
 _ERROR_JSON = {"content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorResponse"}}}}
 NOT_FOUND_CSV: dict[int | str, dict[str, Any]] = {
     404: {**_ERROR_JSON, "description": "no run with this id"},
     422: {**_ERROR_JSON, "description": "malformed id"},
+    503: {**_ERROR_JSON, "description": _STORE_FAULT},
 }
 DELETE_RESPONSES: dict[int | str, dict[str, Any]] = {
     **NOT_FOUND,
@@ -148,12 +170,14 @@ def get_run_csv(store: Store, run_id: str = RUN_ID):
     responses=NOT_FOUND,
     operation_id="get_run",
 )
-def get_run(store: Store, run_id: str = RUN_ID):
+async def get_run(store: Store, run_id: str = RUN_ID):
     """The stored run result document, exactly as POST /api/runs answered it."""
-    doc = store.document(run_id)
-    if doc is None:
+    found = await document_chunks(store, run_id)
+    if found is None:
         return _no_run(run_id)
-    return JSONBytes(doc)
+    size, chunks = found
+    headers = {"Content-Length": str(size)} if size >= 0 else None
+    return StreamingResponse(chunks, media_type=JSONBytes.media_type, headers=headers)
 
 
 @router.delete("/api/runs/{run_id}", status_code=204, responses=DELETE_RESPONSES, operation_id="delete_run")
@@ -178,7 +202,19 @@ def csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
     Each chunk is ``Run.to_csv`` of a slice (header kept on the first only), so the text is
     exactly the CLI's, and a long run streams without holding the GIL for seconds.
     """
+    chunks = _csv_chunks(doc, rows_per_chunk)
+    del doc  # only the chunks' generator holds it, until it has read the columns
+    with _streaming():
+        try:
+            yield from chunks
+        finally:
+            chunks.close()  # its columns freed before the heap is trimmed
+            del chunks
+
+
+def _csv_chunks(doc: bytes, rows_per_chunk: int):
     d = orjson.loads(doc)
+    del doc  # a slow client holds the columns below while they stream, not the document too
     t = _floats(d["t"])
     state = {k: _floats(v) for k, v in d["state"].items()}
     energy = None if d["energy"] is None else _floats(d["energy"])
@@ -206,3 +242,84 @@ def csv_chunks(doc: bytes, rows_per_chunk: int = 5000):
 
 def _floats(values) -> np.ndarray:
     return np.asarray(values, dtype=float)
+
+
+PIECE_BYTES = 32 * 1024  # of the stored (compressed) document, read at a time: ~75 kB of JSON
+_ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
+#: the threads that read documents' pieces: two, however many clients download (each thread keeps
+#: its own SQLite connection and page cache, and its own malloc arena)
+_READS: list[ThreadPoolExecutor] = []
+
+
+async def document_chunks(
+    store: RunStore, run_id: str, piece: int = PIECE_BYTES
+) -> tuple[int, AsyncIterator[bytes]] | None:
+    """The stored document of ``run_id`` as its length in bytes (-1 when the stored frame does
+    not say) and its bytes in chunks, decompressed a piece at a time; None when there is no such
+    run.  The first piece is read now (a missing run is known, a store fault raised, before an
+    answer starts).
+
+    Each piece is read in a transaction of its own (the row found by id, then an incremental
+    read of its blob), so a slow download keeps no read transaction open; a run deleted while
+    it downloads ends the download with an error (the client sees it cut short).  The next piece
+    is read when the connection has taken the previous one (uvicorn's ``send`` waits while the
+    connection's buffer is past its high-water mark).
+    """
+    first = await _read(store, run_id, 0, piece)
+    if first is None:
+        return None
+    decoder: Any
+    if first[:4] == _ZSTD_MAGIC:
+        size, decoder = zstandard.frame_content_size(first), zstandard.ZstdDecompressor().decompressobj()
+    else:  # rows written before zstd was used
+        size, decoder = -1, zlib.decompressobj()
+    return size, _decoded(store, run_id, first, piece, decoder)
+
+
+async def _decoded(store: RunStore, run_id: str, blob: bytes, piece: int, decoder: Any) -> AsyncIterator[bytes]:
+    with _streaming():
+        try:
+            offset = 0
+            while blob:
+                yield decoder.decompress(blob)  # 32 kB: ~50 µs, on the event loop
+                offset += len(blob)
+                more = await _read(store, run_id, offset, piece)
+                if more is None:
+                    raise LookupError(f"run {run_id} was deleted while it was being sent")
+                blob = more
+            yield decoder.flush()
+        finally:
+            del decoder, blob  # freed before the heap is trimmed
+
+
+def _reads() -> ThreadPoolExecutor:
+    with _streams_lock:
+        if not _READS:
+            _READS.append(ThreadPoolExecutor(2, thread_name_prefix="nmkane-document"))
+        return _READS[0]
+
+
+def _read(store: RunStore, run_id: str, offset: int, size: int) -> asyncio.Future[bytes | None]:
+    return asyncio.get_running_loop().run_in_executor(_reads(), store.document_piece, run_id, offset, size)
+
+
+_streams = [0]  # documents (JSON or CSV) being sent
+_streams_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def _streaming() -> Iterator[None]:
+    """Count a document being sent; when the last one ends (sent, or its client gone), give the
+    heap it freed back to the system.  Without it glibc keeps the freed pieces, decompressors and
+    buffers in its arenas: measured, 40 clients that read nothing left the process 50 MB larger
+    after they had gone, and ``malloc_trim(0)`` (a millisecond) returned all of it."""
+    with _streams_lock:
+        _streams[0] += 1
+    try:
+        yield
+    finally:
+        with _streams_lock:
+            _streams[0] -= 1
+            last = _streams[0] == 0
+        if last and malloc_trim is not None:
+            _reads().submit(malloc_trim, 0)
