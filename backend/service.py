@@ -17,8 +17,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import orjson
 
-from nmkane_core.integrate.drivers import ADAPTIVE_ROWS_PER_CALL, SCIPY_STEPS_PER_CHECK
-from nmkane_core.integrate.methods import ScipyMethod
+from nmkane_core.integrate.drivers import ROWS_PER_CHUNK
 from nmkane_core.run.plan import Plan, check_budget, resolve
 from nmkane_core.run.registry import get_system, system_names
 from nmkane_core.run.result import Run
@@ -73,16 +72,14 @@ class OutputGuard:
     (without it a 10 s adaptive run at rtol = 1e-14 makes 7 million rows, 2 GB).
 
     The library calls ``cancel()`` between chunks of work, and what a chunk can add is known:
-    the compiled adaptive loop writes at most ``ADAPTIVE_ROWS_PER_CALL`` rows per call, the
-    scipy adapter checks every ``SCIPY_STEPS_PER_CALL`` steps.  While a run is switched to an
+    the driver of each kind of method says it (``ROWS_PER_CHUNK``: the compiled adaptive loop's
+    output buffer, the scipy adapter's steps between checks).  While a run is switched to an
     equivalent model near a singular configuration its chunks are short, so at least
     ``MIN_CALLS`` calls are always allowed (at most ~400,000 rows, ~50 MB, before the output
     is thinned to ``max_rows``).  A ``max_rows`` argument to ``simulate`` would make this
     exact (see the notes to the core).  Fixed-step runs are checked before they start.
     """
 
-    ADAPTIVE_ROWS_PER_CALL = ADAPTIVE_ROWS_PER_CALL  # the core's adaptive driver: output buffer per call
-    SCIPY_STEPS_PER_CALL = SCIPY_STEPS_PER_CHECK  # the core's scipy driver: steps between checks
     MIN_CALLS = 100
 
     def __init__(self, plan: Plan, max_rows: int, stopping: threading.Event):
@@ -90,12 +87,8 @@ class OutputGuard:
         self.max_rows = max_rows
         self.calls = 0
         self.hit = False
-        if isinstance(plan.integrator, ScipyMethod):
-            per_call = max(1, math.ceil(self.SCIPY_STEPS_PER_CALL / plan.every))
-        elif plan.integrator.adaptive:
-            per_call = self.ADAPTIVE_ROWS_PER_CALL
-        else:
-            per_call = None
+        rows_of = ROWS_PER_CHUNK[plan.integrator.kind]  # None: a fixed-step run's rows are known ahead
+        per_call = None if rows_of is None else rows_of(plan.every)
         self.max_calls = None if per_call is None else max(self.MIN_CALLS, (max_rows - 2) // per_call)
 
     def __call__(self) -> bool:

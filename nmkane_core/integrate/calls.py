@@ -25,10 +25,10 @@ from ..kernel.constants import (
     STATS_SOLVE_LOG,
     STATS_VIOL,
 )
-from ..kernel.interface import AdaptiveArgs, FixedArgs
+from ..kernel.interface import AdaptiveArgs, CompiledModel, FixedArgs
 from ..symbolic.robust import CONSISTENCY_TOL, RANK_TOL, RCOND_ROBUST
 from .job import Job
-from .methods import ScipyMethod, Tableau
+from .methods import Tableau
 
 __all__ = [
     "HMIN_REL",
@@ -62,7 +62,7 @@ class Rows:
         self.L = np.zeros((size if forces else 0, m))
 
 
-def rows_for(job: Job, module, size: int) -> Rows:
+def rows_for(job: Job, module: CompiledModel, size: int) -> Rows:
     """Output buffers of ``size`` rows for ``module``'s loop (forces when the job wants them;
     room for the multipliers of any model the run may switch to)."""
     m = max([job.module.M, *(a.module.M for a in job.alternatives)])
@@ -76,7 +76,7 @@ class SolveState:
 
     LOG_ROWS = 64  # records one loop call keeps (more are counted)
 
-    def __init__(self, job: Job, module, rows: int | None = None):
+    def __init__(self, job: Job, module: CompiledModel, rows: int | None = None):
         n = module.N
         self.order = np.empty(n + 1, dtype=np.int64)
         given = job.order if module is job.module and len(job.order) == n else tuple(range(n))
@@ -103,7 +103,7 @@ class SolveState:
         stats[STATS_SOLVE_LOG] = 0.0
 
 
-def solve_state(job: Job, module, state: SolveState | None) -> SolveState:
+def solve_state(job: Job, module: CompiledModel, state: SolveState | None) -> SolveState:
     """``state`` when it belongs to ``module``, else a fresh one for a trial step of it."""
     if state is not None and state.order.size == module.N + 1:
         return state
@@ -156,40 +156,50 @@ def fixed_args(
     assert isinstance(tab, Tableau)
     dt, t_final, nsteps = steps if steps is not None else (job.dt, job.t_final, fixed_steps(job))
     return FixedArgs(
-        x=x,
         t0=t0,
         dt=dt,
         t_final=t_final,
         k0=k0,
         k1=k1,
         nsteps=nsteps,
-        every=job.every,
-        p=p,
-        G=job.G,
-        G1=job.G1,
-        G2=job.G2,
-        TA=tab.A,
-        TB=tab.b,
-        TC=tab.c,
-        rcond_min=rcond_min,
-        solve=job.solve,
-        rank_tol=RANK_TOL,
-        max_rank=solve.max_rank,
-        consistency_tol=CONSISTENCY_TOL,
-        rcond_robust=RCOND_ROBUST,
-        order=solve.order,
-        solve_log=solve.log,
-        proj=job.proj,
-        out_t=rows.t,
-        out_x=rows.x,
-        out_E=rows.E,
-        out_V=rows.V,
-        out_F=rows.F,
-        out_L=rows.L,
         row=row,
-        pending=pending,
-        stats=stats,
+        **_common_args(job, tab, p, x, rows, stats, rcond_min, pending, solve),
     )
+
+
+def _common_args(
+    job: Job, tab: Tableau, p: np.ndarray, x: np.ndarray, rows: Rows, stats: np.ndarray, rcond_min, pending, solve
+) -> dict:
+    """The arguments both compiled loops take (:class:`FixedArgs` and :class:`AdaptiveArgs`
+    share these fields by name): the run's numbers from the job, the solve's state, the buffers."""
+    return {
+        "x": x,
+        "every": job.every,
+        "p": p,
+        "G": job.G,
+        "G1": job.G1,
+        "G2": job.G2,
+        "TA": tab.A,
+        "TB": tab.b,
+        "TC": tab.c,
+        "rcond_min": rcond_min,
+        "solve": job.solve,
+        "rank_tol": RANK_TOL,
+        "max_rank": solve.max_rank,
+        "consistency_tol": CONSISTENCY_TOL,
+        "rcond_robust": RCOND_ROBUST,
+        "order": solve.order,
+        "solve_log": solve.log,
+        "proj": job.proj,
+        "out_t": rows.t,
+        "out_x": rows.x,
+        "out_E": rows.E,
+        "out_V": rows.V,
+        "out_F": rows.F,
+        "out_L": rows.L,
+        "pending": pending,
+        "stats": stats,
+    }
 
 
 def adaptive_args(
@@ -213,7 +223,6 @@ def adaptive_args(
     tab = job.method
     assert isinstance(tab, Tableau) and tab.E is not None and tab.error_order is not None
     return AdaptiveArgs(
-        x=x,
         t=t,
         t_final=job.t_final if t_final is None else t_final,
         h=h,
@@ -222,34 +231,10 @@ def adaptive_args(
         hmin=HMIN_REL * max(1.0, job.t_final),
         hmax=job.t_final,
         max_steps=max_steps,
-        every=job.every,
         accepted=accepted,
-        p=p,
-        G=job.G,
-        G1=job.G1,
-        G2=job.G2,
-        TA=tab.A,
-        TB=tab.b,
         TE=tab.E,
-        TC=tab.c,
         err_exp=1.0 / (tab.error_order + 1),
-        rcond_min=rcond_min,
-        solve=job.solve,
-        rank_tol=RANK_TOL,
-        max_rank=solve.max_rank,
-        consistency_tol=CONSISTENCY_TOL,
-        rcond_robust=RCOND_ROBUST,
-        order=solve.order,
-        solve_log=solve.log,
-        proj=job.proj,
-        out_t=rows.t,
-        out_x=rows.x,
-        out_E=rows.E,
-        out_V=rows.V,
-        out_F=rows.F,
-        out_L=rows.L,
-        pending=pending,
-        stats=stats,
+        **_common_args(job, tab, p, x, rows, stats, rcond_min, pending, solve),
     )
 
 
@@ -258,7 +243,7 @@ def fixed_steps(job: Job) -> int:
     return max(1, int(np.ceil(job.t_final / job.dt - 1e-9)))
 
 
-def initial_stats(job: Job, module, p: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+def initial_stats(job: Job, module: CompiledModel, p: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
     """The ``stats`` array at the initial state, and its energy and violations."""
     nv = module.NV
     E0, V0 = np.empty(1), np.empty((1, nv))
@@ -283,7 +268,7 @@ def prepare(job: Job) -> None:
 _PRIMED: set[tuple] = set()  # what prime() has called in this process (each loop's type signature)
 
 
-def prime(job: Job, module, p: np.ndarray) -> float:
+def prime(job: Job, module: CompiledModel, p: np.ndarray) -> float:
     """Call ``module``'s loop for ``job`` once with no work (and the helpers a driver calls
     around it: the initial diagnostics, scipy's right-hand side); returns the seconds it took
     (compiling, or loading compiled code, on first use; about 0 once this process has called
@@ -291,18 +276,18 @@ def prime(job: Job, module, p: np.ndarray) -> float:
     t0 = time.perf_counter()
     # the loops' argument types differ only by the method's kind and by a projection or none
     # (fixed_args, adaptive_args): a key of those says the call would find its code loaded
-    key = (module.__name__, id(module), type(job.method).__name__, job.method.adaptive, job.proj is None, job.forces)
+    key = (module.__name__, id(module), job.method.kind, job.proj is None, job.forces)
     if key not in _PRIMED:
         _prime(job, module, p)
         _PRIMED.add(key)
     return time.perf_counter() - t0
 
 
-def _prime(job: Job, module, p: np.ndarray) -> None:
+def _prime(job: Job, module: CompiledModel, p: np.ndarray) -> None:
     precompile.wait(module)  # a new kernel's loop may be compiling next door
     x = job.x0.copy()
     stats, _, _ = initial_stats(job, module, p)
-    if isinstance(job.method, ScipyMethod):
+    if job.method.kind == "scipy":
         module.rhs_ws(0.0, x, p, job.G, job.G1, job.G2, np.empty((1, x.size)), 0, module.make_workspace())
         module.diagnostics(0.0, x, p, np.empty(module.NV))
         if job.forces:
@@ -311,7 +296,7 @@ def _prime(job: Job, module, p: np.ndarray) -> None:
         return
     rows = rows_for(job, module, 1)
     solve = solve_state(job, module, None)
-    if job.method.adaptive:
+    if job.method.kind == "adaptive":
         args = adaptive_args(
             job, p, x, rows, stats, t=0.0, h=job.dt, max_steps=0, accepted=0, rcond_min=0.0, solve=solve
         )
@@ -320,7 +305,7 @@ def _prime(job: Job, module, p: np.ndarray) -> None:
         module.integrate_fixed(*fixed_args(job, p, x, rows, stats, k0=0, k1=0, row=0, rcond_min=0.0, solve=solve))
 
 
-def _trial_stats(module) -> np.ndarray:
+def _trial_stats(module: CompiledModel) -> np.ndarray:
     stats = np.zeros(STATS_VIOL + module.NV)
     stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = stats[STATS_MIN_PIVOT] = 1.0
     stats[STATS_MIN_RANK] = module.M
@@ -328,7 +313,7 @@ def _trial_stats(module) -> np.ndarray:
 
 
 def conditioning(
-    job: Job, module, p: np.ndarray, t: float, x: np.ndarray, h: float, solve: SolveState | None = None
+    job: Job, module: CompiledModel, p: np.ndarray, t: float, x: np.ndarray, h: float, solve: SolveState | None = None
 ) -> float:
     """The smallest reciprocal-condition estimate of J2 and T over one trial step of size ``h``
     from (t, x) with ``module``'s loop (on copies: nothing of the run changes).  The switcher
@@ -337,7 +322,7 @@ def conditioning(
     stats = _trial_stats(module)
     y = x.copy()
     trial = solve_state(job, module, solve).trial()
-    if job.method.adaptive:
+    if job.method.kind == "adaptive":
         module.integrate_adaptive(
             *adaptive_args(job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, solve=trial)
         )
@@ -350,7 +335,14 @@ def conditioning(
 
 
 def forces_at(
-    job: Job, module, p: np.ndarray, t: float, x: np.ndarray, rows: Rows, row: int, solve: SolveState | None = None
+    job: Job,
+    module: CompiledModel,
+    p: np.ndarray,
+    t: float,
+    x: np.ndarray,
+    rows: Rows,
+    row: int,
+    solve: SolveState | None = None,
 ) -> None:
     """The constraint forces of the state (t, x) into ``rows.F[row]``, ``rows.L[row]``: the first
     stage of a trial step of ``module``'s loop (on copies: nothing of the run changes; no other
@@ -360,7 +352,7 @@ def forces_at(
     y = x.copy()
     h = job.dt
     trial = solve_state(job, module, solve).trial()
-    if job.method.adaptive:
+    if job.method.kind == "adaptive":
         adaptive = adaptive_args(
             job,
             p,

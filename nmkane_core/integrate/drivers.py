@@ -11,35 +11,53 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from .adaptive import ATTEMPTS_PER_CALL, ROWS_PER_CALL, run_adaptive
+from .adaptive import ATTEMPTS_PER_CALL, run_adaptive
+from .adaptive import ROWS_PER_CALL as ROWS_PER_CALL_ADAPTIVE
 from .calls import Stopper, prepare
 from .fixed import FIRST_CHUNK, run_fixed
 from .job import Job, LoopOutput
-from .methods import ScipyMethod
+from .methods import MethodKind
 from .scipy_adapter import STEPS_PER_CHECK, run_scipy
 
 __all__ = [
     "ADAPTIVE_ATTEMPTS_PER_CALL",
     "ADAPTIVE_ROWS_PER_CALL",
+    "DRIVERS",
     "FIXED_FIRST_CHUNK",
+    "ROWS_PER_CHUNK",
     "SCIPY_STEPS_PER_CHECK",
+    "LOOP_OF_KIND",
     "integrate",
     "prepare",
 ]
 
 #: how much one chunk of compiled work can add (the service bounds a run's output with these)
-ADAPTIVE_ROWS_PER_CALL = ROWS_PER_CALL
+ADAPTIVE_ROWS_PER_CALL = ROWS_PER_CALL_ADAPTIVE
 ADAPTIVE_ATTEMPTS_PER_CALL = ATTEMPTS_PER_CALL
 SCIPY_STEPS_PER_CHECK = STEPS_PER_CHECK
 FIXED_FIRST_CHUNK = FIRST_CHUNK
 
+Driver = Callable[[Job, object, Stopper], LoopOutput]
+
+#: the driver of each kind of method (``method.kind``)
+DRIVERS: dict[MethodKind, Driver] = {"fixed": run_fixed, "adaptive": run_adaptive, "scipy": run_scipy}
+#: the compiled loop each kind calls (None: scipy's solver calls the right-hand side)
+LOOP_OF_KIND: dict[MethodKind, str | None] = {
+    "fixed": "integrate_fixed",
+    "adaptive": "integrate_adaptive",
+    "scipy": None,
+}
+#: the most output rows one chunk of a driver's work adds, given ``every`` (None: a fixed-step
+#: run's rows are known before it starts, ``ceil(t_final/dt/every)``)
+ROWS_PER_CHUNK: dict[MethodKind, Callable[[int], int] | None] = {
+    "fixed": None,
+    "adaptive": lambda every: ROWS_PER_CALL_ADAPTIVE,
+    "scipy": lambda every: max(1, -(-STEPS_PER_CHECK // every)),
+}
+
 
 def integrate(job: Job, bar, time_limit: float | None = None, cancel: Callable[[], bool] | None = None) -> LoopOutput:
-    """Integrate ``job`` with the driver of its method; ``bar.update(t)`` hears the progress,
-    ``time_limit`` (s of integration) and ``cancel()`` (polled between chunks) stop it early."""
-    stopper = Stopper(time_limit, cancel)
-    if isinstance(job.method, ScipyMethod):
-        return run_scipy(job, bar, stopper)
-    if job.method.adaptive:
-        return run_adaptive(job, bar, stopper)
-    return run_fixed(job, bar, stopper)
+    """Integrate ``job`` with the driver of its method's kind; ``bar.update(t)`` hears the
+    progress, ``time_limit`` (s of integration) and ``cancel()`` (polled between chunks) stop it
+    early."""
+    return DRIVERS[job.method.kind](job, bar, Stopper(time_limit, cancel))

@@ -8,10 +8,10 @@ nothing of systems, registries or settings.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
+from ..kernel.interface import CompiledModel
 from .methods import ScipyMethod, Tableau
 
 __all__ = ["Alternative", "Job", "LoopOutput"]
@@ -23,7 +23,7 @@ class Alternative:
     compiled kernel module and parameter vector (variants may order parameters differently)."""
 
     name: str
-    module: Any
+    module: CompiledModel
     p: np.ndarray
 
 
@@ -32,7 +32,7 @@ class Job:
     """One integration: the method, the kernel, the initial state and every numeric setting."""
 
     method: Tableau | ScipyMethod
-    module: Any  # the compiled kernel module of the chosen variant
+    module: CompiledModel  # the compiled kernel of the chosen variant
     variant: str
     x0: np.ndarray
     p: np.ndarray  # parameter vector, in the kernel's order

@@ -21,11 +21,17 @@ Names (CLI ``--integrator``, REST ``integrator``):
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
-__all__ = ["Tableau", "ScipyMethod", "INTEGRATORS", "get_integrator", "integrator_names"]
+__all__ = ["MethodKind", "Tableau", "ScipyMethod", "INTEGRATORS", "get_integrator", "integrator_names"]
+
+#: what drives a method: the compiled fixed-step loop, the compiled adaptive loop, or scipy's
+#: solver stepped from Python (:data:`nmkane_core.integrate.drivers.DRIVERS`); every caller that
+#: treats the kinds differently looks its kind up in a table keyed by this
+MethodKind = Literal["fixed", "adaptive", "scipy"]
 
 
 @dataclass(frozen=True)
@@ -41,7 +47,10 @@ class Tableau:
     error_order: int | None = None  # order of the embedded estimate (step exponent 1/(q+1))
     adaptive: bool = False
     description: str = ""
-    kind: str = field(default="tableau")
+
+    @property
+    def kind(self) -> MethodKind:
+        return "adaptive" if self.adaptive else "fixed"
 
     @property
     def stages(self) -> int:
@@ -100,7 +109,10 @@ class ScipyMethod:
     order: int
     description: str
     adaptive: bool = True
-    kind: str = "scipy"
+
+    @property
+    def kind(self) -> MethodKind:
+        return "scipy"
 
 
 INTEGRATORS = {

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kernel.constants import STATS_VIOL
+from ..kernel.interface import CompiledModel
 from .calls import Stopper, conditioning, prime
 from .job import Alternative, Job
 
@@ -40,7 +41,7 @@ class Switcher:
         self.seg_start = 0
 
     @property
-    def module(self):
+    def module(self) -> CompiledModel:
         """The kernel module of the model running now."""
         return self.cur.module
 

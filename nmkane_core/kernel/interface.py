@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import ast
 import typing
-from typing import Annotated, Any, NamedTuple
+from collections.abc import Callable
+from typing import Annotated, Any, NamedTuple, Protocol
 
 import numpy as np
 
 __all__ = [
+    "CompiledModel",
     "FixedArgs",
     "AdaptiveArgs",
     "LOOPS",
@@ -126,6 +128,46 @@ class AdaptiveArgs(NamedTuple):
     out_L: Annotated[np.ndarray, MAT]  # multipliers of each row
     pending: Annotated[int, INT]  # a row whose forces are those of the starting state, or −1
     stats: Annotated[np.ndarray, VEC]
+
+
+class CompiledModel(Protocol):
+    """What the integrators and the run layer use of a compiled kernel: the seam between
+    ``integrate/`` (and ``run/``) and ``kernel/``.  Today a generated numba module (or its
+    interpreted copy) is one; whatever builds kernels next must provide the same names.
+
+    Sizes: ``N`` speeds (and coordinates), ``M`` constraint equations, ``PI`` independent speeds
+    of the declared partition, ``NV`` reported violations, ``NO`` outputs, ``PERM`` the speeds'
+    order [u_I, u_D] in model order; ``ROBUST``: the rank-robust solve is compiled in,
+    ``MAX_RANK_DEFAULT`` its rank cap; ``ORC``: the work array's offset of the condition
+    estimates.  The loops take their records (:class:`FixedArgs`, :class:`AdaptiveArgs`) as
+    positional arguments; the rest are the right-hand side and the diagnostics at given states."""
+
+    __name__: str
+    N: int
+    M: int
+    PI: int
+    NV: int
+    NO: int
+    PERM: np.ndarray
+    ROBUST: bool
+    MAX_RANK_DEFAULT: int
+    ORC: int
+    integrate_fixed: Callable[..., tuple[int, int, int, int]]  # *FixedArgs -> status, k, row, pending
+    integrate_adaptive: Callable[..., tuple[int, float, float, int, int, int, int]]  # *AdaptiveArgs
+    make_workspace: Callable[[], np.ndarray]
+    rhs_ws: Callable[..., None]  # (t, x, p, G, G1, G2, K, row, w): ẋ into K[row]
+    rhs: Callable[..., np.ndarray]  # (t, x, p, G, G1, G2) -> ẋ
+    diagnostics: Callable[..., float]  # (t, x, p, viol) -> E, violations into viol
+    diagnostics_rows: Callable[..., None]  # (ts, xs, p, E, V)
+    outputs_rows: Callable[..., None]  # (ts, xs, p, O)
+    forces_rows: Callable[..., None]  # (ts, xs, p, G, G1, G2, F, L)
+    state_terms: Callable[..., Any]  # (t, x, p) -> the model's matrices at a state
+    solve_setup: Callable[..., None]
+    # the loops' bookkeeping of the rank-robust solve after one right-hand side (the scipy adapter
+    # calls it between scipy's steps; named with the underscore of loops.py, where it is internal)
+    _robust_outcome: Callable[..., int]
+    project_state: Callable[..., Any]
+    project_state_robust: Callable[..., Any]
 
 
 #: the compiled loops by name, and the record of each one's arguments

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..declare.system import System
 from ..errors import InputError
+from ..integrate.drivers import LOOP_OF_KIND
 from ..integrate.job import Alternative, Job
 from ..integrate.methods import ScipyMethod, Tableau, get_integrator
 from ..integrate.projection import ProjectionOptions, projection_options
@@ -175,7 +176,7 @@ def _interpret(module, method, dt: float, t_final: float, every: int, proj: Proj
     background child goes on compiling the loop for the runs after it).  Short: its estimated
     time (right-hand sides × the interpreter's time for one, measured here) ≤ INTERPRET_MAX_S.
     Adaptive and scipy runs are left to the compiled code (their work is not known ahead)."""
-    if not isinstance(method, Tableau) or method.adaptive:
+    if method.kind != "fixed":
         return False
     if not precompile.uncompiled(module) or not tier.interpretable(module):
         return False
@@ -191,8 +192,8 @@ def _interpret(module, method, dt: float, t_final: float, every: int, proj: Proj
 def _compile_ahead(module, method, proj: ProjectionOptions) -> None:
     """A kernel generated just now: compile the loop this run will call in a second process
     while this one derives the other models it needs and checks the initial state."""
-    if isinstance(method, Tableau):
-        loop = "integrate_adaptive" if method.adaptive else "integrate_fixed"
+    loop = LOOP_OF_KIND[method.kind]
+    if loop is not None:
         precompile.start(module, loop, projected=proj.name != "none")
 
 
@@ -214,7 +215,7 @@ def check_budget(method, dt: float, t_final: float, every: int, max_steps: int, 
     ``max_rows``; every violated limit is named at once, with the ``dt`` or ``every`` that would
     do (``where``: whose limits, e.g. " on this service").  Adaptive and scipy runs are bounded
     while they run."""
-    if not isinstance(method, Tableau) or method.adaptive:
+    if method.kind != "fixed":
         return
     nsteps = math.ceil(t_final / dt - 1e-9)
     errors = []
@@ -345,13 +346,13 @@ def _projection(
     name: str = "none" if s.projection is None else s.projection
     if s.projection is None:  # the system's default — one a scipy solver cannot use is left out
         name = system.default_projection
-        if name != "none" and isinstance(method, ScipyMethod):
+        if name != "none" and method.kind == "scipy":
             warnings.append(f"{where} projects after each step by default ({name}); scipy integrators cannot: none")
             name = "none"
     proj = projection_options(
         name, s.projection_weight, s.projection_iterations, s.projection_jacobian, s.projection_energy
     )
-    if proj.name != "none" and isinstance(method, ScipyMethod):
+    if proj.name != "none" and method.kind == "scipy":
         raise InputError(
             "projection",
             s.projection,
