@@ -1,10 +1,42 @@
-"""The command-line page: every ``nmkane`` command and option, from the argparse parsers."""
+"""The command-line page: every ``nmkane`` command and option, from the argparse parsers.
+
+The tables are committed in ``docs/cli.md`` between ``<!-- begin nmkane:NAME … -->`` and
+``<!-- end nmkane:NAME -->`` (as the REST page's, see ``gen_rest``), so the page reads whole
+in the repository; the site's build writes them afresh, and
+``tests/docs/test_generated_reference.py`` fails when the committed text is stale.  Refresh
+it with::
+
+    python scripts/docs/gen_cli.py --write     # --check: exit 1 if docs/cli.md is stale
+
+Usage lines are wrapped at 88 columns (the width of a code block), whatever the terminal.
+"""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import sys
+from collections.abc import Iterator
+from pathlib import Path
 
-from _md import fill, table
+from _md import DOCS, table
+from gen_rest import command_line, splice
+
+WIDTH = "88"  # argparse wraps usage lines at $COLUMNS
+
+
+@contextlib.contextmanager
+def _columns() -> Iterator[None]:
+    old = os.environ.get("COLUMNS")
+    os.environ["COLUMNS"] = WIDTH
+    try:
+        yield
+    finally:
+        if old is None:
+            del os.environ["COLUMNS"]
+        else:
+            os.environ["COLUMNS"] = old
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -71,12 +103,28 @@ def _command(path: list[str], parser: argparse.ArgumentParser, help_text: str, l
     return out
 
 
+def parts() -> dict[str, str]:
+    """The generated blocks of ``docs/cli.md``, from the parsers now."""
+    with _columns():
+        parser = _parser()
+        helps = _helps(parser)
+        commands = _subparsers(parser)
+        rows = [(f"[`nmkane {n}`](#nmkane-{n})", helps.get(n, "")) for n in commands]
+        body: list[str] = []
+        for name, sub in commands.items():
+            body += _command(["nmkane", name], sub, helps.get(name, ""), 3)
+    return {"cli-summary": table(("command", "what it does"), rows), "cli-commands": "\n".join(body)}
+
+
+def render(text: str) -> str:
+    """``docs/cli.md``'s text ``text`` with its generated blocks made now."""
+    return splice(text, parts(), "scripts/docs/gen_cli.py")
+
+
 def pages() -> dict[str, str]:
-    parser = _parser()
-    helps = _helps(parser)
-    commands = _subparsers(parser)
-    summary = table(("command", "what it does"), [(f"[`nmkane {n}`](#nmkane-{n})", helps.get(n, "")) for n in commands])
-    body: list[str] = []
-    for name, sub in commands.items():
-        body += _command(["nmkane", name], sub, helps.get(name, ""), 3)
-    return {"cli.md": fill("cli.md", {"cli-summary": summary, "cli-commands": "\n".join(body)})}
+    return {"cli.md": render((DOCS / "cli.md").read_text())}
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the checkout's nmkane_core, backend, web
+    sys.exit(command_line("cli.md", render))
