@@ -7,6 +7,11 @@ the REST API and of page links).  :class:`ControlPanel` turns them into handles:
 becomes a :class:`~web.numbers.NumberField` (a text box read exactly, a slider, a message
 line), a choice a viser dropdown; it reads them back into the core's settings
 (:func:`settings_from`) and collects refusals for the status line.
+
+The run settings are :class:`~nmkane_core.schema.RunSettings`, as REST and the CLI take them:
+a control's ``field`` names the setting it stands for, a number's range is cut to the range
+the schema declares for that field (:func:`setting_control`, from :data:`SETTING_NUMBERS`),
+and what no control sets (the tolerances among them) is left to the schema's defaults.
 """
 
 from __future__ import annotations
@@ -14,14 +19,15 @@ from __future__ import annotations
 import math
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from nmkane_core.analysis.expressions import parse
+from nmkane_core.integrate.methods import integrator_names
+from nmkane_core.schema import LIMITS, RunSettings, field_range
 
 from .numbers import Deadlines, ExpressionField, NumberField
 
-INTEGRATORS = ("kutta-merson", "rk4", "kutta-merson-adaptive", "rk45", "dop853", "radau")
-DT_RANGE = (1e-4, 0.2)  # s, the step size's slider (log scale)
+INTEGRATORS = integrator_names()  # the core's, as the CLI offers them
 DT_STEP = 0.05  # decades per slider step
 TARGET_ROWS = 4000  # output rows kept per run for the animation (`every`)
 
@@ -63,9 +69,66 @@ class Control:
     hint: str | None = None
 
 
+@dataclass(frozen=True)
+class SettingNumber:
+    """How the page shows a numeric run setting: its label, the slider's teaching range in the
+    setting's unit (cut to the range the schema declares: :func:`setting_range`), step, scale."""
+
+    label: str
+    min: float
+    max: float
+    step: float
+    unit: str = ""
+    log: bool = False
+    digits: int = 3
+
+
+#: the run settings the page has numbers for, by RunSettings field (t_final's range is the system's)
+SETTING_NUMBERS: dict[str, SettingNumber] = {
+    "gamma": SettingNumber("Γ (nonholonomic)", -50.0, 10.0, 0.5, "1/s"),
+    "gamma1": SettingNumber("Γ1 (holonomic)", -50.0, 10.0, 0.5, "1/s"),
+    "gamma2": SettingNumber("Γ2 (holonomic)", -500.0, 50.0, 5.0, "1/s²"),
+    "dt": SettingNumber("Δt", 1e-4, 0.2, DT_STEP, "s", log=True, digits=2),
+    "t_final": SettingNumber("Final time", 1.0, 10.0, 0.05, "s"),
+}
+GAINS = ("gamma", "gamma1", "gamma2")
+
+
+def setting_range(field: str, lo: float, hi: float) -> tuple[float, float]:
+    """[lo, hi] cut to what :class:`RunSettings` allows for ``field`` (its declared range; a gain's
+    is ±LIMITS["max_gain"]); an open bound is moved just inside."""
+    if field in GAINS:
+        limit = float(LIMITS["max_gain"])
+        return max(lo, -limit), min(hi, limit)
+    declared = field_range(field)
+    if declared is None:
+        return lo, hi
+    low, low_in, high, high_in, _ = declared
+    low = low if low_in else math.nextafter(low, math.inf)
+    high = high if high_in else math.nextafter(high, -math.inf)
+    return max(lo, low), min(hi, high)
+
+
+def setting_control(attr: str, field: str, default: float, hint: str | None = None, **range_) -> Control:
+    """The number for the run setting ``field`` (a key of :data:`SETTING_NUMBERS`; ``range_``:
+    ``min``, ``max``, ``step`` of this system's), starting at ``default`` (the system's)."""
+    n = SETTING_NUMBERS[field]
+    lo, hi = setting_range(field, range_.get("min", n.min), range_.get("max", n.max))
+    step = range_.get("step", n.step)
+    label = f"{n.label} [{n.unit}]" if n.unit else n.label
+    return Control(
+        attr, label, field, default, min=lo, max=hi, step=step, log=n.log, unit=n.unit, digits=n.digits, hint=hint
+    )
+
+
 def dt_control(attr: str, default: float, hint: str | None = None) -> Control:
-    lo, hi = DT_RANGE
-    return Control(attr, "Δt [s]", "dt", default, min=lo, max=hi, step=DT_STEP, log=True, unit="s", digits=2, hint=hint)
+    """Δt, starting at ``default`` kept in the slider's range (a system's 1e-5 s starts at 1e-4)."""
+    c = setting_control(attr, "dt", default, hint=hint)
+    return replace(c, default=min(max(float(default), c.min), c.max))
+
+
+#: s, the step size's slider (log scale): its teaching range within RunSettings' dt limits
+DT_RANGE = setting_range("dt", SETTING_NUMBERS["dt"].min, SETTING_NUMBERS["dt"].max)
 
 
 class ControlPanel:
@@ -183,25 +246,30 @@ class ControlPanel:
 def settings_from(system, controls: dict, read: Callable) -> tuple[dict, dict]:
     """The core's settings (and the view's display options) from control values.
 
-    ``controls`` maps :class:`Control` to its handle; ``read(handle)`` gives its value."""
+    ``controls`` maps :class:`Control` to its handle; ``read(handle)`` gives its value.  A
+    control's field is a :class:`RunSettings` field (``variant`` is the system's variant field,
+    ``model`` or ``formulation``; ``params.m``, ``initial.u1`` a key of one) or ``option.<name>``;
+    a number is a float.  Every other setting is left to the schema's defaults (the tolerances,
+    ``rtol`` and ``atol``, among them) but ``every``, which keeps about :data:`TARGET_ROWS` rows."""
     s: dict = {"system": system.name}
     options: dict = {}
     for c, h in controls.items():
         v = read(h)
-        kind, _, name = c.field.partition(".")
-        if kind == "variant":
-            s[system.option] = v
-        elif kind in ("integrator", "projection"):
-            s[kind] = v
-        elif kind in ("gamma", "gamma1", "gamma2", "dt", "t_final"):
-            s[kind] = float(v)
-        elif kind in ("initial", "params"):
-            s.setdefault(kind, {})[name] = float(v)
-        elif kind == "option":
-            options[name] = v
+        v = float(v) if c.kind == "number" else v
+        field, _, key = c.field.partition(".")
+        if field == "option":
+            options[key] = v
+            continue
+        field = system.option if field == "variant" else field
+        if field not in RunSettings.model_fields:
+            raise ValueError(f"control {c.attr!r}: {c.field!r} is not a run setting (RunSettings has no {field!r})")
+        if key:
+            s.setdefault(field, {})[key] = v
+        else:
+            s[field] = v
     dt = float(s.get("dt", system.default_dt))
     t_final = float(s.get("t_final", system.default_t_final))
     if not (math.isfinite(dt) and dt > 0):
         dt = system.default_dt
-    s.update(dt=dt, t_final=t_final, every=every_of(dt, t_final), rtol=1e-9, atol=1e-10)
+    s.update(dt=dt, t_final=t_final, every=every_of(dt, t_final))
     return s, options

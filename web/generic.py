@@ -23,16 +23,16 @@ import math
 import numpy as np
 
 from nmkane_core.analysis import expressions as ex
-from nmkane_core.integrate.projection import PRESETS
 from nmkane_core.kernel.built import built
 from nmkane_core.run.initial import default_state
 from nmkane_core.run.registry import get_system
+from nmkane_core.schema import PROJECTIONS
 
 from . import curves as cv
 from . import geometry as geo
 from . import plots as pl
 from .camera import CameraPlan, Viewport, frame
-from .controls import DT_RANGE, INTEGRATORS, Control, dt_control
+from .controls import GAINS, INTEGRATORS, Control, dt_control, setting_control
 from .declared import DeclaredScene
 from .forces import TITLE as FORCES_TITLE
 from .forces import ForceArrows, ForcePanel, force_curves
@@ -40,7 +40,6 @@ from .forces import ForceArrows, ForcePanel, force_curves
 DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
 FOLLOW_BEYOND_M = 4.0  # a whole motion within this radius is seen whole, not followed
 OFF, UNSTABILIZED, ALL = "off", "Γ = 0", "all"  # compare choices besides the variants
-GAMMAS = ("gamma", "gamma1", "gamma2")
 
 
 def _rgb(hex_color: str) -> tuple[int, int, int]:
@@ -156,49 +155,28 @@ def _choosers(core, prefix: str, show: dict) -> list[Control]:
             )
         )
     integ = show.get("integrator", core.default_integrator)
-    integ = integ if integ in INTEGRATORS else INTEGRATORS[0]
+    integ = integ if integ in INTEGRATORS else core.default_integrator
     out.append(Control(f"{prefix}integrator", "Integrator", "integrator", integ, kind="dropdown", options=INTEGRATORS))
     proj = show.get("projection", core.default_projection)  # the system's own (A02 declares one)
-    proj = proj if proj in PRESETS else "none"
-    out.append(
-        Control(f"{prefix}projection", "Projection", "projection", proj, kind="dropdown", options=tuple(PRESETS))
-    )
+    proj = proj if proj in PROJECTIONS else "none"
+    out.append(Control(f"{prefix}projection", "Projection", "projection", proj, kind="dropdown", options=PROJECTIONS))
     return out
 
 
 def _gains(core, prefix: str, show: dict) -> list[Control]:
     """Γ when the system has nonholonomic constraints; Γ1, Γ2 when it has holonomic ones."""
     info = built(core).info(core.default_variant)
-    out = []
-    if info.nonholonomic:
-        g = show.get("gamma", core.default_gamma)
-        out.append(
-            Control(f"{prefix}gamma", "Γ (nonholonomic) [1/s]", "gamma", g, min=-50.0, max=10.0, step=0.5, unit="1/s")
-        )
-    if info.holonomic:
-        g1, g2 = show.get("gamma1", core.default_gamma1), show.get("gamma2", core.default_gamma2)
-        out.append(
-            Control(f"{prefix}gamma1", "Γ1 (holonomic) [1/s]", "gamma1", g1, min=-50.0, max=10.0, step=0.5, unit="1/s")
-        )
-        out.append(
-            Control(
-                f"{prefix}gamma2", "Γ2 (holonomic) [1/s²]", "gamma2", g2, min=-500.0, max=50.0, step=5.0, unit="1/s²"
-            )
-        )
-    return out
+    shown = (("gamma",) if info.nonholonomic else ()) + (("gamma1", "gamma2") if info.holonomic else ())
+    return [setting_control(f"{prefix}{g}", g, show.get(g, getattr(core, f"default_{g}"))) for g in shown]
 
 
 def _times(core, prefix: str, show: dict) -> list[Control]:
     """The step size (a log slider) and the final time."""
-    lo, hi_dt = DT_RANGE
-    dt = min(max(float(show.get("dt", core.default_dt)), lo), hi_dt)
     tf = float(show.get("t_final", core.default_t_final))
     hi = max(5 * tf, 10.0)
     return [
-        dt_control(f"{prefix}dt", dt),
-        Control(
-            f"{prefix}t_final", "Final time [s]", "t_final", tf, min=min(1.0, tf), max=hi, step=_step(0, hi), unit="s"
-        ),
+        dt_control(f"{prefix}dt", float(show.get("dt", core.default_dt))),  # kept in the slider's range
+        setting_control(f"{prefix}t_final", "t_final", tf, min=min(1.0, tf), max=hi, step=_step(0, hi)),
     ]
 
 
@@ -277,7 +255,7 @@ class GenericView:
         picks = [*core.variants, UNSTABILIZED] if compare == ALL else [compare]
         for pick in picks:
             if pick == UNSTABILIZED:
-                s = {**settings, **{g: 0.0 for g in GAMMAS if g in settings}}
+                s = {**settings, **{g: 0.0 for g in GAINS if g in settings}}
                 if s != settings:
                     out[f"{main}, Γ = 0"] = s
             elif pick in core.variants and pick != main:
