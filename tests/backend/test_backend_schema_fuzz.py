@@ -39,6 +39,10 @@ _SETTINGS = Settings(
     max_wall_time_s=0.2,
     max_steps=100_000,
     max_rows=5_000,
+    # every fuzzed sweep admitted (the admission's 503 is tested in test_sweep_admission.py) and
+    # kept small: at most 20 runs of at most 0.2 s each
+    max_sweeps=1_000_000,
+    max_sweep_runs=20,
     allowed_hosts=("testserver",),
 )  # the ASGI test client's host name
 _APP = create_app(_SETTINGS)
