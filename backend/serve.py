@@ -46,6 +46,7 @@ from typing import Any
 import uvicorn
 
 from nmkane_core.access import allowed_host_names, is_loopback, new_token
+from nmkane_core.errors import NmkaneError
 
 from .app import create_app
 from .config import Settings
@@ -151,6 +152,10 @@ def _app_child(conn, host: str, port: int, options: dict) -> None:
         _abandon_compilation(quiet=True)  # the web app warms kernels in the background too
 
 
+class WebAppFailed(NmkaneError, RuntimeError):
+    """The web app's process did not start (``nmkane serve`` says why on one line, exit 2)."""
+
+
 class AppProcess:
     """The web app in a child process: ``.port``, ``.url`` and ``.stop()`` like the app's own
     handle.  ``timeout_s``: how long to wait for it to start (it imports viser and numpy)."""
@@ -165,15 +170,15 @@ class AppProcess:
         child_conn.close()
         if not self._conn.poll(timeout_s):
             self.stop()
-            raise RuntimeError(f"the 3D web app did not start within {timeout_s:.0f} s")
+            raise WebAppFailed(f"the 3D web app did not start within {timeout_s:.0f} s")
         try:
             answer = self._conn.recv()
         except EOFError:
             self.process.join(5)
-            raise RuntimeError(f"the 3D web app's process ended at start (status {self.process.exitcode})") from None
+            raise WebAppFailed(f"the 3D web app's process ended at start (status {self.process.exitcode})") from None
         if answer[0] != "ok":
             self.process.join(10)
-            raise RuntimeError(f"the 3D web app could not start: {answer[1]}")
+            raise WebAppFailed(f"the 3D web app could not start: {answer[1]}")
         _, self.port, self.url = answer
 
     def stop(self, timeout_s: float = 20.0) -> None:
@@ -190,17 +195,21 @@ class AppProcess:
         self._conn.close()
 
 
-def _abandon_compilation(quiet: bool = False) -> None:
+def _abandon_compilation(quiet: bool = False, failure: BaseException | None = None) -> None:
     """Wait ``WARM_JOIN_S`` for background compilation threads; if one is still running, end
     the process now (see the module docstring: an exit while LLVM compiles can crash).
-    ``quiet``: print nothing (the web app's child process)."""
+    ``quiet``: print nothing (the web app's child process).  ``failure``: why the service is
+    stopping, when it failed (the web app did not start): printed on one line, and the process
+    ends with status 1 instead of 0 (it ended 0, silently, with the reason lost)."""
     deadline = time.monotonic() + WARM_JOIN_S
     for t in threading.enumerate():
         if t.name.startswith(WARM_THREAD_PREFIX) and t is not threading.current_thread():
             t.join(max(0.0, deadline - time.monotonic()))
     busy = [t.name for t in threading.enumerate() if t.name.startswith(WARM_THREAD_PREFIX) and t.is_alive()]
     if busy:
-        if not quiet:
+        if failure is not None:
+            print(f"nmkane serve: error: {' '.join(str(failure).split()) or type(failure).__name__}", file=sys.stderr)
+        elif not quiet:
             print(
                 "nmkane: stopped (a background kernel compilation was abandoned; "
                 "the next start compiles what is missing)",
@@ -208,7 +217,7 @@ def _abandon_compilation(quiet: bool = False) -> None:
             )
         sys.stderr.flush()
         logging.shutdown()
-        os._exit(0)
+        os._exit(0 if failure is None else 1)
 
 
 def _auth(host: str, auth: bool, settings: Settings) -> str | None:
@@ -335,16 +344,20 @@ def serve(
     stopping: list[int] = []
     previous = _catch_stop_signals(stopping)
     handle = server = thread = None
+    failure: BaseException | None = None
     try:
         server, thread, port = _start_api(host, api_port, settings)
         _announce_api(host, port, settings)
         if web:
             handle = _start_web(host, viser_port, settings, options, in_process=not app_process)
         _wait_for_stop(stopping, thread)
+    except Exception as e:  # the web app did not start, ...: said on the way out, never an exit 0
+        failure = e
+        raise
     finally:
         _stop_all(handle, server, thread)
         for sig, h in previous.items():  # see the docstring: after a signal stop, repeats are ignored
             signal.signal(sig, signal.SIG_IGN if stopping else h)
         if server is not None:
-            _abandon_compilation()
+            _abandon_compilation(failure=failure)
             print("nmkane: stopped", flush=True)

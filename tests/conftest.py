@@ -168,6 +168,7 @@ HEAVY = {
     "tests/backend/test_backend_sweep_restart.py": "restarts a service during a sweep",
     "tests/backend/test_backend_schema_fuzz.py": "hundreds of generated requests",
     "tests/backend/test_hardening_serve.py": "starts nmkane serve on an empty cache",
+    "tests/backend/test_serve_web_failure.py": "starts nmkane serve",
     "tests/backend/test_slow_readers.py": "a service process measured with 40 clients that read nothing",
     "tests/cli/test_cli.py": "the CLI in subprocesses, the bench",
     "tests/paper/test_figures.py": "draws every figure of the paper",
