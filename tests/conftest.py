@@ -280,3 +280,20 @@ def pytest_terminal_summary(terminalreporter, config):
     seed = config.getoption("randomly_seed", None) if config.pluginmanager.hasplugin("randomly") else None
     if isinstance(seed, int):
         terminalreporter.write_line(f"test order shuffled: SEED={seed} make test-shuffled repeats it")
+
+
+@pytest.fixture()
+def made(monkeypatch):
+    """The texts of the sweep axes whose values were made (``sweep.spec._values`` spied on):
+    a sweep too large is refused before any is (issue 44)."""
+    from nmkane_core.sweep import spec as spec_module
+
+    calls: list[str] = []
+    real = spec_module._values
+
+    def spy(a):
+        calls.append(a.text)
+        return real(a)
+
+    monkeypatch.setattr(spec_module, "_values", spy)
+    return calls

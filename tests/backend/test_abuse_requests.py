@@ -20,21 +20,6 @@ GRID_10M = {"grid": ["gamma1=0.001:0.002:10000000"]}  # the issue's 113-byte req
 SMALL = {"settings": {"system": "sliding-particle", "t_final": 0.1}, "sample": ["gamma2=-2:-1"], "samples": 2}
 
 
-@pytest.fixture()
-def made(monkeypatch):
-    """The sweep axes whose values were made (``spec._values`` spied on)."""
-    calls: list[str] = []
-    real = getattr(spec_module, "_values", None)
-
-    def spy(a):
-        calls.append(a.text)
-        return real(a)
-
-    if real is not None:
-        monkeypatch.setattr(spec_module, "_values", spy)
-    return calls
-
-
 def _post_measured(client, body) -> tuple:
     """The answer to ``POST /api/sweeps``, its wall time (s) and the peak memory Python
     allocated meanwhile (bytes, every thread: the route runs in the thread pool)."""

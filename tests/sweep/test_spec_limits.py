@@ -8,23 +8,7 @@ import numpy as np
 import pytest
 
 from nmkane_core.errors import InputError
-from nmkane_core.sweep import spec as spec_module
 from nmkane_core.sweep.spec import MAX_POINTS, SEED_MAX, parse_axis, sweep_spec
-
-
-@pytest.fixture()
-def made(monkeypatch):
-    """The axes whose values were made (``spec._values`` spied on)."""
-    calls: list[str] = []
-    real = getattr(spec_module, "_values", None)
-
-    def spy(a):
-        calls.append(a.text)
-        return real(a)
-
-    if real is not None:
-        monkeypatch.setattr(spec_module, "_values", spy)
-    return calls
 
 
 def _refused(**kwargs) -> tuple[InputError, int]:
