@@ -10,6 +10,7 @@ without the colours.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -80,6 +81,38 @@ class Phase:
     x_label: str
     y_label: str
     styles: list[dict] = field(default_factory=list)
+    equal: bool = False  # the two axes share a unit: drawn to equal scale (see :func:`same_unit`)
+
+
+@functools.lru_cache(maxsize=64)
+def length_coordinates(system: str) -> frozenset[str]:
+    """The coordinates that are lengths, as the system's declared visuals tell: those that move
+    the origin of a declared frame and turn none (a body's x and y on the ground; not its heading
+    angle, which turns it).  Empty for a system that declares no visuals (the model declares no units)."""
+    from nmkane_core.kernel.built import built
+    from nmkane_core.run.registry import get_system
+
+    moves: set[str] = set()
+    turns: set[str] = set()
+    try:
+        core = get_system(system)
+        if core.visuals is None:
+            return frozenset()
+        for frame in core.visuals().frames:
+            moves |= {str(s) for c in frame.origin for s in getattr(c, "free_symbols", ())}
+            if frame.rotation is not None:
+                turns |= {str(s) for s in getattr(frame.rotation, "free_symbols", ())}
+        names = set(built(core).state_names)
+    except Exception:  # a plot's scale must never take the page down: no unit known, own scales
+        return frozenset()
+    return frozenset((moves - turns) & names)  # not the parameters (a radius)
+
+
+def same_unit(system: str, x_text: str, y_text: str) -> bool:
+    """Whether a phase portrait's axes share a unit: each is one coordinate alone (``y``, not
+    ``2*y`` or ``u1``) and both are lengths by :func:`length_coordinates`."""
+    lengths = length_coordinates(system)
+    return x_text.strip() in lengths and y_text.strip() in lengths
 
 
 def quantity(runs: dict, y_text: str, x_text: str = "t") -> pl.Curves | Phase:
@@ -101,7 +134,7 @@ def quantity(runs: dict, y_text: str, x_text: str = "t") -> pl.Curves | Phase:
         out.styles = styles
         return out
     ts = [np.asarray(r.t, float) for r in runs.values()]
-    return Phase(xs, ys, ts, names, x_text, y_text, styles)
+    return Phase(xs, ys, ts, names, x_text, y_text, styles, equal=same_unit(main.system, x_text, y_text))
 
 
 def draw_phase(phase: Phase, t_now: float, width_px: int = 460) -> np.ndarray:
@@ -121,6 +154,8 @@ def draw_phase(phase: Phase, t_now: float, width_px: int = 460) -> np.ndarray:
     ax.set_xlabel(phase.x_label)
     ax.set_ylabel(phase.y_label)
     ax.grid(True, alpha=0.3)
+    if phase.equal:  # a metre is as long across as up: the data's box widened to the image's shape
+        ax.set_aspect("equal", adjustable="datalim")
     ax.set_title(f"{phase.y_label} against {phase.x_label} (● now, t = {t_now:.2f} s)", fontsize=9)
     if len(phase.labels) > 1:
         ax.legend(fontsize=7, loc="best")

@@ -81,6 +81,7 @@ class PlotPanel:
             scales=x_scale,
             axes=pl.marker_axes(0.0),
             aspect=1.6,
+            padding=pl.PADDING,
             visible=visible,
         )
 
@@ -132,10 +133,14 @@ class PlotPanel:
         t0, t1, page = self._range(traj, key, t_now)
         if force or self.pages.get((traj.kind, key)) != page:
             self.pages[(traj.kind, key)] = page
+            data = curves.window(t0, t1) if page or t1 < traj.t_end else curves.data()
             scales = {"x": uplot.Scale(time=False, auto=False, range=(t0, t1))}
+            y_range = pl.constant_range(data[1:])  # a constant: a small range around it, not uPlot's 0–100
+            if y_range is not None:
+                scales["y"] = uplot.Scale(auto=False, range=y_range)
             if h.scales != scales:
                 h.scales = scales
-            h.data = curves.window(t0, t1) if page or t1 < traj.t_end else curves.data()
+            h.data = data
         h.axes = pl.marker_axes(t_now, curves.x_label, curves.y_label)
 
     def mark(self, traj, t_now: float) -> None:

@@ -23,6 +23,12 @@ DASHES = ((6.0, 4.0), (2.0, 3.0), (10.0, 3.0, 2.0, 3.0))  # compare runs: dashed
 DASH_NAMES = ("dashed", "dotted", "dash-dot")
 MAX_POINTS = 800  # per series after decimation (two per bucket: min and max)
 LOG_FLOOR = 1e-16  # |φ| below this is plotted as 1e-16 (round-off level)
+#: uPlot padding (top, right, bottom, left) in px.  viser's default top is 0, and the hidden
+#: marker axis on top (:func:`marker_axes`) stops uPlot from adding its own, so the top y tick's
+#: label (12 px, centred on its tick) lost its upper half; 10 px hold it whole.
+PADDING = (10, 24, 0, 0)
+#: a series whose spread is at most this fraction of its size is drawn as a constant
+CONSTANT_REL = 1e-12
 
 
 def envelope(t: np.ndarray, ys: list[np.ndarray], max_points: int = MAX_POINTS):
@@ -63,6 +69,23 @@ def readable(values: list[np.ndarray], unit: str) -> tuple[float, str]:
         return 1.0, unit
     e = math.floor(math.log10(big))
     return 10.0**e, f"×1e{e} {unit}".strip()
+
+
+def constant_range(ys) -> tuple[float, float] | None:
+    """The y range of series that are one constant c (within round-off): c ± 1 for c = 0 (uPlot
+    would run 0–100), else c ± |c|/10; None when the series vary (uPlot's own auto range)."""
+    vals = [np.asarray(y, float) for y in ys]
+    vals = [v[np.isfinite(v)] for v in vals]
+    vals = [v for v in vals if len(v)]
+    if not vals:
+        return None
+    lo, hi = min(float(v.min()) for v in vals), max(float(v.max()) for v in vals)
+    big = max(abs(lo), abs(hi))
+    if hi - lo > CONSTANT_REL * big:
+        return None
+    c = 0.5 * (lo + hi)
+    h = 1.0 if big == 0.0 else 0.1 * big
+    return c - h, c + h
 
 
 @dataclass
