@@ -213,6 +213,8 @@ def _allowed(err: dict) -> str | None:
         return "the documented fields: " + ", ".join(RunSettings.model_fields)
     if kind == "string_too_long" and "max_length" in ctx:
         return f"a string of at most {ctx['max_length']} characters"
+    if kind == "string_too_short" and "min_length" in ctx:
+        return f"a string of at least {ctx['min_length']} character{'s' if ctx['min_length'] != 1 else ''}"
     return _TYPE_ALLOWED.get(kind)
 
 
@@ -315,7 +317,10 @@ async def on_http_error(request: Request, exc: StarletteHTTPException) -> JSONRe
 
 
 async def on_unexpected(request: Request, exc: Exception) -> JSONResponse:
-    """Anything else: logged with its traceback; the client gets 500 without details."""
+    """Anything else: logged with its traceback; the client gets 500 without details, and
+    ``Connection: close``: starlette raises the exception again to the server after this
+    answer, and uvicorn then closes the connection; said so, a client sends its next request
+    on a new one instead of losing it to a reset keep-alive connection."""
     log.exception("unexpected error on %s %s", request.method, request.url.path)
     return error_response(
         500,
@@ -328,6 +333,7 @@ async def on_unexpected(request: Request, exc: Exception) -> JSONResponse:
                 msg="internal error: the failure was logged on the server",
             )
         ],
+        headers={"Connection": "close"},
     )
 
 

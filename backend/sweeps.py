@@ -417,10 +417,21 @@ def _no_sweep(sweep_id: str):
     return not_found("sweep_id", sweep_id, "sweep", "POST /api/sweeps")
 
 
+class _CSV(Response):
+    media_type = "text/csv"  # the 200 documented as text/csv (as GET /api/runs/{id}.csv)
+
+
+_ERROR_JSON = {"content": {"application/json": {"schema": {"$ref": "#/components/schemas/ErrorResponse"}}}}
+
+
 @router.get(
     "/api/sweeps/{sweep_id}.csv",
     operation_id="get_sweep_csv",
-    responses={404: {"description": "no sweep with this id"}},
+    response_class=_CSV,
+    responses={
+        404: {**_ERROR_JSON, "description": "no sweep with this id"},
+        422: {**_ERROR_JSON, "description": "malformed id"},
+    },
 )
 def get_sweep_csv(sweeps: Sweeps, sweep_id: str = SWEEP_ID):
     """The rows so far as CSV (the columns of ``nmkane sweep --out FILE.csv``)."""
@@ -434,9 +445,7 @@ def get_sweep_csv(sweeps: Sweeps, sweep_id: str = SWEEP_ID):
         w.writerow(
             ["" if r.get(c) is None else repr(r[c]) if isinstance(r.get(c), float) else r[c] for c in state["columns"]]
         )
-    return Response(
-        buf.getvalue(), media_type="text/csv", headers={"Content-Disposition": f'attachment; filename="{sweep_id}.csv"'}
-    )
+    return _CSV(buf.getvalue(), headers={"Content-Disposition": f'attachment; filename="{sweep_id}.csv"'})
 
 
 @router.get(

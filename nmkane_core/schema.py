@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import math
 import typing
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import AfterValidator, BaseModel, ConfigDict, Field, WithJsonSchema
+from pydantic_core import PydanticCustomError
 
 __all__ = [
     "RunSettings",
@@ -47,6 +48,18 @@ REST_DEFAULT_LIMITS: dict[str, int] = {
 
 Gain = float | list[list[float]]
 
+
+def _not_empty(name: str) -> str:
+    # checked in Python: pydantic's own min_length converts the key to UTF-8 first, and a key
+    # with a lone surrogate would then be refused as not text instead of as an unknown name
+    if not name:
+        raise PydanticCustomError("string_too_short", "String should have at least 1 character", {"min_length": 1})
+    return name
+
+
+#: a parameter's or a state value's name, as a key of ``params`` and ``initial`` (never empty)
+Name = Annotated[str, AfterValidator(_not_empty), WithJsonSchema({"type": "string", "minLength": 1})]
+
 #: the post-step projections a run can ask for (nmkane_core.integrate.projection.PRESETS)
 ProjectionName = Literal["none", "blajer", "yoon"]
 PROJECTIONS: tuple[str, ...] = typing.get_args(ProjectionName)
@@ -65,18 +78,21 @@ class RunSettings(BaseModel):
         None,
         description="the name of a registered system: a built-in one or one loaded from a systems "
         "file (GET /api/systems lists them); default: the catalogue's first",
+        min_length=1,
         max_length=64,
     )
     model: str | None = Field(
         None,
         description="the variant to run, for a system whose variants are models "
         "(GET /api/systems lists each system's); default: the system's first",
+        min_length=1,
         max_length=64,
     )
     formulation: str | None = Field(
         None,
         description="the variant to run, for a system whose variants are "
         "formulations (GET /api/systems lists each system's); default: the system's first",
+        min_length=1,
         max_length=64,
     )
     gamma: Gain | None = Field(
@@ -172,12 +188,12 @@ class RunSettings(BaseModel):
         "constraints onto the constraint manifold (the correction is reported) "
         "instead of refusing it",
     )
-    params: dict[str, float] = Field(
+    params: dict[Name, float] = Field(
         default_factory=dict,
         description="physical parameters by name; the system's "
         "defaults for those left out (names, ranges and units: GET /api/systems)",
     )
-    initial: dict[str, float] = Field(
+    initial: dict[Name, float] = Field(
         default_factory=dict,
         description="initial values: independent ones (the rest is completed) or a full consistent state",
     )

@@ -41,15 +41,29 @@ def check_system(system: System, variants: tuple[str, ...] | None = None) -> Non
     values and be consistent with the constraints (independent values are completed:
     :func:`~nmkane_core.run.initial.default_state`); the constraints' rank there must leave as
     many independent speeds as a declared partition has
-    (:func:`~nmkane_core.run.partition.check_rank`).  ``variants``: which to check (default:
-    the default and the completion variant; the others are checked at their first use).
-    The declaration itself is not changed."""
+    (:func:`~nmkane_core.run.partition.check_rank`); the visuals may use only the state's
+    and the parameters' names (:func:`_check_visuals`).  ``variants``: which to check
+    (default: the default and the completion variant; the others are checked at their first
+    use).  The declaration itself is not changed."""
     variants = variants or tuple(dict.fromkeys((system.default_variant, system.completion_variant)))
     for v in variants:
         built(system).check_params(v)
     state = default_state(system)
     for v in variants:
         check_rank(system, v, state)  # a declared partition against the constraints' rank at the default state
+    _check_visuals(system)
+
+
+def _check_visuals(system: System) -> None:
+    """Compile the visuals now, so that one using a name that is neither a state name nor a
+    parameter is refused here, naming the shape (or frame), its field and the name
+    (:func:`~nmkane_core.kernel.visuals.compile_visuals`), instead of when they are first drawn.
+    Visuals compiled before come from the disk cache without sympy (and were checked when they
+    were generated): a cached system still registers without importing it."""
+    if system.visuals is not None:
+        from ..kernel.visuals import compile_visuals
+
+        compile_visuals(system)
 
 
 def _add(system: System, check: bool) -> System:
