@@ -153,6 +153,11 @@ class PlotPanel:
                 continue
             self._send(self.handles[(traj.kind, key)], traj, key, curves, t_now)
 
+    def phase_lags(self, traj, t_now: float) -> bool:
+        """The shown run's portrait still draws its point at another time than ``t_now`` (its
+        redraw was held back by the once-a-second limit): a paused page must draw it again."""
+        return "phase" in traj.plots and self._phase_t[1] != t_now
+
     def _mark_phase(self, traj, phase, t_now: float) -> None:
         """The portrait's current points, drawn again at most once a second (matplotlib)."""
         when, at = self._phase_t

@@ -451,8 +451,10 @@ class MechanismApp:
     def _refresh(self, force: bool = False) -> None:
         """The slow-rate part of a frame: plot markers, scrubber, readouts."""
         traj = self.traj
-        if traj is None or (not force and self._shown_t == self.t_now):
+        if traj is None:
             return
+        if not force and self._shown_t == self.t_now and not self.plots.phase_lags(traj, self.t_now):
+            return  # nothing moved (a portrait throttled at a seek is drawn once its second has passed)
         self._shown_t = self.t_now
         self.plots.mark(traj, self.t_now)
         self.time.display(round(min(self.t_now, self.time.max), 2))

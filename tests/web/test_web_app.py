@@ -394,3 +394,24 @@ def test_the_web_apps_warm_up_ends_with_the_system_under_way_once_the_app_stops(
     monkeypatch.setattr(srv.mx, "panel", lambda *key: panels.append(key))
     srv.warm(stop)
     assert ran and set(ran) == {ran[0]} and panels == [], (ran, panels)
+
+
+def test_a_paused_phase_portrait_catches_up_with_a_seek_once_its_redraw_limit_has_passed(app, monkeypatch):
+    """The portrait is redrawn at most once a second; a seek within that second left its point
+    at the old time for as long as the page stayed paused (nothing called for a redraw again)."""
+    from web import panel
+
+    clock = [1000.0]
+    monkeypatch.setattr(panel.time, "monotonic", lambda: clock[0])
+    app.control("option.plot").value = "y"
+    app.control("option.plot_x").value = "x"
+    app.set_playing(False)
+    image = lambda: np.asarray(app.plots.phases[AH].image).copy()  # noqa: E731
+    clock[0] += 5.0
+    app.seek(2.0)
+    at_2 = image()
+    app.seek(5.0)  # within the same second: held back
+    assert np.array_equal(image(), at_2)
+    clock[0] += 2.0
+    app.tick(0.0, refresh=True)  # the animation thread's next slow-rate frame, still paused
+    assert not np.array_equal(image(), at_2)
