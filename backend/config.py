@@ -153,8 +153,8 @@ class Settings(BaseSettings):
         "loopback (`nmkane serve` makes one for another address)",
     )
     warm_kernels: bool = Field(True, description="load the compiled kernels when the app starts, so no request pays")
-    max_sweep_runs: int = Field(10_000, ge=1, description="runs per sweep (POST /api/sweeps); a larger one gets 422")
-    max_sweeps: int = Field(
+    max_sweep_runs: int = _limit(10_000, ge=1, description="runs per sweep (POST /api/sweeps); a larger one gets 422")
+    max_sweeps: int = _limit(
         2,
         ge=1,
         description="sweeps admitted at once, running plus queued (they run one at a time); past it "

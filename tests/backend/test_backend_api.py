@@ -102,9 +102,11 @@ def test_health_and_systems_expose_the_limits(client):
             "max_stored_runs",
             "max_store_bytes",
             "read_timeout_s",
+            "max_sweep_runs",
+            "max_sweeps",
         }
     )
-    assert limits["max_request_bytes"] == 65_536
+    assert limits["max_request_bytes"] == 65_536 and limits["max_sweeps"] == 2 and limits["max_sweep_runs"] == 10_000
     assert "kutta-merson" in data["integrators"] and set(data["projections"]) == {"none", "blajer", "yoon"}
 
 
