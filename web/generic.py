@@ -32,7 +32,7 @@ from . import curves as cv
 from . import geometry as geo
 from . import plots as pl
 from .camera import CameraPlan, Viewport, frame
-from .controls import GAINS, INTEGRATORS, Control, dt_control, setting_control
+from .controls import GAINS, INTEGRATORS, SETTING_NUMBERS, Control, dt_control, setting_control
 from .declared import DeclaredScene
 from .forces import TITLE as FORCES_TITLE
 from .forces import ForceArrows, ForcePanel, force_curves
@@ -167,7 +167,17 @@ def _gains(core, prefix: str, show: dict) -> list[Control]:
     """Γ when the system has nonholonomic constraints; Γ1, Γ2 when it has holonomic ones."""
     info = built(core).info(core.default_variant)
     shown = (("gamma",) if info.nonholonomic else ()) + (("gamma1", "gamma2") if info.holonomic else ())
-    return [setting_control(f"{prefix}{g}", g, show.get(g, getattr(core, f"default_{g}"))) for g in shown]
+    return [_gain_control(prefix, g, float(show.get(g, getattr(core, f"default_{g}")))) for g in shown]
+
+
+def _gain_control(prefix: str, gain: str, default: float) -> Control:
+    """A gain's number; its slider widened to take the system's own default (a stiff system's
+    Γ2 = −1e6 lay outside −500…50: the page started there, and typing it back was refused)."""
+    n = SETTING_NUMBERS[gain]
+    lo, hi = min(n.min, 1.25 * default), max(n.max, 1.25 * default)
+    if (lo, hi) == (n.min, n.max):
+        return setting_control(f"{prefix}{gain}", gain, default)
+    return setting_control(f"{prefix}{gain}", gain, default, min=lo, max=hi, step=_step(lo, hi))
 
 
 def _times(core, prefix: str, show: dict) -> list[Control]:

@@ -447,3 +447,13 @@ def test_the_page_starts_with_each_systems_declared_projection():
         core = get_system(name)
         chosen = {c.field: c.default for c in generic_controls(core, "p_")}.get("projection")
         assert chosen == core.default_projection, name
+
+
+def test_every_systems_default_gains_lie_on_the_pages_gain_sliders():
+    """The page starts at each system's own gains; each lies inside its slider's range, so a
+    teacher can type it back (A03's Γ1 = −2000, Γ2 = −1e6 lay outside −50…10 and −500…50)."""
+    for name in system_names():
+        core = get_system(name)
+        for c in generic_controls(core, "g_"):
+            if c.field in ("gamma", "gamma1", "gamma2"):
+                assert c.min <= c.default <= c.max, (name, c.field, c.default, c.min, c.max)
