@@ -39,7 +39,7 @@ import time
 import zlib
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TypeVar
+from typing import Any, TypeVar
 
 import orjson
 import zstandard
@@ -229,6 +229,15 @@ class RunStore:
         if blob[:4] == _ZSTD_MAGIC:
             return self._codec()[1].decompress(blob)
         return zlib.decompress(blob)  # rows written before zstd was used
+
+    @staticmethod
+    def piece_decoder(first: bytes) -> tuple[int, Any]:
+        """For a document read in pieces (:meth:`document_piece`): its length in bytes (-1 when
+        the stored frame does not say) and a decompressor fed piece by piece (``decompress``,
+        then ``flush``), chosen by the first piece as :meth:`_decode` chooses."""
+        if first[:4] == _ZSTD_MAGIC:
+            return zstandard.frame_content_size(first), zstandard.ZstdDecompressor().decompressobj()
+        return -1, zlib.decompressobj()  # rows written before zstd was used
 
     # -- connections ----------------------------------------------------------------
     def _reader(self) -> sqlite3.Connection:

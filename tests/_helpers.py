@@ -119,6 +119,21 @@ def require(module: str):
     return pytest.importorskip(module)
 
 
+def require_compiler() -> None:
+    """A C compiler for the kernels' C functions (kernel/native.py): skipped on a developer machine
+    without one, an error under CI (``.ci/run`` installs gcc), where nothing may silently skip."""
+    import os
+
+    import pytest
+
+    from nmkane_core.kernel import native
+
+    if native.compiler() is None:
+        if os.environ.get("CI") == "true":
+            raise RuntimeError("CI=true but no C compiler: .ci/run must install gcc")
+        pytest.skip("no C compiler on this machine (cc, gcc or clang)", allow_module_level=True)
+
+
 def require_browser():
     """Chromium's path and Playwright's ``sync_playwright`` for a browser test module: skipped on
     a developer machine without them, an error under CI (``.ci/run`` installs Chromium)."""

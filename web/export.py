@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from nmkane_core.cli.common import check_writable
 from nmkane_core.errors import InputError, NmkaneError
 
 from .runs import Trajectory
@@ -63,13 +64,13 @@ def frames(t_end: float, speed: float = 1.0, fps: float = FPS, max_frames: int =
 
 def check_out(path: str | Path, suffixes: tuple[str, ...] = (HTML, GIF)) -> Path:
     """An export's file name: it must end in one of ``suffixes`` (``.html``, or ``.gif``),
-    in an existing folder (InputError naming ``out`` otherwise)."""
+    in an existing folder this user may write (InputError naming ``out`` otherwise: the
+    command line's own check, :func:`nmkane_core.cli.common.check_writable`)."""
     p = Path(path)
     if p.suffix.lower() not in suffixes:
         film = " (or .gif: a film of the page)" if GIF in suffixes[1:] else ""
         raise InputError("out", str(path), f"a file name ending in {suffixes[0]}{film}", "unknown format")
-    if p.parent != Path() and not p.parent.is_dir():
-        raise InputError("out", str(path), "a file in an existing folder", f"no folder {p.parent}")
+    check_writable("out", str(path))
     return p
 
 

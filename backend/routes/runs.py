@@ -18,15 +18,14 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import datetime as dt
+import functools
 import threading
-import zlib
 from collections.abc import AsyncIterator, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 import orjson
-import zstandard
 from fastapi import APIRouter, Path, Query
 from fastapi.responses import JSONResponse, Response, StreamingResponse
 
@@ -245,10 +244,6 @@ def _floats(values) -> np.ndarray:
 
 
 PIECE_BYTES = 32 * 1024  # of the stored (compressed) document, read at a time: ~75 kB of JSON
-_ZSTD_MAGIC = b"\x28\xb5\x2f\xfd"
-#: the threads that read documents' pieces: two, however many clients download (each thread keeps
-#: its own SQLite connection and page cache, and its own malloc arena)
-_READS: list[ThreadPoolExecutor] = []
 
 
 async def document_chunks(
@@ -268,11 +263,7 @@ async def document_chunks(
     first = await _read(store, run_id, 0, piece)
     if first is None:
         return None
-    decoder: Any
-    if first[:4] == _ZSTD_MAGIC:
-        size, decoder = zstandard.frame_content_size(first), zstandard.ZstdDecompressor().decompressobj()
-    else:  # rows written before zstd was used
-        size, decoder = -1, zlib.decompressobj()
+    size, decoder = store.piece_decoder(first)
     return size, _decoded(store, run_id, first, piece, decoder)
 
 
@@ -292,11 +283,11 @@ async def _decoded(store: RunStore, run_id: str, blob: bytes, piece: int, decode
             del decoder, blob  # freed before the heap is trimmed
 
 
+@functools.cache
 def _reads() -> ThreadPoolExecutor:
-    with _streams_lock:
-        if not _READS:
-            _READS.append(ThreadPoolExecutor(2, thread_name_prefix="nmkane-document"))
-        return _READS[0]
+    """The threads that read documents' pieces: two, however many clients download (each thread
+    keeps its own SQLite connection and page cache, and its own malloc arena)."""
+    return ThreadPoolExecutor(2, thread_name_prefix="nmkane-document")
 
 
 def _read(store: RunStore, run_id: str, offset: int, size: int) -> asyncio.Future[bytes | None]:

@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
 import threading
 import time
+from pathlib import Path
 
 from ..errors import InputError
 from .run_options import option_of
@@ -62,3 +64,18 @@ def load_plugged_systems(args: argparse.Namespace, strict: bool = True) -> None:
 
     for err in load_systems(getattr(args, "systems", []) or [], strict=strict):
         print(err, file=sys.stderr)
+
+
+def check_writable(field: str, path: str) -> None:
+    """Refuse, before any work, an output file that could not be written: in a folder that does
+    not exist or that this user may not write, the name of a folder, or a file not writable
+    (an :class:`InputError` naming ``field``, the path and why)."""
+    p = Path(path)
+    folder = p.parent  # Path("r.json").parent is Path("."), the working folder
+    if not folder.is_dir():
+        why = f"{folder} is not a folder" if folder.exists() else f"no folder {folder}"
+        raise InputError(field, path, "a file in an existing folder", why)
+    if p.is_dir():
+        raise InputError(field, path, "a file name", "a folder")
+    if not os.access(p if p.exists() else folder, os.W_OK):
+        raise InputError(field, path, "a file this user may write", f"{p if p.exists() else folder} is not writable")

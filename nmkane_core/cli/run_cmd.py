@@ -8,14 +8,12 @@ Exit code 0 when the run's status is ``ok``, 1 when it ended ``singular``, ``div
 from __future__ import annotations
 
 import argparse
-import os
 import sys
-from pathlib import Path
 
 from ..errors import InputError
 from .argtypes import finite
 from .command import Command
-from .common import load_plugged_systems, notice_if_slow
+from .common import check_writable, load_plugged_systems, notice_if_slow
 from .plot_out import check_plot_out, plot_file, split_plot, write_plots
 from .run_options import add_run_options, settings_from_args
 
@@ -59,21 +57,6 @@ def _add_arguments(run: argparse.ArgumentParser) -> None:
         "e.g. --plot phi_c1 --plot u2:u1; repeat for more panels",
     )
     run.add_argument("--plot-out", dest="plot_out", metavar="FILE.png", help="where --plot draws (<system>-plot.png)")
-
-
-def check_writable(field: str, path: str) -> None:
-    """Refuse, before any work, an output file that could not be written: in a folder that does
-    not exist or that this user may not write, the name of a folder, or a file not writable
-    (an :class:`InputError` naming ``field``, the path and why)."""
-    p = Path(path)
-    folder = p.parent  # Path("r.json").parent is Path("."), the working folder
-    if not folder.is_dir():
-        why = f"{folder} is not a folder" if folder.exists() else f"no folder {folder}"
-        raise InputError(field, path, "a file in an existing folder", why)
-    if p.is_dir():
-        raise InputError(field, path, "a file name", "a folder")
-    if not os.access(p if p.exists() else folder, os.W_OK):
-        raise InputError(field, path, "a file this user may write", f"{p if p.exists() else folder} is not writable")
 
 
 def _run(args: argparse.Namespace) -> int:

@@ -13,8 +13,7 @@ import sys
 from ..errors import InputError
 from .argtypes import finite, positive_int
 from .command import Command
-from .common import load_plugged_systems
-from .run_cmd import check_writable
+from .common import check_writable, load_plugged_systems
 from .run_options import add_run_options, settings_from_args
 
 

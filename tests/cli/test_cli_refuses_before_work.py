@@ -5,6 +5,7 @@ the option — no run first, no traceback."""
 import pytest
 
 from nmkane_core.cli import main, run_cmd
+from nmkane_core.cli.commands import all_commands
 
 
 @pytest.fixture()
@@ -14,6 +15,9 @@ def no_run(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the run started before its output was checked")
 
+    # the commands' modules imported first: one that binds the name at its import (web's export)
+    # would otherwise keep the refusing stand-in after this test, for the tests after it
+    all_commands()
     monkeypatch.setattr(run_cmd, "simulate_from_args", refuse)
 
 

@@ -11,9 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
-from nmkane_core.kernel import native
+from tests._helpers import require_compiler
 
 RUN = """
 import sys
@@ -73,8 +71,8 @@ def test_a_truncated_cached_module_is_rebuilt_with_one_line_naming_it(tmp_path):
     assert again.returncode == 0 and again.stderr == "", again.stderr
 
 
-@pytest.mark.skipif(native.compiler() is None, reason="no C compiler")
 def test_a_garbage_c_library_is_rebuilt_with_one_line_naming_it(tmp_path):
+    require_compiler()
     folder = _cached(tmp_path, "c")
     (library,) = folder.glob("native_*.so")
     library.write_bytes(os.urandom(4096))

@@ -1,7 +1,6 @@
 """A large model's functions compiled as C (kernel.native): the same numbers as numba's, found by
 the loops through numba's cache, and numba alone when there is no C compiler that works."""
 
-import os
 from dataclasses import replace
 
 import numpy as np
@@ -13,11 +12,9 @@ from nmkane_core.kernel.built import built
 from nmkane_core.kernel.loader import compiled_kernel
 from nmkane_core.run.registry import register
 from nmkane_core.run.simulate import simulate
+from tests._helpers import require_compiler
 
-if native.compiler() is None:  # CI installs one (.ci/run): nothing may skip there
-    if os.environ.get("CI") == "true":
-        raise RuntimeError("CI=true but no C compiler: .ci/run must install gcc")
-    pytest.skip("no C compiler on this machine (cc, gcc or clang)", allow_module_level=True)
+require_compiler()  # CI installs one (.ci/run): nothing may skip there
 
 
 def _native_module(monkeypatch, name, variant):
