@@ -284,7 +284,7 @@ class RunService:
                     )
                 return
             t0 = time.perf_counter()
-            simulate(settings, progress=False, interpret=False)  # to compile: never the first tier
+            simulate(settings, progress=False)
             if report is not None:
                 report(f"nmkane: {title} [{i}/{len(steps)}] {label}: {time.perf_counter() - t0:.1f} s")
         if report is not None:

@@ -1,7 +1,6 @@
 """The tests' shared kernel cache, compiled once at the start of a run (see tests/conftest.py).
 
-Every test process and every subprocess a test starts uses one kernel cache (``$NMKANE_CACHE_DIR``;
-numba's own cache lives beside each generated kernel, or in ``$NUMBA_CACHE_DIR`` when that is set).
+Every test process and every subprocess a test starts uses one kernel cache (``$NMKANE_CACHE_DIR``).
 Under CI it starts empty (``.ci/run``), so before the first test it is warmed here, in parallel
 processes, with what nearly every test module uses: for each of the systems in ORDER, every variant's
 loops as ``nmkane serve`` warms them (fixed step and adaptive, with and without a projection),
@@ -12,7 +11,7 @@ at once, each subprocess test paid for whatever the tests before it had not comp
 browser test's app compiled the other systems in a background thread of the tests' process.
 
 A stamp (a hash of the sources of ``nmkane_core``, ``backend``, ``web`` and this file, Python's and
-numba's versions) marks a warmed cache: a second run with nothing changed skips the warm-up.
+the C compiler's) marks a warmed cache: a second run with nothing changed skips the warm-up.
 Tests that need an empty cache on purpose (a first start, a first run) make their own.
 """
 
@@ -25,7 +24,6 @@ import os
 import sys
 import time
 import traceback
-from importlib.metadata import version
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -57,9 +55,9 @@ COSTLIEST_FIRST = (
 
 def stamp() -> str:
     """What the warm cache was made from: the sources that generate and load kernels."""
-    h = hashlib.sha256(f"{sys.version}\0numba {version('numba')}\0".encode())
+    h = hashlib.sha256(f"{sys.version}\0".encode())
     for package in ("nmkane_core", "backend", "web"):
-        for path in sorted((ROOT / package).rglob("*.py")):
+        for path in sorted([*(ROOT / package).rglob("*.py"), *(ROOT / package).rglob("*.[ch]")]):
             h.update(str(path.relative_to(ROOT)).encode() + b"\0" + path.read_bytes())
     h.update(Path(__file__).read_bytes())
     return h.hexdigest()[:24]
@@ -69,7 +67,7 @@ def _runs(system, settings: list[dict]) -> None:
     from nmkane_core.run.simulate import simulate
 
     for one in settings:
-        simulate({"system": system.name, "t_final": 0.05, **one}, progress=False, interpret=False)
+        simulate({"system": system.name, "t_final": 0.05, **one}, progress=False)
 
 
 def _page_parts(system) -> None:

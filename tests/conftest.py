@@ -20,7 +20,6 @@ def pytest_configure(config):
     # One kernel cache for the run, its xdist workers and every subprocess a test starts (they
     # inherit the environment): $NMKANE_CACHE_DIR as given (.ci/run: a new empty folder), else the
     # default one, named explicitly so that a test changing HOME or XDG_CACHE_HOME does not move it.
-    # numba caches beside each generated kernel, or in $NUMBA_CACHE_DIR when that is set.
     from nmkane_core.kernel.cache import cache_root
 
     os.environ["NMKANE_CACHE_DIR"] = str(cache_root())
@@ -68,28 +67,7 @@ else:
     _hypothesis_settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "deterministic"))
 
 
-# ---------------------------------------------------------------- where the suite compiles
-# NMKANE_TEST_COMPILES=FILE: each test's seconds of numba compiling in the test's own process (its
-# threads included, not its subprocesses) appended to FILE, one "seconds<TAB>test id" line per test
-# that compiled: what the warm-up (tests/_warm.py) does not cover, or what a test compiles on purpose.
-_COMPILES = os.environ.get("NMKANE_TEST_COMPILES")
-
-
-@pytest.hookimpl(hookwrapper=True)
-def pytest_runtest_call(item):
-    if not _COMPILES:
-        yield
-        return
-    from numba.core import event
-
-    listener = event.TimingListener()
-    with event.install_listener("numba:compile", listener):
-        yield
-    if listener.done:
-        with open(_COMPILES, "a") as f:
-            f.write(f"{listener.duration:.2f}\t{item.nodeid}\n")
-
-
+# ---------------------------------------------------------------- where the suite spends
 # NMKANE_TEST_CPU=FILE: each test's wall seconds and CPU seconds (setup, call and teardown) appended
 # to FILE as "wall<TAB>cpu<TAB>test id": the test's process (its threads included), the children it
 # waited for, and what its live descendants (a browser, a server) used meanwhile; what to shorten.

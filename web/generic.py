@@ -409,10 +409,10 @@ def warm_systems(skip=(), stopped=lambda: False) -> list[tuple[str, str]]:
             continue
         with contextlib.suppress(Exception):
             core = get_system(name)
-            simulate({"system": name, "t_final": 0.05}, progress=False, interpret=False)
+            simulate({"system": name, "t_final": 0.05}, progress=False)
             compile_visuals(core)
             for v in core.variants:
                 if v != core.default_variant:
-                    simulate({"system": name, core.option: v, "t_final": 0.05}, progress=False, interpret=False)
+                    simulate({"system": name, core.option: v, "t_final": 0.05}, progress=False)
             out.append((name, core.default_variant))
     return out

@@ -89,8 +89,7 @@ def format_summary(run) -> str:
         f"t = 0 … {st['t_final']:g} s",
         f"status   {s['status']}: {s['message']}",
         f"work     {s['steps']:,} steps, {s['rhs_evals']:,} right-hand-side evaluations, "
-        f"{s['wall_time_s']:.3f} s wall time"
-        + (" (interpreted: a new kernel, compiled in the background)" if s.get("kernel_tier") == "interpreted" else ""),
+        f"{s['wall_time_s']:.3f} s wall time",
     ]
     if s["max_abs_energy_drift"] is not None:
         lines.append(f"energy   max |ΔE| = {s['max_abs_energy_drift']:.3e}, final ΔE = {s['final_energy_drift']:.3e}")

@@ -14,7 +14,6 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ..kernel import precompile
 from ..kernel.constants import (
     LOG_HEAD,
     STATS_E0,
@@ -284,7 +283,6 @@ def prime(job: Job, module: CompiledModel, p: np.ndarray) -> float:
 
 
 def _prime(job: Job, module: CompiledModel, p: np.ndarray) -> None:
-    precompile.wait(module)  # a new kernel's loop may be compiling next door
     x = job.x0.copy()
     stats, _, _ = initial_stats(job, module, p)
     if job.method.kind == "scipy":

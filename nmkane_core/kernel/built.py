@@ -106,13 +106,8 @@ class Built:
         return self.kernel(variant)[0]
 
     def kernel_now(self, variant: str | None = None) -> tuple[Any, ModelInfo]:
-        """The kernel for a few evaluations now (an initial state, a partition): its interpreted
-        copy while this process has not compiled a kernel it just wrote
-        (:func:`~nmkane_core.kernel.interpreted.at_once`), and its info."""
-        from .interpreted import at_once
-
-        module, info = self.kernel(variant)
-        return at_once(module), info
+        """The kernel for a few evaluations now (an initial state, a partition), and its info."""
+        return self.kernel(variant)
 
     def info(self, variant: str | None = None) -> ModelInfo:
         """What the numeric side knows of a variant's model: names and counts (no sympy)."""

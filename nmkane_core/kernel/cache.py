@@ -7,6 +7,7 @@ keep their own sub-folders next to it, keyed by :meth:`nmkane_core.System.kernel
 
 from __future__ import annotations
 
+import ctypes
 import hashlib
 import inspect
 import json
@@ -117,11 +118,11 @@ def kernel_dir() -> Path:
 
 
 def _kernel_file(folder: Path, key: str) -> Path:
-    return folder / f"nmkane_kernel_{key}.py"
+    return folder / f"nmkane_kernel_{key}.json"
 
 
-#: the first line of a cached module: the SHA-256 of the rest of its text (a truncated or
-#: overwritten file is found before Python imports half a kernel)
+#: the first line of a cached description: the SHA-256 of the rest of its text (a truncated or
+#: overwritten file is found before it is read)
 _CHECKSUM = "# nmkane-sha256: "
 
 
@@ -130,8 +131,8 @@ def _sha256(text: str) -> str:
 
 
 def write_kernel(folder: Path, key: str, source: str) -> bool:
-    """Write a generated kernel module, its checksum on its first line, unless the same text is
-    there (a damaged file is replaced); True if written."""
+    """Write a kernel description, its checksum on its first line, unless the same text is there
+    (a damaged file is replaced); True if written."""
     path = _kernel_file(folder, key)
     text = f"{_CHECKSUM}{_sha256(source)}\n{source}"
     try:
@@ -146,44 +147,48 @@ def write_kernel(folder: Path, key: str, source: str) -> bool:
     return True
 
 
-def kernel_damage(folder: Path, key: str, key_of: Callable[[str], str] | None = None) -> str | None:
-    """Why the cached module of kernel ``key`` in ``folder`` cannot be used (damaged: truncated,
-    overwritten), or None when it is whole.  A module written before modules carried a
-    checksum is checked with ``key_of`` (its text's key, valid with the tools that wrote it:
-    :func:`nmkane_core.kernel.loader.source_key`), else for Python syntax.  Raises OSError
-    when the file cannot be read (missing)."""
+def _read(folder: Path, key: str) -> tuple[str | None, str]:
+    """(why the cached description of kernel ``key`` cannot be used, or None; its text)."""
     path = _kernel_file(folder, key)
     try:
         text = path.read_text()
     except ValueError:
-        return "not text"
+        return "not text", ""
     head, newline, body = text.partition("\n")
-    if head.startswith(_CHECKSUM):
-        if not newline or _sha256(body) != head.removeprefix(_CHECKSUM):
-            return f"checksum mismatch, {len(text.encode())} bytes"
-        return None
-    if key_of is not None:
-        return None if key_of(text) == key else "no checksum, and its text does not match its key"
-    try:
-        compile(text, str(path), "exec", dont_inherit=True)
-    except (SyntaxError, ValueError) as e:
-        return f"{type(e).__name__}: {getattr(e, 'msg', e)}"
-    return None
+    if not head.startswith(_CHECKSUM):
+        return "no checksum", ""
+    if not newline or _sha256(body) != head.removeprefix(_CHECKSUM):
+        return f"checksum mismatch, {len(text.encode())} bytes", ""
+    return None, body
+
+
+def kernel_damage(folder: Path, key: str) -> str | None:
+    """Why the cached description of kernel ``key`` in ``folder`` cannot be used (damaged:
+    truncated, overwritten), or None when it is whole.  Raises OSError when the file cannot be
+    read (missing)."""
+    return _read(folder, key)[0]
 
 
 def import_kernel(folder: Path, key: str):
-    """Import a kernel module written by :func:`write_kernel` (numba loads its compiled code)."""
-    import importlib.util
-    import sys
+    """The kernel written by :func:`write_kernel`: its description read, the model's library
+    loaded (compiled first when it is not there, again when the one there is damaged)."""
+    import json
 
-    name = f"nmkane_kernel_{key}"
-    spec = importlib.util.spec_from_file_location(name, _kernel_file(folder, key))
-    if spec is None or spec.loader is None:
-        raise ImportError(f"cannot import the kernel {key} from {folder}")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    from .cmodel import CModel
+    from .native import build, report_damaged
+
+    reason, body = _read(folder, key)
+    if reason is not None:
+        raise ValueError(f"{_kernel_file(folder, key)}: {reason}")
+    description = json.loads(body)
+    tag, source = description["tag"], description["c_source"]
+    path = build(str(_kernel_file(folder, key)), tag, source)
+    if (reason := library_damage(path, source)) is not None:
+        report_damaged(path, reason)
+        path = build(str(_kernel_file(folder, key)), tag, source, again=True)
+        if (reason := library_damage(path, source)) is not None:
+            raise OSError(f"{path}: rebuilt, still {reason}")
+    return CModel(f"nmkane_kernel_{key}", description, ctypes.CDLL(str(path)), tag, str(_kernel_file(folder, key)))
 
 
 # --------------------------------------------------------------------------- housekeeping

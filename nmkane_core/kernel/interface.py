@@ -1,27 +1,24 @@
 """The compiled loops' interface, defined once: their arguments and their work arrays.
 
-The loops (``integrate_fixed``, ``integrate_adaptive`` in :mod:`nmkane_core.kernel.source.loops`,
-pasted into every generated kernel by :mod:`nmkane_core.kernel.codegen`) take positional
-arguments — the fastest call into numba.  Each loop's argument list is one record here,
-:class:`FixedArgs` and :class:`AdaptiveArgs`, every field with the numba type of an ordinary
-run beside it; from that one definition come
+The loops (``integrate_fixed``, ``integrate_adaptive`` of the compiled core,
+``kernel/csrc/loops.c``) take one record of arguments each, :class:`FixedArgs` and
+:class:`AdaptiveArgs`, every field with its kind beside it (a float64 vector or matrix, an int64
+vector, a scalar).  From that one definition come
 
-* the loops' parameter lists: the loop source is written ``def integrate_fixed(*FixedArgs):``
-  and the generator puts the record's fields there (:func:`parameter_list`);
-* the calls: the drivers build the record by name and call ``mod.integrate_fixed(*args)``;
-* the signatures compiled ahead of a first run (:func:`loop_signature`).
+* the C records the loops read (:mod:`nmkane_core.kernel.core` generates ``nmk_fixed_args`` and
+  ``nmk_adaptive_args``, an array field as its pointer and its shape) and their ctypes twins;
+* the calls: the drivers build the record by name and call ``kernel.integrate_fixed(*args)``.
 
 The flat work arrays of the right-hand side (:data:`WORKSPACE`) and of the projections
 (:data:`PROJECTION_SCRATCH`) are laid out here too, as tables of named blocks with sizes
-written in the model's dimensions; the generator turns them into the offsets the kernels
-use.  Status codes and the ``stats`` layout are plain constants in
+written in the model's dimensions; the generator turns them into the offsets each model's
+record carries.  Status codes and the ``stats`` layout are plain constants in
 :mod:`nmkane_core.kernel.constants`.
 """
 
 from __future__ import annotations
 
 import ast
-import typing
 from collections.abc import Callable
 from typing import Annotated, Any, NamedTuple, Protocol
 
@@ -34,13 +31,10 @@ __all__ = [
     "LOOPS",
     "WORKSPACE",
     "PROJECTION_SCRATCH",
-    "fixed_loop_signature",
     "layout",
-    "loop_signature",
-    "parameter_list",
 ]
 
-# numba types of the fields, by name (numba is imported only when a signature is asked for)
+# the kinds of the fields (kernel.core.loop_kinds: an array is passed as its pointer and shape)
 VEC = "float64[::1]"
 MAT = "float64[:, ::1]"
 FLOAT = "float64"
@@ -132,8 +126,8 @@ class AdaptiveArgs(NamedTuple):
 
 class CompiledModel(Protocol):
     """What the integrators and the run layer use of a compiled kernel: the seam between
-    ``integrate/`` (and ``run/``) and ``kernel/``.  Today a generated numba module (or its
-    interpreted copy) is one; whatever builds kernels next must provide the same names.
+    ``integrate/`` (and ``run/``) and ``kernel/``.  :class:`~nmkane_core.kernel.cmodel.CModel`
+    is the one implementation: a model's description and library bound to the compiled core.
 
     Sizes: ``N`` speeds (and coordinates), ``M`` constraint equations, ``PI`` independent speeds
     of the declared partition, ``NV`` reported violations, ``NO`` outputs, ``PERM`` the speeds'
@@ -174,53 +168,6 @@ class CompiledModel(Protocol):
 LOOPS: dict[str, Any] = {"integrate_fixed": FixedArgs, "integrate_adaptive": AdaptiveArgs}
 
 
-def parameter_list(args: type[NamedTuple]) -> str:
-    """The loop's parameters as the generator writes them into ``def loop(...)``."""
-    return ", ".join(args._fields)
-
-
-def loop_signature(args: type[NamedTuple], projected: bool = False) -> tuple:
-    """numba types of a loop's arguments (``proj`` an int64 array when ``projected``, else None)."""
-    from numba import types
-
-    names = {
-        VEC: types.float64[::1],
-        MAT: types.float64[:, ::1],
-        FLOAT: types.float64,
-        INT: types.int64,
-        IVEC: types.int64[::1],
-        PROJ: types.int64[::1] if projected else types.none,
-    }
-    hints = typing.get_type_hints(args, include_extras=True)
-    return tuple(names[hints[f].__metadata__[0]] for f in args._fields)
-
-
-def callee_signatures(module, projected: bool = False) -> dict[str, tuple]:
-    """The loops' callees that numba compiles as functions of their own (the stage loop, with
-    the right-hand side pasted in, compiles with the loop), with the types both loops call
-    them with, literal ints included (``_forces(w, K, 0)``, ``_record(…, NV)``): while a child
-    compiles a new kernel's loop (:mod:`~nmkane_core.kernel.precompile`), the waiting process
-    compiles these, and the child, busy with the stage loop meanwhile, loads them from the
-    cache.  tests/kernel/test_codegen.py checks them against what the loops call."""
-    from numba import types
-
-    vec, mat = types.float64[::1], types.float64[:, ::1]
-    sigs = {
-        "_forces": (vec, mat, types.literal(0)),
-        "_record": (types.float64, vec, vec, vec, vec, types.literal(int(module.NV))),
-        "_store_forces": (vec, types.int64, mat, mat),
-    }
-    if projected:
-        ivec = types.int64[::1]
-        sigs["_project_step"] = (types.float64, vec, vec, vec, vec, ivec, vec, vec, ivec)
-    return sigs
-
-
-def fixed_loop_signature() -> tuple:
-    """The signature every unprojected fixed-step run calls ``integrate_fixed`` with."""
-    return loop_signature(FixedArgs)
-
-
 # ---------------------------------------------------------------------------- work arrays
 # Each table lists named blocks in order with their sizes as expressions in the model's
 # dimensions: N speeds, M constraints (MNH nonholonomic, MH holonomic), PI independent speeds of
@@ -229,7 +176,7 @@ def fixed_loop_signature() -> tuple:
 # A block's name is the offset of its first entry; the generator writes every offset (and the
 # total, WSIZE / PS_SIZE) into the kernel as a constant.
 
-#: the right-hand side's flat work array (``make_workspace`` in the loop source)
+#: the right-hand side's flat work array (``init_workspace`` in csrc/loops.c)
 WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OJ", "M * N", "J = [J1 J2] (17)–(18), rows of [φ; ψ̇], speeds in the order [u_I, u_D]"),
     ("OB", "M", "b = B1 u + B2 (14)–(15)"),
@@ -254,7 +201,7 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OFC", "N", "F_c = Q u̇ − P, the generalized constraint force, in the order [u_I, u_D]"),
     ("OLAM", "M", "λ, the multipliers: F_c = Jᵀλ"),
     # the rank-robust solve (kernels with ROBUST; docs/closed-loops.md §7)
-    ("OSV", "RB * 17", "the solve's settings and state (source/robust.py: SV_*)"),
+    ("OSV", "RB * 17", "the solve's settings and state (csrc/nmk.h: SV_*)"),
     ("OORD", "NR", "the current partition: J's columns in the order [u_I, u_D]"),
     ("OORDC", "NR", "the partition of the evaluation whose forces are wanted (its J2 copy's)"),
     ("OORD2", "NR", "a partition being tried; the pivot columns of Wehage & Haug's elimination"),
@@ -279,9 +226,7 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("ODROP", "MR", "1.0 for each equation the last robust solve dropped"),
 )
 
-#: the post-step projections' scratch array (``make_projection_scratch``); the projections take
-#: the dimensions as runtime values (compact compiled loops), so the offsets are also made
-#: by a compiled function of N and M (``projection_layout``)
+#: the post-step projections' scratch array (csrc/projection.c)
 PROJECTION_SCRATCH: tuple[tuple[str, str, str], ...] = (
     ("PS_OQ", "N * N", "Q in the model's order, and its LU"),
     ("PS_OY", "N * M", "Y = W⁻¹Gᵀ"),

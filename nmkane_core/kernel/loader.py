@@ -1,11 +1,11 @@
 """A model's kernel, loaded or built: the keys that name it and the on-disk cache lookup.
 
-:func:`kernel` returns the compiled module and :class:`~nmkane_core.kernel.info.ModelInfo` for a
-fingerprint (:func:`fingerprint` of the files defining a model, or :func:`model_fingerprint` of
-a model object): from the cache index when it is there — no sympy needed — otherwise derived,
-generated (:mod:`nmkane_core.kernel.codegen`), written and imported.  The generated module's
-own folder is keyed by a hash of its text (:func:`source_key`), so numba's cache beside it can
-never hold code of another text.
+:func:`kernel` returns the compiled kernel (:class:`~nmkane_core.kernel.cmodel.CModel`) and
+:class:`~nmkane_core.kernel.info.ModelInfo` for a fingerprint (:func:`fingerprint` of the files
+defining a model, or :func:`model_fingerprint` of a model object): from the cache index when it
+is there — no sympy needed — otherwise derived, described (:mod:`nmkane_core.kernel.codegen`),
+written and loaded.  The description's folder is keyed by a hash of its text
+(:func:`source_key`), so the model's library beside it can never hold code of another text.
 """
 
 from __future__ import annotations
@@ -16,13 +16,11 @@ import json
 import os
 import sys
 import threading
-import warnings
 from collections.abc import Callable
 from pathlib import Path
 
-from . import precompile
 from .cache import import_kernel, kernel_damage, kernel_dir, write_kernel
-from .codegen import GENERIC_FILES, generate_source
+from .codegen import generate_source
 from .info import ModelInfo
 from .native import NativeBuildError, report_damaged
 
@@ -33,77 +31,57 @@ _LOADED: dict[str, object] = {}
 
 
 def source_key(source: str) -> str:
-    """The cache folder of a generated module: a hash of its text, of the loop constants it
-    imports (:mod:`nmkane_core.kernel.constants`) and of the tools that compile it."""
-    import numba
-
+    """The cache folder of a kernel description: a hash of its text and of the loop constants
+    the compiled core shares with it (:mod:`nmkane_core.kernel.constants`)."""
     h = hashlib.sha256(source.encode())
     h.update((Path(__file__).parent / "constants.py").read_bytes())
-    h.update(numba.__version__.encode())
-    h.update(sys.version.encode())
     return h.hexdigest()[:20]
 
 
 def _import(folder: Path, key: str, source: str | None):
-    """Import kernel ``key`` from ``folder``, writing ``source`` there first when given; a
-    newly written kernel starts compiling its loop in a second process at once."""
-    if source is not None and write_kernel(folder, key, source):
-        precompile.written(folder, key)  # a run resolved with it may compile its loop next door
+    """Load kernel ``key`` from ``folder``, writing ``source`` there first when given."""
+    if source is not None:
+        write_kernel(folder, key, source)
     return import_kernel(folder, key)
 
 
 class _Damaged(Exception):
-    """A cached module failed its check (already reported): it is generated again."""
+    """A cached description failed its check (already reported): it is generated again."""
 
 
 def _import_cached(folder: Path, key: str):
-    """Import cached kernel ``key`` after checking its text (:func:`~.cache.kernel_damage`).  A
-    damaged module, or one whose import fails with a SyntaxError or ImportError, is reported in
-    one line and raises :class:`_Damaged`: the caller generates it again, and writing it
-    replaces the damaged file atomically (numba's cache beside it, keyed by the file's time and
-    size, compiles again).  Raises OSError when the module is not there."""
-    path = folder / f"nmkane_kernel_{key}.py"
-    reason = kernel_damage(folder, key, key_of=source_key)
+    """Load cached kernel ``key`` after checking its text (:func:`~.cache.kernel_damage`).  A
+    damaged description is reported in one line and raises :class:`_Damaged`: the caller
+    generates it again, and writing it replaces the damaged file atomically.  Raises OSError
+    when the description is not there."""
+    path = folder / f"nmkane_kernel_{key}.json"
+    reason = kernel_damage(folder, key)
     if reason is None:
         try:
             return _import(folder, key, None)
-        except (SyntaxError, ImportError) as e:
-            sys.modules.pop(f"nmkane_kernel_{key}", None)
+        except (ValueError, KeyError, TypeError) as e:
             reason = f"{type(e).__name__}: {e}"
     report_damaged(path, reason)
     raise _Damaged(reason)
 
 
 def compiled_kernel(derivation, source: str | None = None):
-    """Import (generating if needed) the compiled kernel module of a derivation.  A module whose
-    C library does not build (:mod:`~nmkane_core.kernel.native`) is generated again for numba
-    alone, with a warning that says why."""
+    """Load (describing and compiling if needed) the compiled kernel of a derivation."""
     if source is None:
         source = generate_source(derivation)
-    try:
-        return _load(source)
-    except NativeBuildError as e:
-        warnings.warn(f"{e}; the model is compiled by numba alone", RuntimeWarning, stacklevel=2)
-        return _load(generate_source(derivation, native_code=False))
+    return _load(source)
 
 
 def _load(source: str):
     key = source_key(source)
     with _LOCK:
         if key not in _LOADED:
-            folder = kernel_dir() / key
-            try:
-                _LOADED[key] = _import(folder, key, source)
-            except NativeBuildError:
-                with contextlib.suppress(OSError):
-                    (folder / f"nmkane_kernel_{key}.py").unlink()
-                sys.modules.pop(f"nmkane_kernel_{key}", None)
-                raise
+            _LOADED[key] = _import(kernel_dir() / key, key, source)
         return _LOADED[key]
 
 
 def module_key(module) -> str:
-    """The cache key of a loaded kernel module (its folder's name)."""
+    """The cache key of a loaded kernel (its folder's name)."""
     return module.__name__.removeprefix("nmkane_kernel_")
 
 
@@ -116,10 +94,9 @@ _CORE_FILES = (
     "codegen.py",
     "printing.py",
     "native.py",
-    "inline.py",
     "interface.py",
     "constants.py",
-    *GENERIC_FILES,
+    "cmodel.py",
     "info.py",
 )
 
@@ -170,7 +147,7 @@ def _tools_key(system_name: str, variant: str) -> str:
     from importlib.metadata import version
 
     h = hashlib.sha256(f"{system_name}\0{variant}\0{sys.version}".encode())
-    for dist in ("sympy", "numba", "numpy"):
+    for dist in ("sympy", "numpy"):
         h.update(version(dist).encode())
     here = Path(__file__).parent
     for f in _CORE_FILES:

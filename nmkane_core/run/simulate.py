@@ -16,7 +16,6 @@ the compiled loops' interface in :mod:`nmkane_core.kernel.interface`), the resul
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import sys
 import time
@@ -26,7 +25,6 @@ from concurrent.futures import ThreadPoolExecutor
 from ..declare.system import System
 from ..integrate import calls
 from ..integrate.drivers import integrate
-from ..kernel import interpreted as tier
 from ..kernel.built import built
 from ..schema import RunSettings
 from .catalog import catalog
@@ -53,7 +51,6 @@ def simulate(
     progress: bool | None = None,
     time_limit: float | None = None,
     cancel: Callable[[], bool] | None = None,
-    interpret: bool = True,
 ) -> Run:
     """Integrate one run and return it as a :class:`Run`.
 
@@ -74,11 +71,6 @@ def simulate(
     cancel:
         A function polled between chunks of compiled work; when it returns true the run
         ends ``timeout`` with the message "cancelled".
-    interpret:
-        Allow the first tier (:mod:`nmkane_core.kernel.interpreted`): a short fixed-step run
-        of a kernel this process has just generated runs in Python while numba compiles it
-        in the background (``summary["kernel_tier"]`` says which ran).  ``False``: compile
-        first, whatever the run — what a warm-up that loads or compiles kernels ahead wants.
 
     Returns
     -------
@@ -103,11 +95,6 @@ def simulate(
     ``LIMITS["max_rows"]`` rows and ``LIMITS["max_steps"]`` steps; numerical trouble during
     integration is a status, never an exception.
     """
-    if not interpret:
-        with tier.compiled_only():
-            if isinstance(settings, Plan):
-                settings = dataclasses.replace(settings, interpret=False)
-            return simulate(settings, progress=progress, time_limit=time_limit, cancel=cancel)
     plan = settings if isinstance(settings, Plan) else resolve(settings)
     t_setup = time.perf_counter()
     job = plan.job()

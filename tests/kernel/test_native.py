@@ -1,102 +1,108 @@
-"""A large model's functions compiled as C (kernel.native): the same numbers as numba's, found by
-the loops through numba's cache, and numba alone when there is no C compiler that works."""
+"""The compiled core and a model's C functions (kernel.core, kernel.native, kernel.cmodel): the
+numbers of the numpy reference, arrays checked before C reads them, and a missing or failing C
+compiler named in one line."""
 
-from dataclasses import replace
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from nmkane_core import get_system
-from nmkane_core.kernel import codegen, native
+from nmkane_core.kernel import core, native
 from nmkane_core.kernel.built import built
-from nmkane_core.kernel.loader import compiled_kernel
-from nmkane_core.run.registry import register
-from nmkane_core.run.simulate import simulate
+from nmkane_core.symbolic.reference import ReferenceKernel
 from tests._helpers import require_compiler
 
 require_compiler()  # CI installs one (.ci/run): nothing may skip there
 
 
-def _native_module(monkeypatch, name, variant):
-    """The system's kernel with its model functions in C (every model counts as large)."""
-    monkeypatch.setattr(codegen, "INLINE_TERMS_MAX_STATEMENTS", 0)
-    d = built(get_system(name)).derivation(variant)
-    source = codegen.generate_source(d)
-    assert "NATIVE_SOURCE" in source and "types.ExternalFunction(" in source
-    return compiled_kernel(d, source)
-
-
-def _states(info, n, seed):
+def _states(n_speeds, n, seed):
     rng = np.random.default_rng(seed)
-    return rng.uniform(0.2, 1.5, (n, 2 * info.n))
+    return rng.uniform(0.2, 1.5, (n, 2 * n_speeds))
 
 
-def test_c_functions_give_numbas_right_hand_side_diagnostics_and_constraint_terms(monkeypatch):
-    system = get_system("appell-hamel")  # square roots, trigonometry, a nonlinear constraint
-    plain, info = built(system).kernel("nonlinear")
-    assert not hasattr(plain, "NATIVE_TAG")
-    mod = _native_module(monkeypatch, "appell-hamel", "nonlinear")
-    p = built(system).param_vector("nonlinear", system.resolve_params({}))
-    G, G1, G2 = -np.eye(2), -20 * np.eye(1), -100 * np.eye(1)
-    xs = _states(info, 6, 1)
-    for x in xs:
-        want, got = plain.rhs(0.3, x, p, G, G1, G2), mod.rhs(0.3, x, p, G, G1, G2)
-        np.testing.assert_allclose(got[0], want[0], rtol=1e-12, atol=1e-12)
-        assert got[1] == pytest.approx(want[1], rel=1e-9) and got[2] == pytest.approx(want[2], rel=1e-9)
-        for a, b in zip(mod.state_terms(0.3, x, p), plain.state_terms(0.3, x, p), strict=True):
-            np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
-    ts = np.linspace(0, 1, len(xs))
-    E, V = np.empty(len(xs)), np.empty((len(xs), plain.NV))
-    E2, V2 = np.empty(len(xs)), np.empty((len(xs), plain.NV))
-    plain.diagnostics_rows(ts, xs, p, E, V)
-    mod.diagnostics_rows(ts, np.asfortranarray(xs), p, E2, V2)  # rows that are not contiguous
-    np.testing.assert_allclose(E2, E, rtol=1e-12)
-    np.testing.assert_allclose(V2, V, rtol=1e-12, atol=1e-14)
+@pytest.mark.parametrize(
+    ("name", "variant"),
+    [("appell-hamel", "nonlinear"), ("appell-hamel", "linear"), ("sliding-particle", "nonminimal")],
+)
+def test_the_compiled_right_hand_side_is_the_reference_one(name, variant):
+    system = get_system(name)
+    b = built(system)
+    mod, info = b.kernel(variant)
+    ref = ReferenceKernel(b.derivation(variant))
+    p = b.param_vector(variant, system.resolve_params({}))
+    G, G1, G2 = -np.eye(mod.MNH), -20 * np.eye(mod.MH), -100 * np.eye(mod.MH)
+    for x in _states(info.n, 5, 1):
+        got, rc_j2, rc_t = mod.rhs(0.3, x, p, G, G1, G2)
+        np.testing.assert_allclose(got, ref.rhs(0.3, x, p, G, G1, G2), rtol=1e-10, atol=1e-12)
+        assert 0.0 < rc_j2 <= 1.0 and 0.0 < rc_t <= 1.0
+        E, viol = mod.diagnostics(0.3, x, p, np.empty(mod.NV)), np.empty(mod.NV)
+        mod.diagnostics(0.3, x, p, viol)
+        assert pytest.approx(ref.energy(0.3, x, p), rel=1e-12) == E
+        np.testing.assert_allclose(viol, ref.violation(0.3, x, p), rtol=1e-12, atol=1e-14)
 
 
-def test_a_run_through_the_c_functions_follows_the_numba_run(monkeypatch):
-    """The loops (fixed-step with a projection, adaptive) call the C functions through numba's
-    external symbols; the runs are those of the numba kernel."""
-    monkeypatch.setattr(codegen, "INLINE_TERMS_MAX_STATEMENTS", 0)
-    system = register(replace(get_system("appell-hamel"), name="appell-hamel-in-c"))
-    assert hasattr(built(system).module("linear"), "NATIVE_TAG")
-    for extra in ({"projection": "yoon"}, {"integrator": "kutta-merson-adaptive"}):
-        settings = {"model": "linear", "t_final": 2.0, **extra}
-        got = simulate({"system": system.name, **settings}, progress=False)
-        want = simulate({"system": "appell-hamel", **settings}, progress=False)
-        assert got.status == want.status == "ok" and got.summary["steps"] == want.summary["steps"]
-        # fixed steps: the same numbers to round-off; adaptive steps: round-off moves the step
-        # control's times by ~1e-9 s, so the motions are compared at the same times
-        np.testing.assert_allclose(got.t, want.t, rtol=0, atol=1e-8)
-        for name in want.state:
-            np.testing.assert_allclose(got.state[name], np.interp(got.t, want.t, want.state[name]), atol=1e-9)
-        np.testing.assert_allclose(got.energy, np.interp(got.t, want.t, want.energy), rtol=1e-9)
-
-
-def test_a_failing_c_compiler_leaves_the_model_to_numba_with_a_warning(monkeypatch, tmp_path):
+def test_arrays_the_core_would_misread_are_refused_naming_the_argument():
     system = get_system("sliding-particle")
-    plain, info = built(system).kernel("nonminimal")
+    mod = built(system).module("nonminimal")
     p = built(system).param_vector("nonminimal", system.resolve_params({}))
-    monkeypatch.setenv("NMKANE_CACHE_DIR", str(tmp_path))
-    monkeypatch.setenv("CC", "false")  # found on the PATH, fails on every file
-    monkeypatch.setattr(codegen, "INLINE_TERMS_MAX_STATEMENTS", 0)
-    d = built(system).derivation("nonminimal")
-    with pytest.warns(RuntimeWarning, match="compiled by numba alone"):
-        mod = compiled_kernel(d)
-    assert not hasattr(mod, "NATIVE_TAG") and mod is not plain
-    G1, G2 = -20 * np.eye(1), -100 * np.eye(1)
-    for x in _states(info, 3, 2):
-        np.testing.assert_allclose(
-            mod.rhs(0.0, x, p, np.zeros((0, 0)), G1, G2)[0],
-            plain.rhs(0.0, x, p, np.zeros((0, 0)), G1, G2)[0],
-            rtol=1e-13,
+    G1, G2 = -np.eye(1), -np.eye(1)
+    x = np.ones(2 * mod.N)
+    with pytest.raises(TypeError, match="x: a C-contiguous float64 array"):
+        mod.rhs_ws(
+            0.0, x.astype(np.float32), p, np.zeros((0, 0)), G1, G2, np.empty((1, x.size)), 0, mod.make_workspace()
         )
-    assert not list(tmp_path.rglob("native_*.so"))  # nothing half-built left behind
+    with pytest.raises(ValueError, match="x: shape"):
+        mod.rhs(0.0, np.ones(3), p, np.zeros((0, 0)), G1, G2)
+    with pytest.raises(ValueError, match="G1: shape"):
+        mod.rhs(0.0, x, p, np.zeros((0, 0)), -np.eye(2), G2)
+    with pytest.raises(ValueError, match="p: 0 values"):
+        mod.rhs(0.0, x, np.zeros(0), np.zeros((0, 0)), G1, G2)
+    E, V = np.empty(3), np.empty((3, mod.NV))
+    with pytest.raises(TypeError, match="xs: a C-contiguous"):
+        mod.diagnostics_rows(np.zeros(3), np.asfortranarray(np.ones((3, 2 * mod.N))), p, E, V)
 
 
-def test_without_a_c_compiler_every_model_is_numbas(monkeypatch):
-    monkeypatch.setenv("NMKANE_NATIVE", "0")
+def _fresh_process(code: str, env: dict) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+
+
+def test_a_failing_c_compiler_is_named_in_one_line_and_leaves_nothing_half_built(tmp_path):
+    import os
+
+    env = {**os.environ, "NMKANE_CACHE_DIR": str(tmp_path), "CC": "false"}  # on the PATH, fails on every file
+    out = subprocess.run(
+        [sys.executable, "-m", "nmkane_core.cli", "run", "sliding-particle", "--t-final", "0.1"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=300,
+    )
+    assert out.returncode != 0
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and "false failed on" in lines[0] and "Traceback" not in out.stderr, out.stderr
+    assert not list(tmp_path.rglob("*.so")) and not list(tmp_path.rglob("build_*"))
+
+
+def test_without_a_c_compiler_the_error_says_what_to_install(monkeypatch):
+    monkeypatch.delenv("CC", raising=False)
+    monkeypatch.setenv("PATH", "/nonexistent")
     assert native.compiler() is None
-    monkeypatch.setattr(codegen, "INLINE_TERMS_MAX_STATEMENTS", 0)
-    d = built(get_system("sliding-particle")).derivation("nonminimal")
-    assert "NATIVE_SOURCE" not in codegen.generate_source(d)
+    with pytest.raises(native.NativeBuildError, match="apt install gcc"):
+        native.compiler_or_fail()
+
+
+def test_the_core_is_one_library_for_every_model_and_its_header_is_generated_from_the_tables():
+    """The records the C side reads are generated from kernel.interface's tables: every work-array
+    block and every loop argument is a field of the generated header, and the ctypes twins have the
+    same fields in the same order."""
+    from nmkane_core.kernel.interface import PROJECTION_SCRATCH, WORKSPACE
+
+    text = core.header()
+    for name, _, _ in (*WORKSPACE, *PROJECTION_SCRATCH):
+        assert f"i64 {name};" in text
+    assert [f for f, _ in core.ModelRecord._fields_][: len(core.MODEL_INTS)] == list(core.MODEL_INTS)
+    a = built(get_system("sliding-particle")).module("nonminimal")
+    b = built(get_system("appell-hamel")).module("nonlinear")
+    assert a._core is b._core is core.library()

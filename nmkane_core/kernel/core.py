@@ -1,0 +1,245 @@
+"""The generic compiled core: the loops, solves and projections in C, compiled once per machine.
+
+The C source is ``kernel/csrc/`` (one translation unit, ``core.c``).  What it shares with the
+Python side is generated here, from the one definition of each: the model record ``nmk_model``
+(sizes, the work arrays' offsets from :data:`~nmkane_core.kernel.interface.WORKSPACE` and
+:data:`~nmkane_core.kernel.interface.PROJECTION_SCRATCH`, the permutation and sparsity arrays,
+pointers to the model's straight-line functions), the loops' argument records from
+:class:`~nmkane_core.kernel.interface.FixedArgs` and
+:class:`~nmkane_core.kernel.interface.AdaptiveArgs`, and the status and ``stats`` constants of
+:mod:`nmkane_core.kernel.constants`.  The same lists give the :mod:`ctypes` records
+(:func:`model_record`, :func:`args_record`), so the two sides cannot disagree on a layout.
+
+:func:`library` compiles the core with the machine's C compiler the first time it is needed
+(about two seconds, with ``-O2 -ffp-contract=off`` and no fast-math: the same bits on every
+x86-64 machine) into the kernel cache, keyed by a hash of its source, the generated header and
+the flags; every later process, and every model, loads that one library.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import hashlib
+import os
+import subprocess
+import threading
+import typing
+from pathlib import Path
+
+from . import constants
+from .interface import LOOPS, PROJECTION_SCRATCH, WORKSPACE, AdaptiveArgs, FixedArgs
+
+__all__ = ["CSRC", "FLAGS", "MODEL_FUNCTIONS", "args_record", "header", "library", "model_record"]
+
+CSRC = Path(__file__).parent / "csrc"
+#: -O2 for the loops (-O3 and unrolling measured no faster); no -ffast-math (NaN and ±inf must
+#: come through to the loops' finiteness checks); -ffp-contract=off: no fused multiply-add, so
+#: every x86-64 machine rounds alike (docs/closed-loops.md §7.4)
+FLAGS = ("-O2", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off", "-std=c11")
+#: the model record's integer fields besides the offsets
+MODEL_INTS = (
+    "N", "M", "MNH", "MH", "PI", "NV", "NO", "NR", "MR", "RB",
+    "ROBUST", "C_IS_I", "SCALE_ROWS", "NORM_ROWS", "MAX_RANK_DEFAULT",
+)  # fmt: skip
+MODEL_FLOATS = ("RANK_TOL_DEFAULT", "CONSISTENCY_TOL_DEFAULT", "RCOND_ROBUST_DEFAULT", "BAUMGARTE_FADE")
+#: int64 arrays of the model: [u_I, u_D] → model order; Q's and J's structural nonzeros (CSR); J's row degrees
+MODEL_ARRAYS = ("PERM", "QPTR", "QIDX", "JPTR", "JIDX", "ROWDEG")
+#: the model's straight-line functions and their C types (nmk.h)
+MODEL_FUNCTIONS = (
+    ("terms", "nmk_fill"),
+    ("constraint_terms", "nmk_fill"),
+    ("positions", "nmk_fill"),
+    ("diagnostics", "nmk_diag"),
+    ("outputs", "nmk_fill"),
+)
+
+
+def offset_names() -> tuple[str, ...]:
+    """The model record's offset fields: the work array's blocks and size, the projection scratch's."""
+    return (*(n for n, _, _ in WORKSPACE), "WSIZE", *(n for n, _, _ in PROJECTION_SCRATCH), "PS_SIZE")
+
+
+def _array_fields(name: str, kind: str) -> list[tuple[str, str]]:
+    """(C type, field name) of one loop argument: an array is its pointer and its shape."""
+    if kind in ("float64[::1]",):
+        return [("double *", name), ("i64", f"{name}_n0")]
+    if kind == "float64[:, ::1]":
+        return [("double *", name), ("i64", f"{name}_n0"), ("i64", f"{name}_n1")]
+    if kind in ("int64[::1]", "proj"):
+        return [("i64 *", name), ("i64", f"{name}_n0")]
+    return [("double" if kind == "float64" else "i64", name)]
+
+
+_KINDS = {"float64[::1]": "vec", "float64[:, ::1]": "mat", "int64[::1]": "ivec", "proj": "proj"}
+
+
+@functools.cache
+def loop_kinds(args) -> dict[str, str]:
+    """Each field of a loop's argument record: vec, mat, ivec, proj (an int64 array or None), or scalar."""
+    hints = typing.get_type_hints(args, include_extras=True)
+    return {f: _KINDS.get(hints[f].__metadata__[0], "scalar") for f in args._fields}
+
+
+def _loop_fields(args: type[typing.NamedTuple]) -> list[tuple[str, str]]:
+    hints = typing.get_type_hints(args, include_extras=True)
+    fields: list[tuple[str, str]] = []
+    for f in args._fields:
+        fields += _array_fields(f, hints[f].__metadata__[0])
+    return fields
+
+
+def _model_fields() -> list[tuple[str, str]]:
+    fields = [("i64", n) for n in (*MODEL_INTS, *offset_names())]
+    fields += [("double", n) for n in MODEL_FLOATS]
+    fields += [("const i64 *", n) for n in MODEL_ARRAYS]
+    fields += [(kind, n) for n, kind in MODEL_FUNCTIONS]
+    return fields
+
+
+def _struct(name: str, fields: list[tuple[str, str]]) -> str:
+    body = "\n".join(f"    {ctype}{'' if ctype.endswith('*') else ' '}{field};" for ctype, field in fields)
+    return f"typedef struct {name} {{\n{body}\n}} {name};\n"
+
+
+def header() -> str:
+    """nmk_gen.h: the constants and records the C core shares with Python (generated, not kept)."""
+    lines = ["/* Generated by nmkane_core/kernel/core.py from kernel/interface.py and kernel/constants.py. */"]
+    for name in constants.NAMES:
+        value = getattr(constants, name)
+        lines.append(f"#define {name} {value!r}")
+    text = "\n".join(lines) + "\n\n" + _struct("nmk_model", _model_fields())
+    for loop, args in LOOPS.items():
+        text += "\n" + _struct(f"nmk_{loop.removeprefix('integrate_')}_args", _loop_fields(args))
+    return text
+
+
+_C_TYPES = {
+    "i64": ctypes.c_int64,
+    "double": ctypes.c_double,
+    "double *": ctypes.c_void_p,
+    "i64 *": ctypes.c_void_p,
+    "const i64 *": ctypes.c_void_p,
+    "nmk_fill": ctypes.c_void_p,
+    "nmk_diag": ctypes.c_void_p,
+}
+
+
+def _record(name: str, fields: list[tuple[str, str]]) -> type[ctypes.Structure]:
+    return type(name, (ctypes.Structure,), {"_fields_": [(f, _C_TYPES[c]) for c, f in fields]})
+
+
+#: the ctypes twins of the generated C records
+ModelRecord = _record("ModelRecord", _model_fields())
+FixedRecord = _record("FixedRecord", _loop_fields(FixedArgs))
+AdaptiveRecord = _record("AdaptiveRecord", _loop_fields(AdaptiveArgs))
+
+
+def model_record() -> type[ctypes.Structure]:
+    return ModelRecord
+
+
+def args_record(loop: str) -> type[ctypes.Structure]:
+    return {"integrate_fixed": FixedRecord, "integrate_adaptive": AdaptiveRecord}[loop]
+
+
+def sources() -> dict[str, str]:
+    """The core's source files (name → text), the generated header among them."""
+    files = {p.name: p.read_text() for p in sorted(CSRC.iterdir()) if p.suffix in (".c", ".h")}
+    files["nmk_gen.h"] = header()
+    return files
+
+
+def source_key() -> str:
+    """A hash of everything the compiled core depends on: its sources, the header, the flags."""
+    h = hashlib.sha256("\0".join((*FLAGS, *_sanitizer())).encode())
+    for name, text in sorted(sources().items()):
+        h.update(f"\0{name}\0{text}".encode())
+    return h.hexdigest()[:24]
+
+
+_LOCK = threading.Lock()
+_LIB: ctypes.CDLL | None = None
+
+
+def library() -> ctypes.CDLL:
+    """The compiled core, built into the kernel cache on first use (a process lock and an atomic
+    rename: a parallel process sees a whole library or none)."""
+    global _LIB
+    if _LIB is not None:
+        return _LIB
+    from .cache import cache_root
+    from .native import compiler_or_fail
+
+    with _LOCK:
+        if _LIB is not None:
+            return _LIB
+        key = source_key()
+        folder = cache_root() / "core"
+        path = folder / f"nmkcore_{key}.so"
+        if not path.exists():
+            _build(compiler_or_fail(), folder, key, path)
+        _LIB = _declare(ctypes.CDLL(str(path)))
+    return _LIB
+
+
+def _build(cc: str, folder: Path, key: str, path: Path) -> None:
+    """Compile the core into ``path`` (through a private folder, renamed in whole)."""
+    import shutil
+
+    from .native import NativeBuildError
+
+    folder.mkdir(parents=True, exist_ok=True)
+    build = folder / f"build_{key}_{os.getpid()}_{threading.get_ident()}"
+    build.mkdir(exist_ok=True)
+    try:
+        for name, text in sources().items():
+            (build / name).write_text(text)
+        tmp = build / "core.so"
+        try:
+            out = subprocess.run(
+                [cc, *FLAGS, *_sanitizer(), "-o", str(tmp), str(build / "core.c"), "-lm"],
+                capture_output=True,
+                text=True,
+                timeout=600,
+            )
+        except (OSError, subprocess.SubprocessError) as e:
+            raise NativeBuildError(f"{cc}: {e}") from None
+        if out.returncode != 0:
+            detail = " ".join(out.stderr.split())[-2000:]
+            raise NativeBuildError(f"{cc} failed on nmkane's compiled core: {detail or f'exit {out.returncode}'}")
+        os.replace(tmp, path)
+    finally:
+        shutil.rmtree(build, ignore_errors=True)
+
+
+def _sanitizer() -> tuple[str, ...]:
+    """``NMKANE_CORE_SANITIZE=address``: the core built with AddressSanitizer (its own cache key),
+    for the tests that run it under ``LD_PRELOAD`` of the sanitizer's runtime."""
+    if os.environ.get("NMKANE_CORE_SANITIZE") == "address":
+        return ("-fsanitize=address", "-fno-omit-frame-pointer", "-g")
+    return ()
+
+
+def _declare(lib: ctypes.CDLL) -> ctypes.CDLL:
+    """The exported entry points' argument and result types (core.c)."""
+    P, I, D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+    sigs = {
+        "nmk_integrate_fixed": (I, [P, P, P]),
+        "nmk_integrate_adaptive": (I, [P, P, P]),
+        "nmk_make_workspace": (None, [P, P]),
+        "nmk_rhs_ws": (None, [P, D, P, P, P, P, P, P, I, P]),
+        "nmk_diagnostics": (D, [P, D, P, P, P]),
+        "nmk_diagnostics_rows": (None, [P, I, P, P, P, P, P]),
+        "nmk_outputs_rows": (None, [P, I, P, P, P, P]),
+        "nmk_forces_rows": (None, [P, I, P, P, P, P, P, P, P, P]),
+        "nmk_state_terms": (None, [P, D, P, P, P, P, P, P, P]),
+        "nmk_project_state": (I, [P, D, P, P, P, I]),
+        "nmk_solve_setup": (None, [P, P, I, D, I, D, D, D, P, I]),
+        "nmk_robust_outcome": (I, [P, D, D, P, P, P, P, I, I, I]),
+    }
+    for name, (res, args) in sigs.items():
+        fn = getattr(lib, name)
+        fn.restype = res
+        fn.argtypes = args
+    return lib

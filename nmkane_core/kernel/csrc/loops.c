@@ -1,0 +1,402 @@
+/* The right-hand side and the integrator loops: one fixed-step loop and one adaptive loop serve
+ * every explicit Runge-Kutta tableau (methods are data).  A division by zero gives +-inf or NaN,
+ * as the square root of a negative number does; the loops' finiteness checks turn such values
+ * into a status (STATUS_DIVERGED; the adaptive loop first rejects the trial step and shrinks it).
+ *
+ * proj (i64 array) = [weight (0 identity, 1 mass), position iterations, Newton (1 updated
+ * Jacobian, 0 frozen), energy correction (0/1), N, M, MNH, MH], or NULL for no projection. */
+
+/* The flat scratch array of one right-hand side evaluation (WORKSPACE in kernel/interface.py),
+ * zeroed, with the condition estimates at 1 and the robust solve's defaults. */
+static void init_workspace(const nmk_model *md, double *w) {
+    memset(w, 0, (size_t)md->WSIZE * sizeof(double));
+    w[md->ORC] = 1.0;
+    w[md->ORC + 1] = 1.0;
+    if (md->ROBUST) solve_defaults(md, w);
+}
+
+/* x' = [C u + D; T^-1 V^] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T.  With
+ * w[OFLAG] set, what forces() needs is kept (keep_for_forces). */
+static void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
+                   const double *G1, const double *G2, double *K, i64 row, double *w) {
+    if (md->ROBUST)
+        rhs_robust(md, t, x, p, G, G1, G2, K, row, w);
+    else
+        rhs_paper(md, t, x, p, G, G1, G2, K, row, w);
+}
+
+/* Q and P of this evaluation into w[OQC], w[OPC] (with w[OFLAG] set: a step's first stage from a
+ * recorded state), for forces() after the step's later stages overwrote them. */
+static void keep_for_forces(const nmk_model *md, double *w) {
+    memcpy(w + md->OQC, w + md->OQ, (size_t)(md->N * md->N) * sizeof(double));
+    memcpy(w + md->OPC, w + md->OP, (size_t)md->N * sizeof(double));
+}
+
+/* Whether the right-hand side's work array is finite (the cold path of a zero or tiny condition
+ * estimate: a NaN pivot also gives rcond 0). */
+static int finite_work(const nmk_model *md, const double *w) {
+    for (i64 i = 0; i < md->ORC; ++i)
+        if (!isfinite(w[i])) return 0;
+    return 1;
+}
+
+/* After an evaluation of a kernel with the rank-robust solve (a stage of a step h): its counters
+ * into stats, a change of solve or partition into the solve log, and the status it ends a run
+ * with (Q not positive definite, J u' = c inconsistent, the Baumgarte terms carrying more than
+ * ROBUST_LEAVE_KE of the kinetic energy in a step; not finite terms: diverged).  J u' = c is
+ * judged at a step's start only, the state the integrator accepted. */
+static i64 robust_outcome(const nmk_model *md, double t, double h, double *w, double *stats, i64 *order,
+                          nmk_log *solve_log, int start) {
+    const i64 OSV = md->OSV;
+    double st = w[OSV + SV_STATUS];
+    if (st == 2.0 && !start) {
+        st = 0.0;
+        w[OSV + SV_STATUS] = 0.0;
+    }
+    if (st != 0.0 && !finite_work(md, w)) return STATUS_DIVERGED;
+    double share = h * h * w[OSV + SV_STAB];
+    if (share > stats[STATS_MAX_STAB]) stats[STATS_MAX_STAB] = share;
+    if (w[OSV + SV_USED] == 1.0) {
+        stats[STATS_ROBUST_EVALS] += 1.0;
+        if (w[OSV + SV_PIVOT] < stats[STATS_MIN_PIVOT]) stats[STATS_MIN_PIVOT] = w[OSV + SV_PIVOT];
+        if (w[OSV + SV_RANK] < stats[STATS_MIN_RANK]) stats[STATS_MIN_RANK] = w[OSV + SV_RANK];
+    }
+    if (w[OSV + SV_CHANGED] != 0.0 || st == 2.0) log_solve(md, t, w, stats, order, solve_log);
+    i64 code = STATUS_OK;
+    if (st == 1.0)
+        code = STATUS_Q_SINGULAR;
+    else if (st == 2.0)
+        code = STATUS_INCONSISTENT;
+    else if (share > ROBUST_LEAVE_KE)
+        code = STATUS_LEFT_CONSTRAINTS;
+    return code;
+}
+
+/* Fill the stage derivatives K[i] of one explicit RK step (S stages); return a status code. */
+static i64 stages(const nmk_model *md, double t, double h, const double *x, const double *p, const double *G,
+                  const double *G1, const double *G2, const double *TA, const double *TC, i64 S, double *K,
+                  double *xs, double *w, double rcond_min, double *stats, i64 *order, nmk_log *solve_log) {
+    const i64 n2 = 2 * md->N;
+    for (i64 i = 0; i < S; ++i) {
+        for (i64 j = 0; j < n2; ++j) xs[j] = x[j];
+        for (i64 l = 0; l < i; ++l) {
+            double ha = h * TA[i * S + l];
+            if (ha != 0.0)
+                for (i64 j = 0; j < n2; ++j) xs[j] += ha * K[l * n2 + j];
+        }
+        double total = 0.0;
+        for (i64 j = 0; j < n2; ++j) total += fabs(xs[j]);
+        if (!isfinite(total)) return STATUS_DIVERGED; /* a stage left the finite numbers: divergence */
+        rhs_ws(md, t + TC[i] * h, xs, p, G, G1, G2, K, i, w);
+        if (md->ROBUST) {
+            i64 code = robust_outcome(md, t + TC[i] * h, h, w, stats, order, solve_log, i == 0);
+            if (code != STATUS_OK) return code;
+        }
+        double rc0 = w[md->ORC], rc1 = w[md->ORC + 1];
+        if (rc0 <= rcond_min || rc1 <= rcond_min)
+            if (!finite_work(md, w)) return STATUS_DIVERGED; /* not singular: the expressions are not defined here */
+        if (rc0 < stats[STATS_RCOND_J2]) stats[STATS_RCOND_J2] = rc0;
+        if (rc1 < stats[STATS_RCOND_T]) stats[STATS_RCOND_T] = rc1;
+        if (rc0 <= rcond_min) return STATUS_J2_SINGULAR;
+        if (rc1 <= rcond_min) return STATUS_T_SINGULAR;
+        if (i == 0) w[md->OFLAG] = 0.0; /* the first stage has kept what the forces need */
+    }
+    return STATUS_OK;
+}
+
+/* Diagnostics of an accepted state; running maxima in stats.  Returns E, or NaN (and leaves the
+ * maxima untouched) when any diagnostic is not finite. */
+static double record(const nmk_model *md, double t, const double *x, const double *p, double *viol,
+                     double *stats, i64 nv) {
+    double E = md->diagnostics(t, x, p, viol);
+    double dE = E - stats[STATS_E0];
+    if (!isfinite(dE)) return NAN;
+    for (i64 i = 0; i < nv; ++i)
+        if (!isfinite(viol[i])) return NAN;
+    if (fabs(dE) > stats[STATS_MAX_DRIFT]) stats[STATS_MAX_DRIFT] = fabs(dE);
+    stats[STATS_FINAL_DRIFT] = dE;
+    for (i64 i = 0; i < nv; ++i) {
+        double v = fabs(viol[i]);
+        if (v > stats[STATS_VIOL + i]) stats[STATS_VIOL + i] = v;
+    }
+    return E;
+}
+
+/* The constraint forces of the state whose derivative is K[krow] (after rhs_ws with w[OFLAG]
+ * set): F_c = Q u' - P into w[OFC] ([u_I, u_D] order) and the multipliers lambda of F_c =
+ * J^T lambda into w[OLAM], from the dependent rows (F_c)_D = J2^T lambda.  u' is the run's own,
+ * the Baumgarte terms included. */
+static void forces(const nmk_model *md, double *w, const double *K, i64 krow) {
+    if (md->ROBUST)
+        forces_robust(md, w, K, krow);
+    else
+        forces_paper(md, w, K, krow);
+}
+
+/* The forces in w (from forces()) as output row `row` (model order). */
+static void store_forces(const nmk_model *md, const double *w, i64 row, double *out_F, double *out_L) {
+    for (i64 r = 0; r < md->N; ++r) out_F[row * md->N + md->PERM[r]] = w[md->OFC + r];
+    for (i64 a = 0; a < md->M; ++a) out_L[row * md->M + a] = w[md->OLAM + a];
+}
+
+/* The post-step projection of an accepted state; its status (a singular correction matrix; with
+ * the rank-robust solve also: the motion left the constraints). */
+static i64 project_step(const nmk_model *md, double t, double *x, const double *p, double *w, double *ps,
+                        const i64 *proj, double *stats, double *viol, const i64 *perm) {
+    i64 code = project(md, t, x, p, w, ps, proj, stats[STATS_E0], viol, perm);
+    if (md->ROBUST && w[md->OSV + SV_LEAVE] > stats[STATS_MAX_LEAVE]) stats[STATS_MAX_LEAVE] = w[md->OSV + SV_LEAVE];
+    if (code == 1) return STATUS_PROJECTION_FAILED;
+    if (code == 2) return STATUS_LEFT_CONSTRAINTS;
+    return STATUS_OK;
+}
+
+/* The scratch arrays of one loop call, allocated once per call. */
+typedef struct {
+    double *K, *xs, *xn, *viol, *w, *ps;
+} nmk_scratch;
+
+static int scratch_alloc(const nmk_model *md, i64 S, nmk_scratch *s) {
+    const i64 n2 = 2 * md->N;
+    s->K = malloc((size_t)(S * n2 + 1) * sizeof(double));
+    s->xs = malloc((size_t)(n2 + 1) * sizeof(double));
+    s->xn = malloc((size_t)(n2 + 1) * sizeof(double));
+    s->viol = malloc((size_t)(md->NV + 1) * sizeof(double));
+    s->w = malloc((size_t)(md->WSIZE + 1) * sizeof(double));
+    s->ps = calloc((size_t)(md->PS_SIZE + 1), sizeof(double));
+    if (!s->K || !s->xs || !s->xn || !s->viol || !s->w || !s->ps) return 0;
+    init_workspace(md, s->w);
+    return 1;
+}
+
+static void scratch_free(nmk_scratch *s) {
+    free(s->K);
+    free(s->xs);
+    free(s->xn);
+    free(s->viol);
+    free(s->w);
+    free(s->ps);
+}
+
+/* Steps k0 ... k1-1 of a fixed-step run of nsteps steps; x is advanced in place.  Row r of the
+ * outputs holds the state after step r*every (and the final state), and its constraint forces
+ * (out_F, out_L; none when they have no rows): those of a row come with the first stage of the
+ * step that starts from it, so the row written by a call's last step is returned as pending
+ * (-1: none) for the next call, or the driver, to fill.  ret = (steps done so far, next free row,
+ * pending row); returns the status. */
+static i64 integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double *ret) {
+    const i64 N = md->N, n2 = 2 * N, S = a->TC_n0, nsteps = a->nsteps, every = a->every;
+    const i64 *proj = a->proj;
+    double *x = a->x;
+    nmk_log log = {a->solve_log, a->solve_log_n0, a->solve_log_n1};
+    i64 row = a->row, pending = a->pending, k = a->k0;
+    i64 status = STATUS_OK;
+    nmk_scratch s;
+    if (!scratch_alloc(md, S, &s)) {
+        scratch_free(&s);
+        ret[0] = (double)k, ret[1] = (double)row, ret[2] = (double)pending;
+        return STATUS_FAILED;
+    }
+    double *K = s.K, *xn = s.xn, *w = s.w;
+    if (md->ROBUST)
+        solve_setup(md, w, a->solve, a->rank_tol, a->max_rank, a->consistency_tol, a->rcond_robust, a->rcond_min,
+                    a->order, proj != NULL);
+    const int with_forces = a->out_F_n0 > 0;
+    for (; k < a->k1; ++k) {
+        double t = a->t0 + (double)k * a->dt;
+        double h = k < nsteps - 1 ? a->dt : a->t_final - t;
+        w[md->OFLAG] = pending >= 0 ? 1.0 : 0.0;
+        status = stages(md, t, h, x, a->p, a->G, a->G1, a->G2, a->TA, a->TC, S, K, s.xs, w, a->rcond_min, a->stats,
+                        a->order, &log);
+        if (status != STATUS_OK) break;
+        if (pending >= 0) { /* the forces of the row this step started from (its first stage) */
+            forces(md, w, K, 0);
+            store_forces(md, w, pending, a->out_F, a->out_L);
+            pending = -1;
+        }
+        for (i64 j = 0; j < n2; ++j) xn[j] = x[j];
+        for (i64 i = 0; i < S; ++i) {
+            double hb = h * a->TB[i];
+            if (hb != 0.0)
+                for (i64 j = 0; j < n2; ++j) xn[j] += hb * K[i * n2 + j];
+        }
+        double total = 0.0;
+        for (i64 j = 0; j < n2; ++j) total += fabs(xn[j]);
+        if (!isfinite(total)) {
+            status = STATUS_DIVERGED;
+            break;
+        }
+        double tn = k < nsteps - 1 ? a->t0 + (double)(k + 1) * a->dt : a->t_final;
+        if (proj != NULL) {
+            status = project_step(md, tn, xn, a->p, w, s.ps, proj, a->stats, s.viol, md->PERM);
+            if (status != STATUS_OK) break;
+        }
+        double E = record(md, tn, xn, a->p, s.viol, a->stats, md->NV);
+        if (!isfinite(E)) {
+            status = STATUS_DIVERGED;
+            break;
+        }
+        for (i64 j = 0; j < n2; ++j) x[j] = xn[j];
+        if ((k + 1) % every == 0 || k + 1 == nsteps) {
+            a->out_t[row] = tn;
+            memcpy(a->out_x + row * n2, x, (size_t)n2 * sizeof(double));
+            a->out_E[row] = E;
+            for (i64 j = 0; j < md->NV; ++j) a->out_V[row * md->NV + j] = s.viol[j];
+            if (with_forces) pending = row;
+            ++row;
+        }
+    }
+    scratch_free(&s);
+    if (status == STATUS_OK) k = a->k1;
+    ret[0] = (double)k, ret[1] = (double)row, ret[2] = (double)pending;
+    return status;
+}
+
+/* The embedded step's new state into xn and its scaled RMS error estimate h sum TE_i K_i
+ * (returns inf and *finite = 0 when the new state is not finite).  With the robust solve and a
+ * projection, without the error's components along the constraint normals (the projection's
+ * business): tangent() in robust_projection.c. */
+static double step_error(const nmk_model *md, double t, double h, const double *x, double *xn, const double *p,
+                         const double *K, i64 S, const double *TB, const double *TE, double *w, const i64 *proj,
+                         double atol, double rtol, int *finite) {
+    const i64 n2 = 2 * md->N;
+    double errsum = 0.0;
+    *finite = 1;
+    if (md->ROBUST && proj != NULL) {
+        for (i64 j = 0; j < n2; ++j) {
+            double acc = 0.0, accE = 0.0;
+            for (i64 i = 0; i < S; ++i) {
+                acc += TB[i] * K[i * n2 + j];
+                accE += TE[i] * K[i * n2 + j];
+            }
+            xn[j] = x[j] + h * acc;
+            w[md->ODX + j] = h * accE;
+            if (!isfinite(xn[j])) {
+                *finite = 0;
+                return INFINITY;
+            }
+        }
+        tangent(md, t + h, xn, p, w, proj);
+        for (i64 j = 0; j < n2; ++j) {
+            double sc = atol + rtol * nmk_max(fabs(x[j]), fabs(xn[j]));
+            double e = w[md->ODX + j] / sc;
+            errsum += e * e;
+        }
+    } else {
+        for (i64 j = 0; j < n2; ++j) {
+            double acc = 0.0, accE = 0.0;
+            for (i64 i = 0; i < S; ++i) {
+                acc += TB[i] * K[i * n2 + j];
+                accE += TE[i] * K[i * n2 + j];
+            }
+            xn[j] = x[j] + h * acc;
+            if (!isfinite(xn[j])) {
+                *finite = 0;
+                return INFINITY;
+            }
+            double sc = atol + rtol * nmk_max(fabs(x[j]), fabs(xn[j]));
+            double e = h * accE / sc;
+            errsum += e * e;
+        }
+    }
+    return sqrt(errsum / (double)n2);
+}
+
+/* Adaptive embedded-RK run from t until t_final, the output buffer is full, or max_steps attempts;
+ * error = h sum TE_i K_i, step control with exponent err_exp.  Constraint forces of the rows as in
+ * integrate_fixed (pending: a row that receives the forces of the starting state, or -1).
+ * ret = (t, h, rows written, accepted steps, attempted steps, pending row); returns the status. */
+static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, double *ret) {
+    const i64 N = md->N, n2 = 2 * N, S = a->TC_n0, every = a->every, cap = a->out_t_n0;
+    const i64 *proj = a->proj;
+    const double t_final = a->t_final;
+    double *x = a->x;
+    nmk_log log = {a->solve_log, a->solve_log_n0, a->solve_log_n1};
+    double t = a->t, h = a->h;
+    i64 row = 0, attempts = 0, accepted = a->accepted, pending = a->pending;
+    i64 status = STATUS_OK;
+    nmk_scratch s;
+    if (!scratch_alloc(md, S, &s)) {
+        scratch_free(&s);
+        status = STATUS_FAILED;
+        goto done;
+    }
+    double *K = s.K, *xn = s.xn, *w = s.w;
+    if (md->ROBUST)
+        solve_setup(md, w, a->solve, a->rank_tol, a->max_rank, a->consistency_tol, a->rcond_robust, a->rcond_min,
+                    a->order, proj != NULL);
+    const int with_forces = a->out_F_n0 > 0;
+    while (t < t_final && row < cap) {
+        if (attempts >= a->max_steps) {
+            status = STATUS_BUDGET;
+            break;
+        }
+        ++attempts;
+        int last = 0;
+        if (t + h >= t_final || (t_final - t - h) < STEP_LAST_REL * fabs(t_final)) {
+            h = t_final - t;
+            last = 1;
+        }
+        w[md->OFLAG] = pending >= 0 ? 1.0 : 0.0;
+        i64 code = stages(md, t, h, x, a->p, a->G, a->G1, a->G2, a->TA, a->TC, S, K, s.xs, w, a->rcond_min, a->stats,
+                          a->order, &log);
+        if (pending >= 0 && w[md->OFLAG] == 0.0) { /* the first stage came through: the row's forces */
+            forces(md, w, K, 0);
+            store_forces(md, w, pending, a->out_F, a->out_L);
+            pending = -1;
+        }
+        /* a stage that left the finite numbers (a trial step past a point where the model's
+         * expressions are not defined) is rejected like an infinite error: the step shrinks, and
+         * the run fails only below hmin */
+        int finite = code == STATUS_OK;
+        if (code != STATUS_OK && code != STATUS_DIVERGED) {
+            status = code;
+            break;
+        }
+        double err = INFINITY;
+        if (finite) err = step_error(md, t, h, x, xn, a->p, K, S, a->TB, a->TE, w, proj, a->atol, a->rtol, &finite);
+        int nonfinite = !finite;
+        double fac;
+        if (err <= 1.0) {
+            double tn = last ? t_final : t + h;
+            if (proj != NULL) {
+                code = project_step(md, tn, xn, a->p, w, s.ps, proj, a->stats, s.viol, md->PERM);
+                if (code != STATUS_OK) {
+                    status = code;
+                    break;
+                }
+            }
+            double E = record(md, tn, xn, a->p, s.viol, a->stats, md->NV);
+            if (!isfinite(E)) {
+                status = STATUS_DIVERGED;
+                break;
+            }
+            t = tn;
+            for (i64 j = 0; j < n2; ++j) x[j] = xn[j];
+            ++accepted;
+            if (accepted % every == 0 || t >= t_final) {
+                a->out_t[row] = t;
+                memcpy(a->out_x + row * n2, x, (size_t)n2 * sizeof(double));
+                a->out_E[row] = E;
+                for (i64 j = 0; j < md->NV; ++j) a->out_V[row * md->NV + j] = s.viol[j];
+                if (with_forces) pending = row;
+                ++row;
+            }
+            if (err == 0.0)
+                fac = STEP_FAC_MAX;
+            else
+                fac = nmk_min(STEP_FAC_MAX, nmk_max(STEP_FAC_MIN, STEP_SAFETY * pow(err, -a->err_exp)));
+        } else {
+            fac = !isfinite(err) ? STEP_FAC_MIN : nmk_max(STEP_FAC_MIN, STEP_SAFETY * pow(err, -a->err_exp));
+        }
+        h = nmk_min(h * fac, a->hmax);
+        if (h < a->hmin && t < t_final) { /* non-finite trial steps down to hmin: the state cannot go on finite */
+            status = nonfinite ? STATUS_DIVERGED : STATUS_FAILED;
+            break;
+        }
+    }
+    scratch_free(&s);
+done:
+    ret[0] = t, ret[1] = h, ret[2] = (double)row, ret[3] = (double)accepted, ret[4] = (double)attempts;
+    ret[5] = (double)pending;
+    return status;
+}
