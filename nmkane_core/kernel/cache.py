@@ -169,26 +169,26 @@ def kernel_damage(folder: Path, key: str) -> str | None:
     return _read(folder, key)[0]
 
 
-def import_kernel(folder: Path, key: str):
-    """The kernel written by :func:`write_kernel`: its description read, the model's library
-    loaded (compiled first when it is not there, again when the one there is damaged)."""
+def import_kernel(folder: Path, key: str) -> tuple[dict, ctypes.CDLL, Path]:
+    """The kernel written by :func:`write_kernel`: (its description, the model's library loaded —
+    compiled first when it is not there, again when the one there is damaged — the description's path)."""
     import json
 
-    from .cmodel import CModel
     from .native import build, report_damaged
 
     reason, body = _read(folder, key)
     if reason is not None:
         raise ValueError(f"{_kernel_file(folder, key)}: {reason}")
     description = json.loads(body)
+    path = _kernel_file(folder, key)
     tag, source = description["tag"], description["c_source"]
-    path = build(str(_kernel_file(folder, key)), tag, source)
-    if (reason := library_damage(path, source)) is not None:
-        report_damaged(path, reason)
-        path = build(str(_kernel_file(folder, key)), tag, source, again=True)
-        if (reason := library_damage(path, source)) is not None:
-            raise OSError(f"{path}: rebuilt, still {reason}")
-    return CModel(f"nmkane_kernel_{key}", description, ctypes.CDLL(str(path)), tag, str(_kernel_file(folder, key)))
+    lib = build(str(path), tag, source)
+    if (reason := library_damage(lib, source)) is not None:
+        report_damaged(lib, reason)
+        lib = build(str(path), tag, source, again=True)
+        if (reason := library_damage(lib, source)) is not None:
+            raise OSError(f"{lib}: rebuilt, still {reason}")
+    return description, ctypes.CDLL(str(lib)), path
 
 
 # --------------------------------------------------------------------------- housekeeping

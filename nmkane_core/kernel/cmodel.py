@@ -70,6 +70,21 @@ class CModel:
     """A model's kernel: its sizes as attributes (``N``, ``M``, ``PI``, ``NV``, ``NO``, ``PERM``,
     ``ROBUST``, the work-array offsets ``OJ`` …), and the compiled core's entry points bound to it."""
 
+    # the sizes and offsets named in this module (every other field of the record is set too)
+    N: int
+    M: int
+    MNH: int
+    MH: int
+    PI: int
+    NV: int
+    NO: int
+    WSIZE: int
+    ORC: int
+    OSV: int
+    MAX_RANK_DEFAULT: int
+    ROBUST: bool
+    PERM: np.ndarray
+
     def __init__(self, name: str, description: dict[str, Any], library: ctypes.CDLL, tag: str, path: str = ""):
         self.__name__ = name
         self.__file__ = path

@@ -144,16 +144,12 @@ MODEL_FUNCTIONS = (
 
 def generate_source(derivation) -> str:
     """The kernel description of one model, as text (:func:`~.cmodel.description_json`)."""
-    import sympy as sp
-
-    from ..symbolic import robust as rb
     from ..symbolic.terms import kernel_terms
 
     kt = kernel_terms(derivation)
     robust = needs_robust(derivation)
     dims = kernel_dims(kt, robust)
-    off, wsize = layout(WORKSPACE, dims)
-    ps_off, ps_size = layout(PROJECTION_SCRATCH, dims)
+    off = layout(WORKSPACE, dims)[0]
     assignments = {
         "terms": _terms_assignments(kt, off),
         "constraint_terms": _constraint_assignments(kt, off),
@@ -170,6 +166,33 @@ def generate_source(derivation) -> str:
                 "model", derivation.model.name, "expressions of functions C's math library has", reason=str(e)
             ) from None
     source, tag = native.c_module(functions)
+    ints, floats, arrays = _record_fields(kt, dims, derivation, robust)
+    description = {
+        "generator": "nmkane_core.kernel.codegen",
+        "model": derivation.model.name,
+        "state": [str(s) for s in kt.args_x],
+        "params": [str(s) for s in kt.args_p],
+        "violations": list(kt.viol_names),
+        "outputs": list(kt.output_names),
+        "np": len(kt.args_p),
+        "ints": ints,
+        "floats": floats,
+        "arrays": arrays,
+        "tag": tag,
+        "c_source": source,
+    }
+    return description_json(description)
+
+
+def _record_fields(kt, dims: dict[str, int], derivation, robust: bool) -> tuple[dict, dict, dict]:
+    """The model record's integers (sizes, switches, offsets), floats (the robust solve's
+    defaults) and int64 arrays (permutation, sparsity, row degrees) (kernel.core's ``nmk_model``)."""
+    import sympy as sp
+
+    from ..symbolic import robust as rb
+
+    off, wsize = layout(WORKSPACE, dims)
+    ps_off, ps_size = layout(PROJECTION_SCRATCH, dims)
     p = derivation.p
     ints = {
         **dims,
@@ -199,21 +222,7 @@ def generate_source(derivation) -> str:
         "JIDX": jidx,
         "ROWDEG": list(kt.row_degree or [1]),  # degree in u of each row of J (0: not a polynomial)
     }
-    description = {
-        "generator": "nmkane_core.kernel.codegen",
-        "model": derivation.model.name,
-        "state": [str(s) for s in kt.args_x],
-        "params": [str(s) for s in kt.args_p],
-        "violations": list(kt.viol_names),
-        "outputs": list(kt.output_names),
-        "np": len(kt.args_p),
-        "ints": ints,
-        "floats": floats,
-        "arrays": arrays,
-        "tag": tag,
-        "c_source": source,
-    }
-    return description_json(description)
+    return ints, floats, arrays
 
 
 def _sparsity(matrix) -> tuple[list[int], list[int]]:

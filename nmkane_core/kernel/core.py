@@ -169,7 +169,7 @@ def library() -> ctypes.CDLL:
     if _LIB is not None:
         return _LIB
     from .cache import cache_root
-    from .native import compiler_or_fail
+    from .native import compiler_or_fail, library_damage, report_damaged
 
     with _LOCK:
         if _LIB is not None:
@@ -178,6 +178,9 @@ def library() -> ctypes.CDLL:
         folder = cache_root() / "core"
         path = folder / f"nmkcore_{key}.so"
         if not path.exists():
+            _build(compiler_or_fail(), folder, key, path)
+        if (reason := library_damage(path, names=tuple(_SIGNATURES))) is not None:  # a truncated or overwritten file
+            report_damaged(path, reason)
             _build(compiler_or_fail(), folder, key, path)
         _LIB = _declare(ctypes.CDLL(str(path)))
     return _LIB
@@ -221,24 +224,27 @@ def _sanitizer() -> tuple[str, ...]:
     return ()
 
 
+_P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
+#: the exported entry points (csrc/api.c): result type and argument types
+_SIGNATURES = {
+    "nmk_integrate_fixed": (_I, [_P, _P, _P]),
+    "nmk_integrate_adaptive": (_I, [_P, _P, _P]),
+    "nmk_make_workspace": (None, [_P, _P]),
+    "nmk_rhs_ws": (None, [_P, _D, _P, _P, _P, _P, _P, _P, _I, _P]),
+    "nmk_diagnostics": (_D, [_P, _D, _P, _P, _P]),
+    "nmk_diagnostics_rows": (None, [_P, _I, _P, _P, _P, _P, _P]),
+    "nmk_outputs_rows": (None, [_P, _I, _P, _P, _P, _P]),
+    "nmk_forces_rows": (None, [_P, _I, _P, _P, _P, _P, _P, _P, _P, _P]),
+    "nmk_state_terms": (None, [_P, _D, _P, _P, _P, _P, _P, _P, _P]),
+    "nmk_project_state": (_I, [_P, _D, _P, _P, _P, _I]),
+    "nmk_solve_setup": (None, [_P, _P, _I, _D, _I, _D, _D, _D, _P, _I]),
+    "nmk_robust_outcome": (_I, [_P, _D, _D, _P, _P, _P, _P, _I, _I, _I]),
+}
+
+
 def _declare(lib: ctypes.CDLL) -> ctypes.CDLL:
-    """The exported entry points' argument and result types (core.c)."""
-    P, I, D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
-    sigs = {
-        "nmk_integrate_fixed": (I, [P, P, P]),
-        "nmk_integrate_adaptive": (I, [P, P, P]),
-        "nmk_make_workspace": (None, [P, P]),
-        "nmk_rhs_ws": (None, [P, D, P, P, P, P, P, P, I, P]),
-        "nmk_diagnostics": (D, [P, D, P, P, P]),
-        "nmk_diagnostics_rows": (None, [P, I, P, P, P, P, P]),
-        "nmk_outputs_rows": (None, [P, I, P, P, P, P]),
-        "nmk_forces_rows": (None, [P, I, P, P, P, P, P, P, P, P]),
-        "nmk_state_terms": (None, [P, D, P, P, P, P, P, P, P]),
-        "nmk_project_state": (I, [P, D, P, P, P, I]),
-        "nmk_solve_setup": (None, [P, P, I, D, I, D, D, D, P, I]),
-        "nmk_robust_outcome": (I, [P, D, D, P, P, P, P, I, I, I]),
-    }
-    for name, (res, args) in sigs.items():
+    """The exported entry points' argument and result types."""
+    for name, (res, args) in _SIGNATURES.items():
         fn = getattr(lib, name)
         fn.restype = res
         fn.argtypes = args

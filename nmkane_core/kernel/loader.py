@@ -20,6 +20,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from .cache import import_kernel, kernel_damage, kernel_dir, write_kernel
+from .cmodel import CModel
 from .codegen import generate_source
 from .info import ModelInfo
 from .native import NativeBuildError, report_damaged
@@ -38,11 +39,12 @@ def source_key(source: str) -> str:
     return h.hexdigest()[:20]
 
 
-def _import(folder: Path, key: str, source: str | None):
+def _import(folder: Path, key: str, source: str | None) -> CModel:
     """Load kernel ``key`` from ``folder``, writing ``source`` there first when given."""
     if source is not None:
         write_kernel(folder, key, source)
-    return import_kernel(folder, key)
+    description, library, path = import_kernel(folder, key)
+    return CModel(f"nmkane_kernel_{key}", description, library, description["tag"], str(path))
 
 
 class _Damaged(Exception):

@@ -4,7 +4,7 @@ Each model's ``terms``, ``constraint_terms``, ``positions``, ``diagnostics`` and
 common subexpressions, then assignments (:class:`~nmkane_core.kernel.codegen.Block`) — are
 printed as C (:func:`c_function`), compiled with ``-O1`` into a small shared library beside the
 model's description in the kernel cache (:func:`build`: 0.1 s for the paper's models, about a
-second for the bicycle), and called by the compiled core through function pointers
+second for a model of 600 statements), and called by the compiled core through function pointers
 (:mod:`nmkane_core.kernel.cmodel`).  A cached library that does not load, or lacks a function (a
 truncated or overwritten file), is built again with a one-line notice
 (:func:`~nmkane_core.kernel.cache.import_kernel`).  Without a C compiler (``$CC``, ``cc``,
@@ -156,14 +156,14 @@ def build(module_file: str, tag: str, source: str, again: bool = False) -> Path:
     return path
 
 
-def library_damage(path: Path, source: str | None = None) -> str | None:
+def library_damage(path: Path, source: str | None = None, names: tuple[str, ...] = ()) -> str | None:
     """Why the library at ``path`` cannot be used (it does not load, or lacks a function of its C
-    ``source``), or None when it loads whole."""
+    ``source`` or one of ``names``), or None when it loads whole."""
     try:
         lib = ctypes.CDLL(str(path))
     except OSError as e:
         return str(e).removeprefix(f"{path}: ")
-    for name in re.findall(r"\b(nmk_[0-9a-f]+_\w+)\(", source or ""):
+    for name in (*re.findall(r"\b(nmk_[0-9a-f]+_\w+)\(", source or ""), *names):
         if not hasattr(lib, name):
             return f"no function {name}"
     return None

@@ -1,8 +1,8 @@
 """A damaged kernel cache entry (a truncated module, a garbage C library) is found, rebuilt with
 one line that names it, and counted by ``nmkane cache prune`` (issue 44, item 8).
 
-Each case runs in fresh processes on a temporary cache (``NMKANE_CACHE_DIR`` and
-``NUMBA_CACHE_DIR``), with the smallest system, the sliding particle."""
+Each case runs in fresh processes on a temporary cache (``NMKANE_CACHE_DIR``), with the smallest
+system, the sliding particle."""
 
 from __future__ import annotations
 
@@ -14,10 +14,6 @@ from pathlib import Path
 from tests._helpers import require_compiler
 
 RUN = """
-import sys
-from nmkane_core.kernel import codegen
-if sys.argv[1] == "c":  # the model's functions in C, as a large model's are (kernel.native)
-    codegen.INLINE_TERMS_MAX_STATEMENTS = 0
 from nmkane_core import simulate
 run = simulate({"system": "sliding-particle", "t_final": 0.2, "dt": 0.01}, progress=False)
 print(run.summary["status"])
@@ -25,23 +21,16 @@ print(run.summary["status"])
 
 
 def _env(cache: Path) -> dict[str, str]:
-    return {
-        **os.environ,
-        "NMKANE_CACHE_DIR": str(cache),
-        "NUMBA_CACHE_DIR": str(cache),
-        "NMKANE_PRECOMPILE": "0",  # no child left writing into the cache
-    }
+    return {**os.environ, "NMKANE_CACHE_DIR": str(cache)}
 
 
-def _simulate(cache: Path, kind: str = "numba") -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-c", RUN, kind], env=_env(cache), capture_output=True, text=True, timeout=600
-    )
+def _simulate(cache: Path) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-c", RUN], env=_env(cache), capture_output=True, text=True, timeout=600)
 
 
-def _cached(cache: Path, kind: str = "numba") -> Path:
+def _cached(cache: Path) -> Path:
     """The cache's only kernel folder after a first run."""
-    done = _simulate(cache, kind)
+    done = _simulate(cache)
     assert done.returncode == 0, done.stderr
     (folder,) = [p for p in (cache / "kernels").iterdir() if p.name != "index"]
     return folder
@@ -59,9 +48,9 @@ def _one_notice(stderr: str, path: Path) -> None:
     assert lines[0].endswith("); rebuilt")
 
 
-def test_a_truncated_cached_module_is_rebuilt_with_one_line_naming_it(tmp_path):
+def test_a_truncated_cached_description_is_rebuilt_with_one_line_naming_it(tmp_path):
     folder = _cached(tmp_path)
-    module = next(folder.glob("nmkane_kernel_*.py"))
+    module = next(folder.glob("nmkane_kernel_*.json"))
     _truncate(module)
     done = _simulate(tmp_path)
     assert done.returncode == 0, done.stderr
@@ -73,10 +62,22 @@ def test_a_truncated_cached_module_is_rebuilt_with_one_line_naming_it(tmp_path):
 
 def test_a_garbage_c_library_is_rebuilt_with_one_line_naming_it(tmp_path):
     require_compiler()
-    folder = _cached(tmp_path, "c")
+    folder = _cached(tmp_path)
     (library,) = folder.glob("native_*.so")
     library.write_bytes(os.urandom(4096))
-    done = _simulate(tmp_path, "c")
+    done = _simulate(tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["ok"]
+    _one_notice(done.stderr, library)
+    assert library.read_bytes()[:4] == b"\x7fELF"
+
+
+def test_a_garbage_compiled_core_is_rebuilt_with_one_line_naming_it(tmp_path):
+    require_compiler()
+    _cached(tmp_path)
+    (library,) = (tmp_path / "core").glob("nmkcore_*.so")
+    library.write_bytes(os.urandom(4096))
+    done = _simulate(tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["ok"]
     _one_notice(done.stderr, library)
@@ -85,7 +86,7 @@ def test_a_garbage_c_library_is_rebuilt_with_one_line_naming_it(tmp_path):
 
 def test_cache_prune_counts_and_removes_a_damaged_kernel(tmp_path):
     folder = _cached(tmp_path)
-    module = next(folder.glob("nmkane_kernel_*.py"))
+    module = next(folder.glob("nmkane_kernel_*.json"))
     _truncate(module)
     cli = [sys.executable, "-m", "nmkane_core.cli", "cache"]
     info = subprocess.run([*cli, "info"], env=_env(tmp_path), capture_output=True, text=True, timeout=120)

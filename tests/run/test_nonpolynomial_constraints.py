@@ -454,20 +454,3 @@ def test_completion_that_cannot_succeed_says_what_to_change():
         simulate({"system": "np-speed", "initial": {"u2": 1.5}, "t_final": 0.1}, progress=False)
     text = str(e.value)
     assert "u2" in text and "1.5" in text and "speed" in text, text
-
-
-def test_the_branchs_end_is_reported_alike_by_the_interpreted_kernel():
-    """The first tier (nmkane_core.kernel.interpreted) runs the generated kernel in Python,
-    where math.sqrt of a negative number raises: it is given numba's semantics (NaN), so the
-    run ends as the compiled one does, at the same step (before: ValueError out of simulate)."""
-    import dataclasses
-
-    from nmkane_core.run.plan import resolve
-
-    plan = resolve({"system": "np-branch", "integrator": "rk4", "dt": 0.001, "t_final": 3.0})
-    compiled = simulate(dataclasses.replace(plan, interpret=False), progress=False)
-    interpreted = simulate(dataclasses.replace(plan, interpret=True), progress=False)
-    assert interpreted.summary["kernel_tier"] == "interpreted"
-    assert interpreted.status == compiled.status and compiled.status in ("singular", "diverged")
-    assert interpreted.summary["steps"] == compiled.summary["steps"]
-    assert interpreted.summary["t_end"] == compiled.summary["t_end"]

@@ -273,14 +273,14 @@ def test_a04_a_hard_push_at_the_default_step_runs_on_the_motion_of_a_fine_step()
 
 
 def test_inconsistent_constraints_end_a_run_at_an_accepted_state_not_at_a_trial_stage():
-    """The rule of the compiled loops (kernel/source/loops.py ``_robust_outcome``): the robust
+    """The rule of the compiled loops (kernel/csrc/loops.c ``robust_outcome``): the robust
     solve's "J u̇ = c inconsistent" ends the run at a step's first stage (an accepted state), and
     is ignored at a later stage (a trial state off the constraints by the truncation error)."""
     from nmkane_core.kernel.built import built
     from nmkane_core.kernel.constants import STATUS_INCONSISTENT, STATUS_OK
 
     mod, _ = built(get_system("iftomm-a04")).kernel()
-    outcome = mod._robust_outcome.py_func
+    outcome = mod._robust_outcome
     for start, want in ((True, STATUS_INCONSISTENT), (False, STATUS_OK)):
         w = np.zeros(mod.OSV + 64)
         w[mod.OSV + mod.SV_STATUS] = 2.0  # the robust solve's verdict: inconsistent
