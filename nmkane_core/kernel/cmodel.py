@@ -19,11 +19,12 @@ from __future__ import annotations
 
 import ctypes
 import json
+import threading
 from typing import Any
 
 import numpy as np
 
-from . import constants, core
+from . import constants, core, special
 from .interface import AdaptiveArgs, FixedArgs
 
 __all__ = ["CModel", "SV"]
@@ -62,6 +63,7 @@ def _ptr(a: np.ndarray, name: str, dtype=np.float64) -> int:
     return a.ctypes.data
 
 
+_SPECIAL_LOCK = threading.Lock()
 _WRITTEN = {"x", "K", "w", "E", "V", "O", "F", "L", "stats", "order", "solve_log", "out_t", "out_x", "out_E"}
 _WRITTEN |= {"out_V", "out_F", "out_L"}
 
@@ -90,7 +92,9 @@ class CModel:
         self.__file__ = path
         self.description = description
         self._lib = library  # kept alive: the record points into it
-        self._core = core.library()
+        self._generic = core.library()
+        self._core = self._generic  # the specialised build once it is there (specialize)
+        self._special: threading.Thread | None = None
         rec = core.ModelRecord()
         self._arrays = {}
         for key, value in description["ints"].items():
@@ -117,6 +121,45 @@ class CModel:
             setattr(self, key, value)
         for key in constants.NAMES:
             setattr(self, key, getattr(constants, key))
+        if path and special.library_path(path).exists():  # built by an earlier process
+            self._use_special(special.library_path(path))
+
+    # ------------------------------------------------------------------ the specialised build
+    @property
+    def specialized(self) -> bool:
+        """Whether the calls go to the model's specialised build (:mod:`~nmkane_core.kernel.special`)."""
+        return self._core is not self._generic
+
+    def specialize(self, wait: bool = False) -> None:
+        """Start the specialised build in a background thread (once), unless it is there; calls
+        switch to it when it is ready.  ``wait``: return when it is (or when it failed)."""
+        if self.specialized or not self.__file__:
+            return
+        with _SPECIAL_LOCK:
+            if self._special is None:
+                self._special = threading.Thread(target=self._build_special, name="nmkane-specialize", daemon=True)
+                self._special.start()
+            thread = self._special
+        if wait:
+            thread.join()
+
+    def _build_special(self) -> None:
+        from .native import NativeBuildError, log
+
+        path = special.library_path(self.__file__)
+        try:
+            if not path.exists():
+                special.build(self.description, path)
+            self._use_special(path)
+        except (NativeBuildError, OSError) as e:  # the generic core goes on: slower, the same numbers
+            log.warning("nmkane: the specialised build of %s failed (%s); the generic core runs it", self.__name__, e)
+
+    def _use_special(self, path) -> None:
+        try:
+            lib = core.declare(ctypes.CDLL(str(path)))
+        except (OSError, AttributeError):  # damaged: the generic core goes on, a next build replaces it
+            return
+        self._core = lib
 
     # ------------------------------------------------------------------ loops
     def _loop_record(self, record_type, fields, args):

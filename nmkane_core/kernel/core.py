@@ -182,7 +182,7 @@ def library() -> ctypes.CDLL:
         if (reason := library_damage(path, names=tuple(_SIGNATURES))) is not None:  # a truncated or overwritten file
             report_damaged(path, reason)
             _build(compiler_or_fail(), folder, key, path)
-        _LIB = _declare(ctypes.CDLL(str(path)))
+        _LIB = declare(ctypes.CDLL(str(path)))
     return _LIB
 
 
@@ -242,7 +242,7 @@ _SIGNATURES = {
 }
 
 
-def _declare(lib: ctypes.CDLL) -> ctypes.CDLL:
+def declare(lib: ctypes.CDLL) -> ctypes.CDLL:
     """The exported entry points' argument and result types."""
     for name, (res, args) in _SIGNATURES.items():
         fn = getattr(lib, name)

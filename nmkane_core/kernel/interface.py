@@ -162,6 +162,7 @@ class CompiledModel(Protocol):
     _robust_outcome: Callable[..., int]
     project_state: Callable[..., Any]
     project_state_robust: Callable[..., Any]
+    specialize: Callable[..., None]  # (wait=False): the model's specialised build, in the background
 
 
 #: the compiled loops by name, and the record of each one's arguments

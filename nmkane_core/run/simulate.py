@@ -25,6 +25,7 @@ from concurrent.futures import ThreadPoolExecutor
 from ..declare.system import System
 from ..integrate import calls
 from ..integrate.drivers import integrate
+from ..kernel import special
 from ..kernel.built import built
 from ..schema import RunSettings
 from .catalog import catalog
@@ -99,6 +100,8 @@ def simulate(
     t_setup = time.perf_counter()
     job = plan.job()
     calls.prepare(job)
+    if evaluations(plan) > special.MIN_EVALUATIONS:  # long work: the model's own build, in the background
+        job.module.specialize()
     setup = time.perf_counter() - t_setup
     if progress is None:
         progress = sys.stderr.isatty()
@@ -119,6 +122,14 @@ def prepare(plan: Plan):
     return job.module
 
 
+def evaluations(plan: Plan) -> int:
+    """The right-hand sides a run is expected to take: its steps times the method's stages (an
+    adaptive or scipy run: as many as at the system's default step)."""
+    method = plan.integrator
+    step = plan.dt if method.kind == "fixed" else plan.system.default_dt
+    return int(plan.t_final / step) * max(1, getattr(method, "stages", 1))
+
+
 def kernel_for(system: System, variant: str | None):
     """The compiled kernel module of a system's variant (loaded from cache or built once)."""
     return built(system).module(variant)
@@ -133,8 +144,12 @@ def simulate_many(
     is resolved (and so checked) before any starts.  Results keep the input order.
     """
     plans = [s if isinstance(s, Plan) else resolve(s) for s in settings_list]
+    work: dict[int, int] = {}
     for pl in plans:
-        kernel_for(pl.system, pl.variant)
+        module = kernel_for(pl.system, pl.variant)
+        work[id(module)] = work.get(id(module), 0) + evaluations(pl)
+        if work[id(module)] > special.MIN_EVALUATIONS:
+            module.specialize()
     workers = workers or os.cpu_count() or 1
     if progress is None:
         progress = sys.stderr.isatty()

@@ -105,4 +105,30 @@ def test_the_core_is_one_library_for_every_model_and_its_header_is_generated_fro
     assert [f for f, _ in core.ModelRecord._fields_][: len(core.MODEL_INTS)] == list(core.MODEL_INTS)
     a = built(get_system("sliding-particle")).module("nonminimal")
     b = built(get_system("appell-hamel")).module("nonlinear")
-    assert a._core is b._core is core.library()
+    assert a._generic is b._generic is core.library()
+
+
+@pytest.mark.parametrize(
+    "settings",
+    [
+        {"system": "appell-hamel", "t_final": 2.0, "dt": 0.001, "projection": "yoon"},
+        {"system": "iftomm-a02", "t_final": 2.0, "integrator": "kutta-merson-adaptive", "projection": "yoon"},
+    ],
+)
+def test_the_specialised_build_gives_the_generic_cores_bits(settings, monkeypatch):
+    """kernel.special compiles the same source with the model's sizes constant and its functions
+    inlined, at -O3: no reassociation, no contraction, so every number is the generic core's."""
+    from nmkane_core.run.plan import resolve
+    from nmkane_core.run.simulate import simulate
+
+    plan = resolve(settings)
+    mod = built(plan.system).module(plan.variant)
+    mod.specialize(wait=True)
+    assert mod.specialized
+    special = simulate(plan, progress=False)
+    monkeypatch.setattr(mod, "_core", mod._generic)
+    generic = simulate(plan, progress=False)
+    assert special.status == generic.status == "ok"
+    for name in generic.state:
+        assert np.array_equal(special.state[name], generic.state[name]), name
+    assert np.array_equal(special.energy, generic.energy)

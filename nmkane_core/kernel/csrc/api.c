@@ -5,29 +5,45 @@
 
 #define NMK_EXPORT __attribute__((visibility("default")))
 
+/* The specialised build (kernel/special.py) compiles this core with one model in the same unit:
+ * NMK_MODEL is then a constant record with the model's sizes and functions, every entry point
+ * works on it (the record passed from Python is the same model's), and the compiler folds the
+ * sizes into the loops and inlines the model's functions.  The same arithmetic in the same order:
+ * the same bits as the generic build. */
+#ifdef NMK_SPECIAL
+#define MODEL(md) ((void)(md), &NMK_MODEL)
+#else
+#define MODEL(md) (md)
+#endif
+
 NMK_EXPORT i64 nmk_integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double *ret) {
+    md = MODEL(md);
     return integrate_fixed(md, a, ret);
 }
 
 NMK_EXPORT i64 nmk_integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, double *ret) {
+    md = MODEL(md);
     return integrate_adaptive(md, a, ret);
 }
 
 /* A fresh work array (WSIZE entries) for rhs_ws. */
-NMK_EXPORT void nmk_make_workspace(const nmk_model *md, double *w) { init_workspace(md, w); }
+NMK_EXPORT void nmk_make_workspace(const nmk_model *md, double *w) { init_workspace(MODEL(md), w); }
 
 NMK_EXPORT void nmk_rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                            const double *G1, const double *G2, double *K, i64 row, double *w) {
+    md = MODEL(md);
     rhs_ws(md, t, x, p, G, G1, G2, K, row, w);
 }
 
 NMK_EXPORT double nmk_diagnostics(const nmk_model *md, double t, const double *x, const double *p, double *viol) {
+    md = MODEL(md);
     return md->diagnostics(t, x, p, viol);
 }
 
 /* Energy and violations of many states (rows of 2N). */
 NMK_EXPORT void nmk_diagnostics_rows(const nmk_model *md, i64 rows, const double *ts, const double *xs,
                                      const double *p, double *E, double *V) {
+    md = MODEL(md);
     double *viol = malloc((size_t)(md->NV + 1) * sizeof(double));
     if (!viol) return;
     for (i64 r = 0; r < rows; ++r) {
@@ -40,6 +56,7 @@ NMK_EXPORT void nmk_diagnostics_rows(const nmk_model *md, i64 rows, const double
 /* The model's outputs at many states. */
 NMK_EXPORT void nmk_outputs_rows(const nmk_model *md, i64 rows, const double *ts, const double *xs, const double *p,
                                  double *O) {
+    md = MODEL(md);
     for (i64 r = 0; r < rows; ++r) md->outputs(ts[r], xs + r * 2 * md->N, p, O + r * md->NO);
 }
 
@@ -47,6 +64,7 @@ NMK_EXPORT void nmk_outputs_rows(const nmk_model *md, i64 rows, const double *ts
  * whose steps are not the loops' (the scipy adapter): one right-hand side each. */
 NMK_EXPORT void nmk_forces_rows(const nmk_model *md, i64 rows, const double *ts, const double *xs, const double *p,
                                 const double *G, const double *G1, const double *G2, double *F, double *L) {
+    md = MODEL(md);
     double *w = malloc((size_t)(md->WSIZE + 1) * sizeof(double));
     double *K = malloc((size_t)(2 * md->N + 1) * sizeof(double));
     if (w && K) {
@@ -67,6 +85,7 @@ NMK_EXPORT void nmk_forces_rows(const nmk_model *md, i64 rows, const double *ts,
  * reported violations. */
 NMK_EXPORT void nmk_state_terms(const nmk_model *md, double t, const double *x, const double *p, double *J,
                                 double *c, double *psi, double *psi_q, double *viol) {
+    md = MODEL(md);
     const i64 N = md->N, M = md->M;
     double *w = malloc((size_t)(md->WSIZE + 1) * sizeof(double));
     if (!w) return;
@@ -88,6 +107,7 @@ NMK_EXPORT void nmk_state_terms(const nmk_model *md, double t, const double *x, 
  * projection's code (0 ok, 1 a singular correction matrix, 2 left the constraints; -1 no memory). */
 NMK_EXPORT i64 nmk_project_state(const nmk_model *md, double t, double *y, const double *p, const i64 *proj,
                                  i64 max_rank) {
+    md = MODEL(md);
     double *w = malloc((size_t)(md->WSIZE + 1) * sizeof(double));
     double *ps = calloc((size_t)(md->PS_SIZE + 1), sizeof(double));
     double *viol = malloc((size_t)(md->NV + 1) * sizeof(double));
@@ -106,6 +126,7 @@ NMK_EXPORT i64 nmk_project_state(const nmk_model *md, double t, double *y, const
 NMK_EXPORT void nmk_solve_setup(const nmk_model *md, double *w, i64 solve, double rank_tol, i64 max_rank,
                                 double consistency_tol, double rcond_robust, double rcond_min, const i64 *order,
                                 i64 projected) {
+    md = MODEL(md);
     solve_setup(md, w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order, projected != 0);
 }
 
@@ -113,6 +134,7 @@ NMK_EXPORT void nmk_solve_setup(const nmk_model *md, double *w, i64 solve, doubl
  * calls it between scipy's steps). */
 NMK_EXPORT i64 nmk_robust_outcome(const nmk_model *md, double t, double h, double *w, double *stats, i64 *order,
                                   double *log_a, i64 log_rows, i64 log_cols, i64 start) {
+    md = MODEL(md);
     nmk_log log = {log_a, log_rows, log_cols};
     return robust_outcome(md, t, h, w, stats, order, &log, start != 0);
 }

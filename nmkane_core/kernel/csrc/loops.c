@@ -17,7 +17,7 @@ static void init_workspace(const nmk_model *md, double *w) {
 
 /* x' = [C u + D; T^-1 V^] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T.  With
  * w[OFLAG] set, what forces() needs is kept (keep_for_forces). */
-static void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
+static NMK_HOT void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                    const double *G1, const double *G2, double *K, i64 row, double *w) {
     if (md->ROBUST)
         rhs_robust(md, t, x, p, G, G1, G2, K, row, w);
@@ -27,7 +27,7 @@ static void rhs_ws(const nmk_model *md, double t, const double *x, const double 
 
 /* Q and P of this evaluation into w[OQC], w[OPC] (with w[OFLAG] set: a step's first stage from a
  * recorded state), for forces() after the step's later stages overwrote them. */
-static void keep_for_forces(const nmk_model *md, double *w) {
+static NMK_HOT void keep_for_forces(const nmk_model *md, double *w) {
     memcpy(w + md->OQC, w + md->OQ, (size_t)(md->N * md->N) * sizeof(double));
     memcpy(w + md->OPC, w + md->OP, (size_t)md->N * sizeof(double));
 }

@@ -48,6 +48,14 @@ typedef double (*nmk_diag)(double t, const double *x, const double *p, double *v
 #define SV_STAB 15    /* the Baumgarte terms' share of the kinetic energy (per step: x h^2) */
 #define SV_FADE 16    /* 1.0: the Baumgarte terms of vanishing rows fade */
 
+/* The right-hand side's own functions: pasted into their caller in the specialised build (its
+ * sizes constant, so the small loops unroll), called in the generic one. */
+#ifdef NMK_SPECIAL
+#define NMK_HOT __attribute__((always_inline)) inline
+#else
+#define NMK_HOT
+#endif
+
 /* matrices larger than this are treated as banded by lu_solve_flat (paper.c) */
 #define BAND_MIN 8
 
@@ -64,17 +72,17 @@ typedef struct {
 } nmk_log;
 
 /* ---- paper.c: the paper's solve */
-static double lu_solve_flat(double *w, i64 oa, i64 lda, i64 ob, i64 ldb, i64 n, i64 k);
-static void rhs_paper(const nmk_model *md, double t, const double *x, const double *p, const double *G,
+static NMK_HOT double lu_solve_flat(double *w, i64 oa, i64 lda, i64 ob, i64 ldb, i64 n, i64 k);
+static NMK_HOT void rhs_paper(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                       const double *G1, const double *G2, double *K, i64 row, double *w);
-static void reduced_solve(const nmk_model *md, double *w, double *K, i64 row);
+static NMK_HOT void reduced_solve(const nmk_model *md, double *w, double *K, i64 row);
 static void forces_paper(const nmk_model *md, double *w, const double *K, i64 krow);
 
 /* ---- loops.c: the right-hand side and the integrator loops */
 static void init_workspace(const nmk_model *md, double *w);
-static void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
+static NMK_HOT void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                    const double *G1, const double *G2, double *K, i64 row, double *w);
-static void keep_for_forces(const nmk_model *md, double *w);
+static NMK_HOT void keep_for_forces(const nmk_model *md, double *w);
 static i64 robust_outcome(const nmk_model *md, double t, double h, double *w, double *stats, i64 *order,
                           nmk_log *solve_log, int start);
 static int finite_work(const nmk_model *md, const double *w);

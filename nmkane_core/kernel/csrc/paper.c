@@ -6,7 +6,7 @@
  * min|pivot|/max|pivot| (0 when singular): the reciprocal-condition estimate the kernels compare
  * with rcond_min.  Matrices larger than BAND_MIN are treated as banded: each row's elimination
  * and back substitution stop at its last nonzero (a chain's J2). */
-static double lu_solve_flat(double *w, i64 oa, i64 lda, i64 ob, i64 ldb, i64 n, i64 k) {
+static NMK_HOT double lu_solve_flat(double *w, i64 oa, i64 lda, i64 ob, i64 ldb, i64 n, i64 k) {
     double pmax = 0.0, pmin = 1e308;
     int singular = 0;
     for (i64 c = 0; c < n; ++c) {
@@ -70,7 +70,7 @@ static double lu_solve_flat(double *w, i64 oa, i64 lda, i64 ob, i64 ldb, i64 n, 
 }
 
 /* The paper's solve with the declared partition (rhs_ws of kernels without the robust solve). */
-static void rhs_paper(const nmk_model *md, double t, const double *x, const double *p, const double *G,
+static NMK_HOT void rhs_paper(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                       const double *G1, const double *G2, double *K, i64 row, double *w) {
     const i64 N = md->N, M = md->M, PI = md->PI, MNH = md->MNH, MH = md->MH;
     double *Kr = K + row * 2 * N;
@@ -141,7 +141,7 @@ static void rhs_paper(const nmk_model *md, double t, const double *x, const doub
  * (22), (40), (44), (110), solved by block elimination on the identity block of A1 = [-A I]:
  * u'_D = A u'_I + B^ (106), then (A2 Q A2^T) u'_I = A2 (P - Q [0; B^]) with A2^T = [I; A]:
  * exact, allocation-free, and p x p instead of n x n.  (With no constraints this is Q u' = P.) */
-static void reduced_solve(const nmk_model *md, double *w, double *K, i64 row) {
+static NMK_HOT void reduced_solve(const nmk_model *md, double *w, double *K, i64 row) {
     const i64 N = md->N, M = md->M, PI = md->PI, ld = PI + 1;
     const i64 OQ = md->OQ, OR = md->OR, OW = md->OW, OY = md->OY, OUI = md->OUI;
     double *Kr = K + row * 2 * N;
