@@ -113,12 +113,11 @@ def _report(line: str) -> None:
 
 async def _warm(svc: RunService) -> None:
     """Load what a request naming only a system runs before the first is served; the other
-    loops load in the background."""
-    _report("nmkane: preparing the kernels (the first start after install compiles them)")
+    variants load in the background."""
+    _report("nmkane: preparing every system's model (a first start derives each and compiles its C functions)")
     first, later = svc.warm_steps()
     await asyncio.get_running_loop().run_in_executor(svc.pool, svc.warm, _report, first)
-    _report(
-        "nmkane: the service is ready; the other variants, integrators and projections load in "
-        "the background (a first start after install compiles them, a few minutes)"
-    )
-    svc.warm_in_background(later, _report)
+    if svc.warm_interrupted:  # a stop asked during the warm-up (serve stops the service next)
+        return
+    _report("nmkane: the service is ready; the other variants load in the background")
+    svc.warm_in_background(later, _report, title="the other variants")

@@ -20,12 +20,12 @@ need ``Authorization: Bearer <token>``, the web app's URL carries ``?token=``; `
 (loopback names, the bound address, ``allow_hosts``), and the web app's websocket only to
 pages of its own origin.
 
-Stopping while kernels compile in the background (a first start): numba compiles through
-llvmlite with the GIL released, so a compilation thread keeps running while the interpreter
-exits, and LLVM's static destructors at exit can crash it (a segmentation fault instead of
-a clean stop).  The warm-up threads stop between steps; ``serve`` waits ``WARM_JOIN_S`` for
-them and, if one is still compiling, ends the process with ``os._exit(0)`` once everything
-else is stopped and flushed (nothing is left to tear down: the store is closed).
+Stopping while kernels are prepared in the background (a first start derives each system's
+model and compiles its C functions): the warm-up threads stop between steps, and a SIGTERM or
+Ctrl-C during the warm-up that comes before the API answers ends it after the step under way.
+``serve`` waits ``WARM_JOIN_S`` for the threads and, if one is still busy (a long derivation),
+ends the process with ``os._exit(0)`` once everything else is stopped and flushed (nothing is
+left to tear down: the store is closed).
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ from .store import RunStore
 __all__ = ["serve", "AppProcess", "APP_GROUP", "WARM_JOIN_S"]
 
 APP_GROUP = "nmkane.apps"
-WARM_JOIN_S = 5.0  # stop: how long to wait for a background compilation before abandoning it
+WARM_JOIN_S = 5.0  # stop: how long to wait for a background warm-up step before abandoning it
 WARM_THREAD_PREFIX = "nmkane-warm"
 
 log = logging.getLogger("nmkane.serve")
@@ -67,9 +67,14 @@ log = logging.getLogger("nmkane.serve")
 MAX_CONNECTIONS = 256
 
 
-def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server, threading.Thread, int]:
+def _start_api(
+    host: str, port: int, settings: Settings, stopping: list[int] | None = None
+) -> tuple[uvicorn.Server, threading.Thread, int]:
+    """Start the REST API in a thread; return once it answers (after the kernel warm-up).  A
+    stop signal meanwhile (``stopping``) ends the warm-up after the step under way."""
+    app = create_app(settings)
     config = uvicorn.Config(
-        create_app(settings),
+        app,
         host=host,
         port=port,
         log_level="warning",
@@ -86,7 +91,11 @@ def _start_api(host: str, port: int, settings: Settings) -> tuple[uvicorn.Server
     server = uvicorn.Server(config)
     thread = threading.Thread(target=server.run, name="nmkane-api", daemon=True)
     thread.start()
+    interrupted = False
     while not server.started and thread.is_alive():  # lifespan (kernel warm-up) runs first
+        if stopping and not interrupted:  # SIGTERM or Ctrl-C during the warm-up
+            app.state.service.interrupt_warm()
+            interrupted = True
         time.sleep(0.05)
     if not server.started:
         thread.join(1)
@@ -196,8 +205,8 @@ class AppProcess:
 
 
 def _abandon_compilation(quiet: bool = False, failure: BaseException | None = None) -> None:
-    """Wait ``WARM_JOIN_S`` for background compilation threads; if one is still running, end
-    the process now (see the module docstring: an exit while LLVM compiles can crash).
+    """Wait ``WARM_JOIN_S`` for background warm-up threads; if one is still running, end the
+    process now (see the module docstring).
     ``quiet``: print nothing (the web app's child process).  ``failure``: why the service is
     stopping, when it failed (the web app did not start): printed on one line, and the process
     ends with status 1 instead of 0 (it ended 0, silently, with the reason lost)."""
@@ -211,8 +220,7 @@ def _abandon_compilation(quiet: bool = False, failure: BaseException | None = No
             print(f"nmkane serve: error: {' '.join(str(failure).split()) or type(failure).__name__}", file=sys.stderr)
         elif not quiet:
             print(
-                "nmkane: stopped (a background kernel compilation was abandoned; "
-                "the next start compiles what is missing)",
+                "nmkane: stopped (a background kernel warm-up was abandoned; the next start prepares what is missing)",
                 flush=True,
             )
         sys.stderr.flush()
@@ -346,7 +354,9 @@ def serve(
     handle = server = thread = None
     failure: BaseException | None = None
     try:
-        server, thread, port = _start_api(host, api_port, settings)
+        server, thread, port = _start_api(host, api_port, settings, stopping)
+        if stopping:  # asked to stop while the service started
+            return
         _announce_api(host, port, settings)
         if web:
             handle = _start_web(host, viser_port, settings, options, in_process=not app_process)

@@ -186,6 +186,7 @@ class RunService:
         self.settings = settings
         self._lock = threading.Lock()
         self._stopping = threading.Event()
+        self._warm_interrupted = threading.Event()
         #: set once the background warm-up (if any) has finished
         self.warmed = threading.Event()
         self.warmed.set()
@@ -237,38 +238,40 @@ class RunService:
         if store is not None:
             store.close()
 
+    @property
+    def warm_interrupted(self) -> bool:
+        """Whether :meth:`interrupt_warm` was called."""
+        return self._warm_interrupted.is_set()
+
+    def interrupt_warm(self) -> None:
+        """Stop the warm-up after the step under way (a stop asked while the service starts:
+        ``serve`` then stops the service as it would after a start)."""
+        self._warm_interrupted.set()
+
     def warm_steps(self) -> tuple[list, list]:
         """The warm-up runs: ``(first, later)``, each a list of ``(label, settings)``.
 
         ``first``: what a request that names only a system runs — each system's default
-        variant with its default integrator — loaded before the service answers.  ``later``:
-        everything else a request may ask for, loaded in the background while the service
-        answers (a request that needs a loop still compiling waits for it): the other
-        variants, the adaptive loops, the scipy adapter, and the loops with a post-step
-        projection (numba compiles each as another copy)."""
+        variant — loaded before the service answers.  ``later``: the other variants, loaded in
+        the background while the service answers.  Every integrator and projection runs in the
+        one compiled core: a model needs only its derivation and its own C functions."""
         first: list[tuple[str, dict]] = []
         later: list[tuple[str, dict]] = []
-        projected: list[tuple[str, dict]] = []
         for name in system_names():
             system = get_system(name)
             for variant in system.variants:
                 base = {"system": name, system.option: variant, "t_final": 0.05}
-                adaptive = {**base, "integrator": "kutta-merson-adaptive"}
-                (first if variant == system.default_variant else later).append((f"{name} {variant}, default", base))
-                later.append((f"{name} {variant}, adaptive", adaptive))
-                projected.append((f"{name} {variant}, fixed step, projected", {**base, "projection": "yoon"}))
-                projected.append((f"{name} {variant}, adaptive, projected", {**adaptive, "projection": "yoon"}))
-        later.append(("scipy adapter", {"system": system_names()[0], "integrator": "rk45", "t_final": 0.05}))
-        return first, later + projected
+                (first if variant == system.default_variant else later).append((f"{name} {variant}", base))
+        return first, later
 
     def warm(self, report=None, steps=None, title: str = "kernels") -> None:
         """Load (or compile once) the kernels and loops of ``steps`` (default: every one of
         :meth:`warm_steps`), so no request pays for it.
 
         ``report(line)`` (optional) hears one line per step; a first start after install
-        compiles them (measured on two cores: the first phase ≈ 40 s, the projected loops
-        ≈ 65 s more), later starts load from the cache.  Stops early when the service stops,
-        after the step under way, and says so (``serve`` reports a compilation it abandons).
+        derives each model and compiles its C functions (about 13 s for the 12 built-in systems
+        on two cores), later starts load them from the cache.  Stops early when the service
+        stops (or :meth:`interrupt_warm`), after the step under way, and says so.
         """
         start = time.perf_counter()
         stopping = self._stopping  # this lifespan's (start() makes a new one after a stop)
@@ -276,11 +279,11 @@ class RunService:
             first, later = self.warm_steps()
             steps = first + later
         for i, (label, settings) in enumerate(steps, 1):
-            if stopping.is_set():
+            if stopping.is_set() or self._warm_interrupted.is_set():
                 if report is not None:
                     report(
                         f"nmkane: {title} stopped with the service after {i - 1} of {len(steps)} "
-                        "(the step under way was finished first; the next start compiles the rest)"
+                        "(the step under way was finished first; the next start prepares the rest)"
                     )
                 return
             t0 = time.perf_counter()
@@ -289,13 +292,13 @@ class RunService:
                 report(f"nmkane: {title} [{i}/{len(steps)}] {label}: {time.perf_counter() - t0:.1f} s")
         if report is not None:
             report(
-                f"nmkane: {title} ready in {time.perf_counter() - start:.1f} s (compiled code is cached "
-                "on disk: later starts load it)"
+                f"nmkane: {title} ready in {time.perf_counter() - start:.1f} s (kept in the kernel cache: "
+                "later starts load them)"
             )
 
-    def warm_in_background(self, steps, report=None, title: str = "the other loops") -> threading.Thread:
+    def warm_in_background(self, steps, report=None, title: str = "the other variants") -> threading.Thread:
         """Warm ``steps`` in a daemon thread (requests are served meanwhile; one that needs a
-        loop still compiling waits for it). :attr:`warmed` is set when it has finished."""
+        model still being prepared waits for it). :attr:`warmed` is set when it has finished."""
         self.warmed.clear()
 
         def work():

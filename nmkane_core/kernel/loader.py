@@ -98,7 +98,6 @@ _CORE_FILES = (
     "native.py",
     "interface.py",
     "constants.py",
-    "cmodel.py",
     "info.py",
 )
 
