@@ -13,11 +13,14 @@ install = ($(BIN)/python -m pip install -q uv >/dev/null 2>&1 && $(BIN)/uv pip i
 
 .PHONY: setup setup-dev serve test test-shuffled fuzz check lint format docs docs-serve bench figures clean
 
-# the app (library, REST service, web app, figures); the dev stamp adds tests and linters
+# the app (library, REST service, web app, figures); the dev stamp adds tests and linters; then the
+# compiled core is built once with the machine's C compiler (about a second; without one: a
+# one-line error saying what to install)
 $(VENV)/.installed-all: pyproject.toml
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "nmkane needs Python >= 3.11 (set PY=python3.11)")'
 	$(PY) -m venv $(VENV)
 	$(call install,-e '.[all]')
+	$(BIN)/python -m nmkane_core.kernel.core
 	@touch $@
 
 $(VENV)/.installed-dev: $(VENV)/.installed-all

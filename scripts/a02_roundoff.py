@@ -4,9 +4,10 @@ numbers of docs/closed-loops.md §7.4.
 
     PYTHONPATH=. python scripts/a02_roundoff.py                 # the step-size table
     PYTHONPATH=. python scripts/a02_roundoff.py --perturb 20    # + 20 starts off by 1e-16 … 1e-13
-    NUMBA_CPU_NAME=generic NMKANE_CACHE_DIR=$(mktemp -d) PYTHONPATH=. python scripts/a02_roundoff.py
+    NMKANE_CORE_CFLAGS=-march=native NMKANE_CACHE_DIR=$(mktemp -d) PYTHONPATH=. python scripts/a02_roundoff.py
 
-The third line compiles the kernels for numba's generic x86-64 CPU: the table must not change.
+The third line compiles the core for this machine's CPU (its FMA instructions available): the table
+must not change.
 A perturbed start is a full state (every coordinate and speed given), one coordinate moved by
 ±10^U(−16, −13) (seeded): ``simulate`` checks it and the first projection takes it back onto the
 constraints, but a round-off asymmetry between the cranks stays.

@@ -63,120 +63,6 @@ def augmented_lagrangian(Q, P, J, c, max_rank=None, alpha_rel=1e8, iterations=30
     return udot
 
 
-# ------------------------------------------------------------------ an allocation-free prototype
-def numba_robust_solve():
-    """The robust solve as the compiled kernel would run it: loops over preallocated work
-    arrays (L n×n, K n×m, a n, e m, norms m, piv m, beta m, y m, z n), no allocation, no
-    LAPACK.  Returns (solve, work) with solve(Q, P, J, c, tol, max_rank, *work) -> rank."""
-    import numba
-
-    @numba.njit(cache=False, fastmath=False)
-    def solve(Q, P, J, c, tol, max_rank, L, K, a, e, nrm, piv, beta, y, z, udot):
-        n, m = Q.shape[0], J.shape[0]
-        for j in range(n):  # Cholesky Q = L Lᵀ
-            d = Q[j, j]
-            for k in range(j):
-                d -= L[j, k] * L[j, k]
-            if not d > 0.0:
-                return -1
-            L[j, j] = np.sqrt(d)
-            for i in range(j + 1, n):
-                s = Q[i, j]
-                for k in range(j):
-                    s -= L[i, k] * L[j, k]
-                L[i, j] = s / L[j, j]
-        for i in range(n):  # a = L⁻¹P, K = L⁻¹Jᵀ
-            s = P[i]
-            for k in range(i):
-                s -= L[i, k] * a[k]
-            a[i] = s / L[i, i]
-            for col in range(m):
-                s = J[col, i]
-                for k in range(i):
-                    s -= L[i, k] * K[k, col]
-                K[i, col] = s / L[i, i]
-        big = 0.0
-        for col in range(m):  # e = c − Kᵀa; column norms; equilibration
-            s = c[col]
-            for i in range(n):
-                s -= K[i, col] * a[i]
-            e[col] = s
-            q2 = 0.0
-            for i in range(n):
-                q2 += K[i, col] * K[i, col]
-            nrm[col] = np.sqrt(q2)
-            big = max(big, nrm[col])
-        kept = 0
-        for col in range(m):  # drop vanishing columns (piv[kept:] = dropped), scale the others
-            piv[col] = col
-        for col in range(m):
-            if nrm[col] > tol * big:
-                for i in range(n):
-                    K[i, col] /= nrm[col]
-                e[col] /= nrm[col]
-                piv[kept], piv[col] = piv[col], piv[kept]
-                kept += 1
-        r = 0
-        steps = min(n, kept, max_rank)
-        for k in range(steps):  # Householder QR with column pivoting on K[:, piv[:kept]]
-            best, jbest = -1.0, k
-            for jj in range(k, kept):
-                s = 0.0
-                col = piv[jj]
-                for i in range(k, n):
-                    s += K[i, col] * K[i, col]
-                if s > best:
-                    best, jbest = s, jj
-            nk = np.sqrt(best)
-            if nk <= tol or nk == 0.0:
-                break
-            piv[k], piv[jbest] = piv[jbest], piv[k]
-            col = piv[k]
-            x0 = K[k, col]
-            alpha = -nk if x0 >= 0.0 else nk
-            v0 = x0 - alpha
-            for i in range(k + 1, n):
-                K[i, col] /= v0
-            beta[k] = -v0 / alpha
-            K[k, col] = alpha
-            for jj in range(k + 1, kept):
-                c2 = piv[jj]
-                w = K[k, c2]
-                for i in range(k + 1, n):
-                    w += K[i, col] * K[i, c2]
-                w *= beta[k]
-                K[k, c2] -= w
-                for i in range(k + 1, n):
-                    K[i, c2] -= w * K[i, col]
-            r = k + 1
-        for k in range(r):  # R11ᵀ y = e[piv[:r]]
-            s = e[piv[k]]
-            for i in range(k):
-                s -= K[i, piv[k]] * y[i]
-            y[k] = s / K[k, piv[k]]
-        for i in range(n):
-            z[i] = y[i] if i < r else 0.0
-        for k in range(r - 1, -1, -1):  # z = Z_r y
-            col = piv[k]
-            d = z[k]
-            for i in range(k + 1, n):
-                d += K[i, col] * z[i]
-            d *= beta[k]
-            z[k] -= d
-            for i in range(k + 1, n):
-                z[i] -= d * K[i, col]
-        for i in range(n):
-            z[i] += a[i]
-        for i in range(n - 1, -1, -1):  # u̇ = L⁻ᵀ (a + z)
-            s = z[i]
-            for k in range(i + 1, n):
-                s -= L[k, i] * udot[k]
-            udot[i] = s / L[i, i]
-        return r
-
-    return solve
-
-
 CANDIDATES = {"gauss-qr": gauss_qr, "gauss-normal": gauss_normal, "augmented-lagrangian": augmented_lagrangian}
 
 
@@ -253,23 +139,7 @@ def cost(repeats=200):
         y = sla.solve_triangular(R.T, (c - K.T @ a)[piv], lower=True)
         return sla.solve_triangular(L.T, a + Z @ y, lower=False)
 
-    nb = numba_robust_solve()
-    work = (
-        np.zeros((n, n)),
-        np.zeros((n, m)),
-        np.zeros(n),
-        np.zeros(m),
-        np.zeros(m),
-        np.zeros(m, np.int64),
-        np.zeros(m),
-        np.zeros(m),
-        np.zeros(n),
-        np.zeros(n),
-    )
-    nb(Q, P, J, c, 1e-10, m, *work)  # compile
-    np.testing.assert_allclose(work[-1], robust_solve(Q, P, J, c).udot, rtol=1e-10, atol=1e-10)
     for name, fn in [
-        ("gauss-qr, allocation-free numba loops (the kernel's version)", lambda: nb(Q, P, J, c, 1e-10, m, *work)),
         ("paper T u̇ = V̂ (LU of J2, LU of T)", paper),
         ("gauss-qr (Cholesky + QRCP, LAPACK)", qr_lapack),
         ("gauss-normal (Cholesky + eigh of J Q⁻¹ Jᵀ)", lambda: gauss_normal(Q, P, J, c)),

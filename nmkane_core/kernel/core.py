@@ -152,7 +152,7 @@ def sources() -> dict[str, str]:
 
 def source_key() -> str:
     """A hash of everything the compiled core depends on: its sources, the header, the flags."""
-    h = hashlib.sha256("\0".join((*FLAGS, *_sanitizer())).encode())
+    h = hashlib.sha256("\0".join((*FLAGS, *_extra_flags())).encode())
     for name, text in sorted(sources().items()):
         h.update(f"\0{name}\0{text}".encode())
     return h.hexdigest()[:24]
@@ -201,7 +201,7 @@ def _build(cc: str, folder: Path, key: str, path: Path) -> None:
         tmp = build / "core.so"
         try:
             out = subprocess.run(
-                [cc, *FLAGS, *_sanitizer(), "-o", str(tmp), str(build / "core.c"), "-lm"],
+                [cc, *FLAGS, *_extra_flags(), "-o", str(tmp), str(build / "core.c"), "-lm"],
                 capture_output=True,
                 text=True,
                 timeout=600,
@@ -216,12 +216,12 @@ def _build(cc: str, folder: Path, key: str, path: Path) -> None:
         shutil.rmtree(build, ignore_errors=True)
 
 
-def _sanitizer() -> tuple[str, ...]:
-    """``NMKANE_CORE_SANITIZE=address``: the core built with AddressSanitizer (its own cache key),
-    for the tests that run it under ``LD_PRELOAD`` of the sanitizer's runtime."""
-    if os.environ.get("NMKANE_CORE_SANITIZE") == "address":
-        return ("-fsanitize=address", "-fno-omit-frame-pointer", "-g")
-    return ()
+def _extra_flags() -> tuple[str, ...]:
+    """``NMKANE_CORE_CFLAGS``: more compiler flags for the core (its own cache key), for the tests
+    that build it with AddressSanitizer or for this machine's CPU (``-march=native``)."""
+    import shlex
+
+    return tuple(shlex.split(os.environ.get("NMKANE_CORE_CFLAGS", "")))
 
 
 _P, _I, _D = ctypes.c_void_p, ctypes.c_int64, ctypes.c_double
@@ -249,3 +249,25 @@ def declare(lib: ctypes.CDLL) -> ctypes.CDLL:
         fn.restype = res
         fn.argtypes = args
     return lib
+
+
+def main() -> int:
+    """``python -m nmkane_core.kernel.core``: build the compiled core now (``make setup`` does, so the
+    first run does not), saying where and how long it took, or why it cannot."""
+    import sys
+    import time
+
+    from .native import NativeBuildError
+
+    t0 = time.perf_counter()
+    try:
+        lib = library()
+    except NativeBuildError as e:
+        print(f"nmkane: {e}", file=sys.stderr)
+        return 2
+    print(f"nmkane: compiled core ready ({lib._name}, {time.perf_counter() - t0:.1f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

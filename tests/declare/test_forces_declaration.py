@@ -127,14 +127,7 @@ def test_generalized_forces_rates_and_dynamicsymbol_derivatives_compile():
 
 
 def test_cached_forces_are_evaluated_in_a_fresh_process_without_sympy(tmp_path):
-    # no background compiling child (kernel.precompile): the second run, a moment later, compiled
-    # the loop again beside the first run's child
-    env = {
-        **os.environ,
-        "NMKANE_CACHE_DIR": str(tmp_path),
-        "NUMBA_CACHE_DIR": str(tmp_path / "numba"),
-        "NMKANE_PRECOMPILE": "0",
-    }
+    env = {**os.environ, "NMKANE_CACHE_DIR": str(tmp_path)}
     probe = (
         "import sys\nfrom nmkane_core import simulate\n"
         "r = simulate({'system': 'knife-edge', 't_final': 0.1})\n"

@@ -1,6 +1,6 @@
 """The compiled core under AddressSanitizer: every entry point, on models of every kind, with no
 read or write outside an array (kernel.core builds the core with ``-fsanitize=address`` when
-``NMKANE_CORE_SANITIZE=address``; the runtime is preloaded into a fresh Python process)."""
+``NMKANE_CORE_CFLAGS=-fsanitize=address``; the runtime is preloaded into a fresh Python process)."""
 
 import os
 import subprocess
@@ -50,7 +50,7 @@ def _asan_runtime() -> str:
 def test_every_entry_point_of_the_core_runs_clean_under_address_sanitizer():
     env = {
         **os.environ,
-        "NMKANE_CORE_SANITIZE": "address",
+        "NMKANE_CORE_CFLAGS": "-fsanitize=address -fno-omit-frame-pointer -g",
         "LD_PRELOAD": _asan_runtime(),
         "ASAN_OPTIONS": "detect_leaks=0:abort_on_error=1:halt_on_error=1",
     }

@@ -166,8 +166,8 @@ def test_a02_from_45_degrees_follows_the_exact_motion_for_10_s_at_every_step_siz
     assert acc["energy_drift"] < 1e-6 and r.summary["max_abs_energy_drift"] < 1e-6
 
 
-#: the step-size test's run at Δt = 2e-4, in a process whose kernels numba compiles for its generic
-#: CPU (no FMA, no AVX): the state's rows, the acceptance numbers
+#: the step-size test's run at Δt = 2e-4, in a process whose compiled core is built for this
+#: machine's CPU (FMA and vector instructions available): the state's rows, the acceptance numbers
 _GENERIC_CPU_RUN = """
 import json, sys
 import numpy as np
@@ -183,23 +183,20 @@ print(json.dumps({"status": r.summary["status"], **iftomm_a02.acceptance(r.t, x,
 """
 
 
-def test_a02_kernels_compiled_for_a_generic_cpu_give_this_cpus_numbers(a02, tmp_path):
+def test_a02_core_compiled_for_this_cpu_gives_the_portable_builds_numbers(a02, tmp_path):
     """The step-size test's run at Δt = 2e-4 (the one a 2-core AMD EPYC machine failed, 1.2e-6 m/s
-    off, while this kind of machine passed) with the kernels compiled for numba's generic CPU, in a
-    process of its own on an empty cache, agrees with this process's host-CPU kernels to 1e-12 at
-    every row, and both stay on the exact motion.  With fused multiply-adds
-    (kernel.codegen.FASTMATH = {'contract'}) the two differed by 4e-7 m/s after the passage at
-    t = 3.88 s on an AVX-512 machine: this fails wherever the compiled code rounds by the CPU."""
+    off, while another machine passed) with the compiled core built for this machine's CPU
+    (``-march=native``: its fused multiply-add instructions available), in a process of its own on
+    an empty cache, agrees with this process's portable build to 1e-12 at every row, and both stay
+    on the exact motion.  With contraction allowed (gcc's default) the two would differ by ~4e-7 m/s
+    after the passage at t = 3.88 s on an FMA machine: this fails wherever the code rounds by the CPU."""
     th0 = np.pi / 4
     initial = {"th0": th0, "dth0": -1.0 / np.sin(th0)}
     host = simulate({"system": a02, "t_final": 10.0, "dt": 2e-4, "every": 10, "initial": initial}, progress=False)
     env = {
         **os.environ,
-        "NUMBA_CPU_NAME": "generic",
+        "NMKANE_CORE_CFLAGS": "-march=native",
         "NMKANE_CACHE_DIR": str(tmp_path / "cache"),
-        "NUMBA_CACHE_DIR": str(tmp_path / "cache"),
-        "NMKANE_PRECOMPILE": "0",
-        "NMKANE_INTERPRET": "0",  # the compiled loop, as host's (a 50,000-step run is never interpreted)
     }
     rows = tmp_path / "generic.npy"
     out = subprocess.run(

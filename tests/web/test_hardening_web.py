@@ -221,9 +221,9 @@ def test_closed_sessions_leave_no_threads_sessions_or_memory_behind():
     the app's memory release to have run (an event, not a fixed wait); a settling cycle, then
     three of five sessions each.  With the fix (web.server._release_memory) taken out,
     ``python tests/web/test_hardening_web.py --without-release`` shows the growth."""
-    # what the app loads of every system, compiled first (if the cache is cold) by a process of
-    # its own: numba compiling in the measuring one left its heap fragmented (each cycle then grew
-    # the process by 8-10 MB with the fix in place); on a warm cache the child only loads (2.4 s)
+    # what the app loads of every system, prepared first (if the cache is cold) by a process of
+    # its own: deriving in the measuring one would leave its heap fragmented (each cycle then grew
+    # the process by 8-10 MB with the fix in place); on a warm cache the child only loads
     subprocess.run([sys.executable, "-c", "from web.server import warm; warm()"], check=True, timeout=1200)
     out = subprocess.run([sys.executable, __file__], capture_output=True, text=True, check=True, timeout=900).stdout
     found = json.loads(out.strip().splitlines()[-1])
