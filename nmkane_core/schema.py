@@ -260,8 +260,8 @@ class RunSummary(BaseModel):
     kernel_load_s: float = Field(0.0, description="time to load (or first compile) the kernel, s")
     kernel_tier: Literal["compiled", "interpreted"] = Field(
         "compiled",
-        description="how the loop ran: compiled (numba), or interpreted — the first short run of a kernel "
-        "just generated, run by Python while numba compiles it in the background",
+        description="how the loop ran: always compiled (the one compiled core; 'interpreted' was a first tier "
+        "of earlier versions, kept in the schema so that their stored runs still validate)",
     )
     t_end: float
     max_abs_violation: dict[str, float]

@@ -344,8 +344,8 @@ class WebApp:
 
 
 def warm(stop: threading.Event | None = None) -> None:
-    """Load every system's compiled kernels and their loops (numba loads machine code at a
-    function's first call: a short run does it), compile its visuals, and derive the
+    """Load every system's compiled kernels (a short run of each: derived and compiled on a first
+    start), compile its visuals, and derive the
     matrices panels before anyone waits.  Ends after the system under way once ``stop`` is
     set (the app stopped: nobody is left to wait for the rest)."""
     stopped = stop.is_set if stop is not None else (lambda: False)

@@ -39,6 +39,7 @@ from ..run.registry import get_system
 from ..run.simulate import kernel_for, simulate, simulate_many
 from .forces import forces_rows
 from .iftomm import iftomm_rows
+from .startup import startup_rows
 
 
 def _best(fn, repeat=3):
@@ -128,6 +129,7 @@ def _run_bench(quick: bool, log, long: bool) -> list[dict]:
     _cold_start_rows(add, quick, long_t)
     _user_system_rows(add)
     _bicycle_rows(add, quick)
+    startup_rows(add, quick)
     forces_rows(add, quick)
     iftomm_rows(add, quick)
     _interactive_rows(add)

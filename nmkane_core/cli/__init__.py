@@ -58,10 +58,10 @@ def main(argv: list[str] | None = None) -> int:
 def entry() -> None:
     """The ``nmkane`` console command: :func:`main`, then a quick exit.
 
-    Tearing the interpreter down after numba has loaded machine code (freeing its LLVM
-    modules one by one) takes about 0.5 s — a quarter of a cached ``nmkane run`` — and does
-    nothing a finished command needs: files are closed by then, so the output streams are
-    flushed and the process ends with ``os._exit``.  Commands that run servers
+    Tearing the interpreter down (freeing every module's objects one by one: sympy's, numpy's)
+    takes a noticeable part of a cached ``nmkane run`` and does nothing a finished command
+    needs: files are closed by then, so the output streams are flushed and the process ends
+    with ``os._exit``.  Commands that run servers
     (``quick_exit=False``) and errors escaping ``main`` take the ordinary exit.
     """
     args = sys.argv[1:]

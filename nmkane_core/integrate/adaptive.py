@@ -64,7 +64,7 @@ def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
     t, h = 0.0, min(job.dt, job.t_final)
     accepted = attempts = 0
     status, stop = STATUS_OK, None
-    sw = Switcher(job, stopper)
+    sw = Switcher(job)
     while t < job.t_final:
         size = sw.SWITCHED_CHUNK if sw.switched else ROWS_PER_CALL
         budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ATTEMPTS_PER_CALL, LIMITS["max_steps"] - attempts))

@@ -1,10 +1,8 @@
 """Calls into the compiled loops: their arguments built from a :class:`~nmkane_core.integrate.job.Job`
-in one place, the output buffers, and the priming that compiles a loop before a run's clock starts.
+in one place, and the output buffers.
 
-Every call of a compiled loop — the drivers' real ones and :func:`prepare`'s empty ones —
-goes through :func:`fixed_args` or :func:`adaptive_args`, so the argument types are always
-those of a real run (numba compiles one copy per type signature) and every setting (the
-adaptive loop's minimum step included) is the run's own.
+Every call of a compiled loop goes through :func:`fixed_args` or :func:`adaptive_args`, so every
+setting (the adaptive loop's minimum step included) is the run's own.
 """
 
 from __future__ import annotations
@@ -40,8 +38,6 @@ __all__ = [
     "conditioning",
     "fixed_args",
     "initial_stats",
-    "prepare",
-    "prime",
 ]
 
 HMIN_REL = 1e-13  # adaptive runs fail below a step of HMIN_REL · max(1, t_final)
@@ -253,54 +249,6 @@ def initial_stats(job: Job, module: CompiledModel, p: np.ndarray) -> tuple[np.nd
     stats[STATS_MIN_PIVOT], stats[STATS_MIN_RANK] = 1.0, module.M
     stats[STATS_VIOL:] = np.abs(V0[0])
     return stats, float(E0[0]), V0[0]
-
-
-def prepare(job: Job) -> None:
-    """Load — or, on a model's first use, compile — what a run of ``job`` calls, so that the
-    run itself starts at once (``time_limit`` bounds integration, not compilation): the chosen
-    variant's loop and the helpers around it.  The loop of an alternative the run may switch
-    to is loaded when it is first needed (:func:`prime`; the run's clock stops meanwhile), so
-    a first run does not compile loops it does not use."""
-    prime(job, job.module, job.p)
-
-
-_PRIMED: set[tuple] = set()  # what prime() has called in this process (each loop's type signature)
-
-
-def prime(job: Job, module: CompiledModel, p: np.ndarray) -> float:
-    """Call ``module``'s loop for ``job`` once with no work (and the helpers a driver calls
-    around it: the initial diagnostics, scipy's right-hand side); returns the seconds it took
-    (compiling, or loading compiled code, on first use; about 0 once this process has called
-    the same loop with the same argument types)."""
-    t0 = time.perf_counter()
-    # the loops' argument types differ only by the method's kind and by a projection or none
-    # (fixed_args, adaptive_args): a key of those says the call would find its code loaded
-    key = (module.__name__, id(module), job.method.kind, job.proj is None, job.forces)
-    if key not in _PRIMED:
-        _prime(job, module, p)
-        _PRIMED.add(key)
-    return time.perf_counter() - t0
-
-
-def _prime(job: Job, module: CompiledModel, p: np.ndarray) -> None:
-    x = job.x0.copy()
-    stats, _, _ = initial_stats(job, module, p)
-    if job.method.kind == "scipy":
-        module.rhs_ws(0.0, x, p, job.G, job.G1, job.G2, np.empty((1, x.size)), 0, module.make_workspace())
-        module.diagnostics(0.0, x, p, np.empty(module.NV))
-        if job.forces:
-            F, L = np.zeros((1, module.N)), np.zeros((1, module.M))
-            module.forces_rows(np.zeros(1), x[None, :], p, job.G, job.G1, job.G2, F, L)
-        return
-    rows = rows_for(job, module, 1)
-    solve = solve_state(job, module, None)
-    if job.method.kind == "adaptive":
-        args = adaptive_args(
-            job, p, x, rows, stats, t=0.0, h=job.dt, max_steps=0, accepted=0, rcond_min=0.0, solve=solve
-        )
-        module.integrate_adaptive(*args)
-    else:
-        module.integrate_fixed(*fixed_args(job, p, x, rows, stats, k0=0, k1=0, row=0, rcond_min=0.0, solve=solve))
 
 
 def _trial_stats(module: CompiledModel) -> np.ndarray:

@@ -3,8 +3,8 @@
 One driver per kind of method — fixed-step tableaux (:mod:`.fixed`), embedded tableaux with
 step control (:mod:`.adaptive`), scipy's solvers (:mod:`.scipy_adapter`) — each returning a
 :class:`~nmkane_core.integrate.job.LoopOutput` that keeps everything computed up to the last
-good step.  :func:`~nmkane_core.integrate.calls.prepare` loads (or compiles) what a job
-needs before its clock starts.
+good step.  Every kernel a job may use is loaded with the job (:meth:`nmkane_core.run.plan.Plan.job`),
+before its clock starts.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from collections.abc import Callable
 
 from .adaptive import ATTEMPTS_PER_CALL, run_adaptive
 from .adaptive import ROWS_PER_CALL as ROWS_PER_CALL_ADAPTIVE
-from .calls import Stopper, prepare
+from .calls import Stopper
 from .fixed import FIRST_CHUNK, run_fixed
 from .job import Job, LoopOutput
 from .methods import MethodKind
@@ -28,7 +28,6 @@ __all__ = [
     "SCIPY_STEPS_PER_CHECK",
     "LOOP_OF_KIND",
     "integrate",
-    "prepare",
 ]
 
 #: how much one chunk of compiled work can add (the service bounds a run's output with these)

@@ -35,7 +35,7 @@ def run_fixed(job: Job, bar, stopper: Stopper) -> LoopOutput:
     row, k, status, stop = 1, 0, STATUS_OK, None
     pending = 0 if job.forces else -1  # the initial row's forces come with the first step
     chunk = FIRST_CHUNK
-    sw = Switcher(job, stopper)
+    sw = Switcher(job)
     solve = SolveState(job, job.module)
     while k < nsteps:
         t_call = time.perf_counter()

@@ -56,7 +56,7 @@ class ProjectionOptions:
 
     def as_array(self, info) -> np.ndarray | None:
         """The compiled loops' ``proj`` argument (with the model's dimensions); ``None`` for
-        no projection, which lets numba prune the projection code from that loop's compile."""
+        no projection."""
         if self.name == "none":
             return None
         return np.array(

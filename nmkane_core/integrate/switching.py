@@ -6,7 +6,7 @@ import numpy as np
 
 from ..kernel.constants import STATS_VIOL
 from ..kernel.interface import CompiledModel
-from .calls import Stopper, conditioning, prime
+from .calls import conditioning
 from .job import Alternative, Job
 
 __all__ = ["Switcher"]
@@ -27,11 +27,9 @@ class Switcher:
     SWITCH_BACK = 10.0
     SWITCHED_CHUNK = 25  # steps per call while switched, to return promptly
 
-    def __init__(self, job: Job, stopper: Stopper):
+    def __init__(self, job: Job):
         self.job = job
-        self.stopper = stopper
         self.h = job.dt  # the size of a conditioning check's trial step (the driver keeps it current)
-        self.primed = {id(job.module)}
         self.home = Alternative(job.variant, job.module, job.p)
         self.cur = self.home
         self.no_cure = False
@@ -62,11 +60,7 @@ class Switcher:
         return job.rcond_min
 
     def _rcond(self, model: Alternative, t, x) -> float:
-        """The model's condition over a trial step from (t, x); its loop is loaded on first use,
-        off the run's clock."""
-        if id(model.module) not in self.primed:
-            self.stopper.exclude(prime(self.job, model.module, model.p))
-            self.primed.add(id(model.module))
+        """The model's condition over a trial step from (t, x) (its kernel was loaded with the job)."""
         return conditioning(self.job, model.module, model.p, t, x, self.h)
 
     def leave(self, t, x, row) -> bool:

@@ -1,2 +1,3 @@
-"""From a model to machine code: kernel terms → generated source → numba, cached on disk;
-the compiled loops' interface, and the compiled forms of a system's visuals and events."""
+"""From a model to machine code: kernel terms → the model's C functions (cached on disk) run by
+the compiled core (built once per machine); the loops' interface, and the compiled forms of a
+system's visuals and events."""

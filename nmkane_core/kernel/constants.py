@@ -1,9 +1,10 @@
 """The compiled loops' constants, defined once: status codes, the ``stats`` layout, step control.
 
-Plain literals in a plain module: every generated kernel imports them (numba compiles them in
-as constants), and the Python side — the loop drivers, the run result — imports the same
-names.  Changing a value changes every kernel's cache key (:mod:`nmkane_core.kernel.codegen`
-hashes this file), so no stale compiled code can use an old one.
+Plain literals in a plain module: the compiled core's header is generated from them
+(:func:`nmkane_core.kernel.core.header`: ``#define`` lines), and the Python side — the loop
+drivers, the run result — imports the same names.  Changing a value changes the core's cache key
+and every kernel's (:mod:`nmkane_core.kernel.loader` hashes this file), so no stale compiled code
+can use an old one.
 """
 
 # status codes returned by the loops

@@ -23,7 +23,6 @@ from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 
 from ..declare.system import System
-from ..integrate import calls
 from ..integrate.drivers import integrate
 from ..kernel import special
 from ..kernel.built import built
@@ -99,7 +98,6 @@ def simulate(
     plan = settings if isinstance(settings, Plan) else resolve(settings)
     t_setup = time.perf_counter()
     job = plan.job()
-    calls.prepare(job)
     if evaluations(plan) > special.MIN_EVALUATIONS:  # long work: the model's own build, in the background
         job.module.specialize()
     setup = time.perf_counter() - t_setup
@@ -115,11 +113,9 @@ def simulate(
 
 
 def prepare(plan: Plan):
-    """Load — or, on a model's first use, compile — everything ``simulate(plan)`` runs (the CLI
-    does this under a "first use" notice); returns the chosen variant's kernel module."""
-    job = plan.job()
-    calls.prepare(job)
-    return job.module
+    """Load — or, on a model's first use, derive and compile — every kernel ``simulate(plan)``
+    runs (the CLI does this under a "first use" notice); returns the chosen variant's kernel."""
+    return plan.job().module
 
 
 def evaluations(plan: Plan) -> int:

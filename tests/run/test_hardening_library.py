@@ -16,7 +16,6 @@ import pytest
 
 from nmkane_core.errors import InputError
 from nmkane_core.run.plan import min_every, output_rows, resolve, validate_settings
-from nmkane_core.run.registry import get_system
 from nmkane_core.run.simulate import simulate
 from nmkane_core.schema import LIMITS
 
@@ -112,16 +111,14 @@ def test_an_overflowing_initial_state_is_refused_and_a_later_overflow_ends_diver
 
 def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
     """On a first start a switch target's kernel and loop were compiled inside the timed loop
-    (16–31 s against a 10 s limit): every kernel a run uses must be loaded and its loop primed
-    before the clock starts, and nothing may be requested while it runs."""
-    from nmkane_core.integrate import calls
-    from nmkane_core.kernel.built import Built, built
+    (16–31 s against a 10 s limit): every kernel a run uses must be loaded before the clock
+    starts, and nothing may be requested while it runs."""
+    from nmkane_core.kernel.built import Built
 
     sim = sys.modules["nmkane_core.run.simulate"]
     phase = {"now": "setup"}
     requested: dict[str, set] = {"setup": set(), "timed": set()}
-    primed: list = []
-    kernel, prime = Built.kernel, calls._prime
+    kernel = Built.kernel
 
     here = threading.get_ident()  # this test's run: not a web app's warm-up thread left running
 
@@ -129,11 +126,6 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
         if threading.get_ident() == here:
             requested[phase["now"]].add(variant)
         return kernel(self, variant)
-
-    def spy_prime(job, module, p):
-        if threading.get_ident() == here:
-            primed.append(module)
-        return prime(job, module, p)
 
     def timed(fn):
         def run(*a, **k):
@@ -146,14 +138,10 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
         return run
 
     monkeypatch.setattr(Built, "kernel", spy)
-    monkeypatch.setattr(calls, "_prime", spy_prime)
-    monkeypatch.setattr(calls, "_PRIMED", set())  # as in a fresh process: nothing primed yet
     monkeypatch.setattr(sim, "integrate", timed(sim.integrate))
-    linear = built(get_system("appell-hamel")).module("linear")
     for integrator in ("kutta-merson", "kutta-merson-adaptive"):
         for v in requested.values():
             v.clear()
-        primed.clear()
         run = simulate(
             {
                 "system": "appell-hamel",
@@ -167,7 +155,6 @@ def test_prepare_loads_every_switch_target_before_the_clock_starts(monkeypatch):
         assert run.summary["switches"], "the run should switch models"
         assert {"nonlinear", "linear"} <= requested["setup"], requested  # seen in this thread
         assert not requested["timed"], requested  # every kernel was loaded before the clock started
-        assert any(m is linear for m in primed), "the switch target's loop is primed before the clock"
 
 
 def test_a_progress_bar_is_drawn_on_a_terminal_that_reports_no_size():
