@@ -18,6 +18,7 @@ the flags; every later process, and every model, loads that one library.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import hashlib
@@ -160,6 +161,23 @@ def source_key() -> str:
 
 _LOCK = threading.Lock()
 _LIB: ctypes.CDLL | None = None
+_PREPARING: threading.Thread | None = None
+
+
+def prepare() -> None:
+    """Start building the core in a background thread, unless it is loaded or being built: a
+    process that is about to derive a model (seconds of sympy) gets the core from the other CPU
+    meanwhile.  A failure is left for :func:`library`, which raises it where it is needed."""
+    global _PREPARING
+    if _LIB is not None or _PREPARING is not None:
+        return
+
+    def build() -> None:
+        with contextlib.suppress(Exception):
+            library()
+
+    _PREPARING = threading.Thread(target=build, name="nmkane-core-build", daemon=True)
+    _PREPARING.start()
 
 
 def library() -> ctypes.CDLL:

@@ -19,6 +19,7 @@ import threading
 from collections.abc import Callable
 from pathlib import Path
 
+from . import core
 from .cache import import_kernel, kernel_damage, kernel_dir, write_kernel
 from .cmodel import CModel
 from .codegen import generate_source
@@ -173,6 +174,7 @@ def kernel(fp: str | None, derive: Callable[[], object], label: tuple[str, str] 
                 return _LOADED[key], ModelInfo.from_json(json.dumps(entry["info"]))
         except (OSError, KeyError, ValueError, TypeError, _Damaged, NativeBuildError):
             pass  # a damaged entry (said by _import_cached), or a C library that does not build: regenerate below
+    core.prepare()  # a first use: the compiler builds the core (if it must) while sympy derives
     d = derive()
     source = generate_source(d)
     module = compiled_kernel(d, source)
