@@ -64,11 +64,12 @@ class _RightHandSide:
             self.mod.solve_setup(
                 self.w, job.solve, RANK_TOL, s.max_rank, CONSISTENCY_TOL, RCOND_ROBUST, job.rcond_min, s.order, False
             )  # no projection between scipy's steps: the Baumgarte terms stay whole
+        self.f = self.mod.rhs_bound(job.p, job.G, job.G1, job.G2, self.K, self.w)
 
     def __call__(self, t, x):
         job, mod, w = self.job, self.mod, self.w
-        mod.rhs_ws(t, np.ascontiguousarray(x, dtype=float), job.p, job.G, job.G1, job.G2, self.K, 0, w)
-        if mod.ROBUST:  # the loops' bookkeeping of the rank-robust solve (kernel/source/loops.py)
+        self.f(t, x)
+        if mod.ROBUST:  # the loops' bookkeeping of the rank-robust solve (kernel/csrc/loops.c)
             code = mod._robust_outcome(t, 0.0, w, self.stats, self.solve.order, self.solve.log, True)
             self.solve.collect(self.stats)
             if code != STATUS_OK:

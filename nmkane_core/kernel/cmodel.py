@@ -20,6 +20,7 @@ from __future__ import annotations
 import ctypes
 import json
 import threading
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -258,6 +259,29 @@ class CModel:
             self._md, float(t), self._state(x), self._params(p), *self._gammas(G, G1, G2), _ptr(K, "K"), int(row),
             _ptr(w, "w"),
         )  # fmt: skip
+
+    def rhs_bound(self, p, G, G1, G2, K, w) -> Callable[[float, np.ndarray], None]:
+        """``rhs_ws`` with everything but (t, x) fixed: ``f(t, x)`` puts ẋ into K[0].  The arrays
+        are checked once and kept alive by ``f`` (a caller that evaluates many states, as scipy's
+        solvers do, pays for a pointer and a call only)."""
+        if K.ndim != 2 or K.shape[1] != 2 * self.N or w.shape != (self.WSIZE,):
+            raise ValueError(f"K {K.shape}, w {w.shape}: not this kernel's sizes")
+        fixed = (self._params(p), *self._gammas(G, G1, G2), _ptr(K, "K"), 0, _ptr(w, "w"))
+        keep = (p, G, G1, G2, K, w)
+        n2, md = 2 * self.N, self._md
+
+        def f(t: float, x: np.ndarray) -> None:
+            if x.dtype != np.float64 or x.shape != (n2,) or not x.flags.c_contiguous:
+                x = self._checked_state(x)
+            self._core.nmk_rhs_ws(md, t, x.ctypes.data, *fixed)
+
+        f.keep = keep  # type: ignore[attr-defined]
+        return f
+
+    def _checked_state(self, x) -> np.ndarray:
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        self._state(x)
+        return x
 
     def rhs(self, t, x, p, G, G1, G2) -> tuple[np.ndarray, float, float]:
         """(ẋ, rcond J2, rcond T) at one state."""

@@ -150,6 +150,7 @@ class CompiledModel(Protocol):
     integrate_adaptive: Callable[..., tuple[int, float, float, int, int, int, int]]  # *AdaptiveArgs
     make_workspace: Callable[[], np.ndarray]
     rhs_ws: Callable[..., None]  # (t, x, p, G, G1, G2, K, row, w): ẋ into K[row]
+    rhs_bound: Callable[..., Callable[[float, np.ndarray], None]]  # (p, G, G1, G2, K, w) -> f(t, x): ẋ into K[0]
     rhs: Callable[..., np.ndarray]  # (t, x, p, G, G1, G2) -> ẋ
     diagnostics: Callable[..., float]  # (t, x, p, viol) -> E, violations into viol
     diagnostics_rows: Callable[..., None]  # (ts, xs, p, E, V)
