@@ -4,9 +4,9 @@
 The catalogue's ``iftomm-a02`` is the same mechanism with N = 2 (the case OpenSim 3.2 times:
 10 s in 0.455 s of CPU); N is a structural choice (it changes the coordinates), so each N is
 its own system, ``iftomm_a02.iftomm_a02(N)``, named ``iftomm-a02-n{N}``.  N = 40 is kept out of
-the built-in catalogue because registering it compiles a kernel of its own (derivation, the
-chain's model functions through the C compiler and the loops: about 40 s to the end of a
-first 20 s run from an empty cache on two cores; a cached process loads it in about a second):
+the built-in catalogue because registering it derives a model of its own (the derivation and the
+chain's model functions through the C compiler: about 10 s to the end of a first 20 s run from an
+empty cache on two cores, of which the run is 4.6 s):
 
     nmkane run iftomm-a02-n40 --systems examples/iftomm_a02_n40.py
 

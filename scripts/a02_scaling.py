@@ -1,7 +1,7 @@
 """How IFToMM A02's cost grows with its size N (N windows: 2N + 1 rods, 2N + 1 coordinates,
-2N closure equations): register (derive and check), the first 20 s run (generate and compile
-the kernel and its loop; the compile runs in a child process), and a second 20 s run's cost
-per right-hand-side evaluation.  One JSON line per call; docs/performance.md has the table.
+2N closure equations): register (derive and check, which compiles the model's C functions), the
+first 20 s run, and a second 20 s run's cost per right-hand-side evaluation (the generic core: a
+20 s run is below the specialised build's threshold).  One JSON line per call; docs/performance.md has the table.
 
     NMKANE_CACHE_DIR=/tmp/a02-n10 python scripts/a02_scaling.py 10 cold     # an empty cache
     NMKANE_CACHE_DIR=/tmp/a02-n10 python scripts/a02_scaling.py 10 cached   # a fresh process, cached

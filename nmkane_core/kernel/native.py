@@ -57,6 +57,8 @@ def flags(source: str) -> tuple[str, ...]:
     if source.count(";") > LARGE_STATEMENTS:
         return ("-O0", *FLAGS[1:])
     return FLAGS
+
+
 #: the C type of each argument kind of the generated functions
 _C_ARGS = {"t": "const double t", "x": "const double *x", "p": "const double *p"}
 

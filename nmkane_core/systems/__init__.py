@@ -6,8 +6,8 @@ A02 (`iftomm_a02`, the N-four-bar through its singular position) and A04 (`iftom
 Bricard's redundant closure) run on the compiled kernel's rank-robust solve
 (docs/closed-loops.md §7).  A02 is built in with N = 2 (`iftomm-a02`, the case OpenSim 3.2
 times); the benchmark's own N = 40 is the system `iftomm_a02.iftomm_a02(40)`
-(`iftomm-a02-n40`), loaded from examples/iftomm_a02_n40.py — its registration compiles a kernel
-of its own (tens of seconds), which a catalogue that every first use registers would pay."""
+(`iftomm-a02-n40`), loaded from examples/iftomm_a02_n40.py — its registration derives a model
+of 81 coordinates (seconds), which a catalogue that every first use registers would pay."""
 
 from . import (
     appell_hamel,

@@ -394,7 +394,7 @@ def _visuals(N: int):
 def iftomm_a02(N: int = 2) -> System:
     """The catalogue entry ``iftomm-a02`` (N = 2: the case OpenSim 3.2 times, 10 s); another N is
     the system ``iftomm-a02-n{N}`` — the benchmark's own N = 40 through a systems file
-    (examples/iftomm_a02_n40.py: it compiles a kernel of its own, so it is not built in)."""
+    (examples/iftomm_a02_n40.py: it derives a model of its own, so it is not built in)."""
 
     def variant():
         return model(N)
