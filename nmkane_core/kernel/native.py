@@ -45,7 +45,7 @@ __all__ = [
 #: every machine, as the compiled core (kernel.core.FLAGS)
 FLAGS = ("-O1", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off")
 #: a model with more statements than this is compiled at -O0: gcc's optimizer is what takes the
-#: time on long straight lines (the Whipple bicycle's 1,055 statements: 0.11 s against 0.64 s;
+#: time on long straight lines (a model of 1,055 statements: 0.11 s against 0.64 s;
 #: a 40-link chain's: 0.27 s against 1.36 s) and gains little there (its right-hand side 14 %
 #: faster at -O1, the chain's 20 s run 5.3 s against 4.5 s); long work runs the model's
 #: specialised build anyway (kernel.special, -O3).  The same operations in the same order: the same bits
