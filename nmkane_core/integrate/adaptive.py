@@ -10,13 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernel.constants import STATUS_BUDGET, STATUS_FAILED, STATUS_J2_SINGULAR, STATUS_OK, STATUS_T_SINGULAR
+from ..kernel.constants import STATUS_BUDGET, STATUS_FAILED, STATUS_OK
 from ..schema import LIMITS
-from .calls import Rows, SolveState, Stopper, adaptive_args, forces_at, initial_stats, rows_for
+from .calls import Rows, SolveState, Stopper, adaptive_args, forces_at, rows_for
+from .driver import CompiledDriver
 from .job import Job, LoopOutput
-from .switching import Switcher
 
-__all__ = ["ATTEMPTS_PER_CALL", "ROWS_PER_CALL", "run_adaptive"]
+__all__ = ["ATTEMPTS_PER_CALL", "ROWS_PER_CALL", "AdaptiveDriver"]
 
 ROWS_PER_CALL = 4096  # output buffer of one adaptive call: the most rows a call adds
 ATTEMPTS_PER_CALL = 200_000
@@ -51,84 +51,64 @@ class _Chunks:
         return out
 
 
-def run_adaptive(job: Job, bar, stopper: Stopper) -> LoopOutput:
-    """Integrate ``job`` with its embedded tableau, the step following rtol and atol."""
-    stats, E0, V0 = initial_stats(job, job.module, job.p)
-    first = rows_for(job, job.module, 1)
-    first.t[0], first.x[0], first.E[0], first.V[0] = 0.0, job.x0, E0, V0
-    solve = SolveState(job, job.module)
-    if job.forces:
-        forces_at(job, job.module, job.p, 0.0, job.x0, first, 0, solve)
-    chunks = _Chunks(job, first)
-    x = job.x0.copy()
-    t, h = 0.0, min(job.dt, job.t_final)
-    accepted = attempts = 0
-    status, stop = STATUS_OK, None
-    sw = Switcher(job)
-    while t < job.t_final:
+class AdaptiveDriver(CompiledDriver):
+    """``integrate_adaptive`` until t_final: each call fills a new buffer of rows (the rows are not
+    known ahead), within a budget of attempts; the output is bounded by ``LIMITS``."""
+
+    def __init__(self, job: Job, bar, stopper: Stopper):
+        super().__init__(job, bar, stopper)
+        first = rows_for(job, job.module, 1)
+        first.t[0], first.x[0], first.E[0], first.V[0] = 0.0, job.x0, self.E0, self.V0
+        if job.forces:
+            forces_at(job, job.module, job.p, 0.0, job.x0, first, 0, self.solve)
+        self.chunks = _Chunks(job, first)
+        self.t, self.h = 0.0, min(job.dt, job.t_final)
+        self.accepted = self.attempts = 0
+
+    def done(self) -> bool:
+        return self.t >= self.job.t_final
+
+    def advance(self) -> bool:
+        job, sw = self.job, self.sw
         size = sw.SWITCHED_CHUNK if sw.switched else ROWS_PER_CALL
-        budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ATTEMPTS_PER_CALL, LIMITS["max_steps"] - attempts))
+        budget = int(min(sw.SWITCHED_CHUNK if sw.switched else ATTEMPTS_PER_CALL, LIMITS["max_steps"] - self.attempts))
         rows = rows_for(job, sw.module, size)
         args = adaptive_args(
             job,
             sw.p,
-            x,
+            self.x,
             rows,
-            stats,
-            t=t,
-            h=h,
+            self.stats,
+            t=self.t,
+            h=self.h,
             max_steps=budget,
-            accepted=accepted,
+            accepted=self.accepted,
             rcond_min=sw.threshold,
-            solve=solve,
+            solve=self.solve,
         )
-        status, t, h, nrow, accepted, att, pending = sw.module.integrate_adaptive(*args)
-        solve.collect(stats)
-        sw.h = h
+        status, self.t, self.h, nrow, self.accepted, att, pending = sw.module.integrate_adaptive(*args)
+        self.solve.collect(self.stats)
+        sw.h = self.h
         if pending >= 0:  # the call's last row: no step of this call started from it
-            forces_at(job, sw.module, sw.p, float(rows.t[pending]), rows.x[pending], rows, pending, solve)
-        attempts += att
-        chunks.add(rows, nrow)
-        bar.update(t)
-        if chunks.count >= LIMITS["max_rows"] and t < job.t_final:
-            status, stop = STATUS_FAILED, "max_rows"
-            break
-        if status in (STATUS_J2_SINGULAR, STATUS_T_SINGULAR) and sw.leave(t, x, chunks.count):
-            status = STATUS_OK
-            continue
+            forces_at(job, sw.module, sw.p, float(rows.t[pending]), rows.x[pending], rows, pending, self.solve)
+        self.attempts += att
+        self.chunks.add(rows, nrow)
+        self.bar.update(self.t)
+        if self.chunks.count >= LIMITS["max_rows"] and not self.done():
+            self.status, self.stop = STATUS_FAILED, "max_rows"
+            return False
         if status == STATUS_BUDGET:
             status = STATUS_OK
-            if attempts >= LIMITS["max_steps"]:
-                status, stop = STATUS_FAILED, "max_steps"
-                break
-        if status != STATUS_OK:
-            break
-        sw.maybe_return(t, x, chunks.count)
-        stop = stopper.reason()
-        if stop and t < job.t_final:
-            break
-        stop = None
-    _keep_last(job, chunks, t, x, solve)
-    out = chunks.rows()
-    sw.finish(chunks.count, out, stats)
-    return LoopOutput(
-        status=status,
-        stop=stop,
-        t=out.t,
-        x=out.x,
-        E=out.E,
-        V=out.V,
-        F=out.F,
-        L=out.L[:, : job.module.M],
-        stats=stats,
-        steps=accepted,
-        evals=attempts * job.method.stages,  # type: ignore[union-attr]
-        t_end=t,
-        switches=sw.switches,
-        unknown_multipliers=sw.unknown_multipliers,
-        solve_log=solve.records,
-        solve_log_dropped=solve.dropped,
-    )
+            if self.attempts >= LIMITS["max_steps"]:
+                self.status, self.stop = STATUS_FAILED, "max_steps"
+                return False
+        return self.settle(status, self.t, self.chunks.count)
+
+    def output(self) -> LoopOutput:
+        _keep_last(self.job, self.chunks, self.t, self.x, self.solve)
+        out = self.chunks.rows()
+        evals = self.attempts * self.job.method.stages  # type: ignore[union-attr]
+        return self.loop_output(out, self.chunks.count, self.accepted, evals, self.t)
 
 
 def _keep_last(job: Job, chunks: _Chunks, t: float, x: np.ndarray, solve: SolveState) -> None:

@@ -12,74 +12,67 @@ import time
 
 import numpy as np
 
-from ..kernel.constants import STATUS_J2_SINGULAR, STATUS_OK, STATUS_T_SINGULAR
-from .calls import Rows, SolveState, Stopper, fixed_args, fixed_steps, forces_at, initial_stats, rows_for
+from ..kernel.constants import STATUS_OK
+from .calls import Rows, Stopper, fixed_args, fixed_steps, forces_at, rows_for
+from .driver import CompiledDriver
 from .job import Job, LoopOutput
-from .switching import Switcher
 
-__all__ = ["FIRST_CHUNK", "run_fixed"]
+__all__ = ["FIRST_CHUNK", "FixedDriver"]
 
 FIRST_CHUNK = 2000  # steps of the first fixed-step call; later calls aim at ~50 ms each
 CHUNK_SECONDS = 0.05
 MIN_CHUNK, MAX_CHUNK = 500, 5_000_000
 
 
-def run_fixed(job: Job, bar, stopper: Stopper) -> LoopOutput:
-    """Integrate ``job`` with its fixed-step tableau; keeps every row up to the last good step."""
-    nsteps = fixed_steps(job)
-    every = job.every
-    rows = rows_for(job, job.module, nsteps // every + (1 if nsteps % every else 0) + 2)
-    stats, E0, V0 = initial_stats(job, job.module, job.p)
-    rows.t[0], rows.x[0], rows.E[0], rows.V[0] = 0.0, job.x0, E0, V0
-    x = job.x0.copy()
-    row, k, status, stop = 1, 0, STATUS_OK, None
-    pending = 0 if job.forces else -1  # the initial row's forces come with the first step
-    chunk = FIRST_CHUNK
-    sw = Switcher(job)
-    solve = SolveState(job, job.module)
-    while k < nsteps:
+class FixedDriver(CompiledDriver):
+    """``integrate_fixed`` chunk by chunk: every row is known ahead (``ceil(t_final/dt/every)``),
+    so the rows are one buffer; the chunks grow toward :data:`CHUNK_SECONDS` of work."""
+
+    def __init__(self, job: Job, bar, stopper: Stopper):
+        super().__init__(job, bar, stopper)
+        self.nsteps = nsteps = fixed_steps(job)
+        self.rows = rows_for(job, job.module, nsteps // job.every + (1 if nsteps % job.every else 0) + 2)
+        self.rows.t[0], self.rows.x[0], self.rows.E[0], self.rows.V[0] = 0.0, job.x0, self.E0, self.V0
+        self.row, self.k = 1, 0
+        self.pending = 0 if job.forces else -1  # the initial row's forces come with the first step
+        self.chunk = FIRST_CHUNK
+
+    def done(self) -> bool:
+        return self.k >= self.nsteps
+
+    def advance(self) -> bool:
+        job, sw = self.job, self.sw
         t_call = time.perf_counter()
-        k_end = min(nsteps, k + (sw.SWITCHED_CHUNK if sw.switched else chunk))
+        k_end = min(self.nsteps, self.k + (sw.SWITCHED_CHUNK if sw.switched else self.chunk))
         args = fixed_args(
-            job, sw.p, x, rows, stats, k0=k, k1=k_end, row=row, rcond_min=sw.threshold, pending=pending, solve=solve
+            job,
+            sw.p,
+            self.x,
+            self.rows,
+            self.stats,
+            k0=self.k,
+            k1=k_end,
+            row=self.row,
+            rcond_min=sw.threshold,
+            pending=self.pending,
+            solve=self.solve,
         )
-        status, k, row, pending = sw.module.integrate_fixed(*args)
-        solve.collect(stats)
+        status, self.k, self.row, self.pending = sw.module.integrate_fixed(*args)
+        self.solve.collect(self.stats)
         if not sw.switched:
-            chunk = _next_chunk(chunk, time.perf_counter() - t_call)
-        bar.update(min(k * job.dt, job.t_final))
-        if status in (STATUS_J2_SINGULAR, STATUS_T_SINGULAR) and sw.leave(k * job.dt, x, row):
-            status = STATUS_OK
-            continue
-        if status != STATUS_OK:
-            break
-        sw.maybe_return(k * job.dt, x, row)
-        stop = stopper.reason()
-        if stop and k < nsteps:
-            break
-    t_last = job.t_final if k >= nsteps and status == STATUS_OK else k * job.dt
-    row, pending = _keep_last(job, rows, row, t_last, x, pending)
-    if pending >= 0:  # the last row: no step started from it
-        forces_at(job, job.module, job.p, float(rows.t[pending]), rows.x[pending], rows, pending, solve)
-    sw.finish(row, rows, stats)
-    return LoopOutput(
-        status=status,
-        stop=stop,
-        t=rows.t[:row],
-        x=rows.x[:row],
-        E=rows.E[:row],
-        V=rows.V[:row],
-        F=rows.F[:row],
-        L=rows.L[:row, : job.module.M],
-        stats=stats,
-        steps=k,
-        evals=k * job.method.stages,  # type: ignore[union-attr]
-        t_end=t_last,
-        switches=sw.switches,
-        unknown_multipliers=sw.unknown_multipliers,
-        solve_log=solve.records,
-        solve_log_dropped=solve.dropped,
-    )
+            self.chunk = _next_chunk(self.chunk, time.perf_counter() - t_call)
+        self.bar.update(min(self.k * job.dt, job.t_final))
+        return self.settle(status, self.k * job.dt, self.row)
+
+    def output(self) -> LoopOutput:
+        job = self.job
+        t_last = job.t_final if self.done() and self.status == STATUS_OK else self.k * job.dt
+        self.row, self.pending = _keep_last(job, self.rows, self.row, t_last, self.x, self.pending)
+        if self.pending >= 0:  # the last row: no step started from it
+            p = self.pending
+            forces_at(job, job.module, job.p, float(self.rows.t[p]), self.rows.x[p], self.rows, p, self.solve)
+        evals = self.k * job.method.stages  # type: ignore[union-attr]
+        return self.loop_output(self.rows, self.row, self.k, evals, t_last)
 
 
 def _next_chunk(chunk: int, elapsed: float) -> int:

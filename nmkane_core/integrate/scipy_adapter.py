@@ -28,11 +28,12 @@ from ..kernel.constants import (
 )
 from ..schema import LIMITS
 from ..symbolic.robust import CONSISTENCY_TOL, RANK_TOL, RCOND_ROBUST
-from .calls import SolveState, Stopper, initial_stats
+from .calls import SolveState, Stopper
+from .driver import Driver
 from .job import Job, LoopOutput
 from .methods import ScipyMethod
 
-__all__ = ["STEPS_PER_CHECK", "run_scipy"]
+__all__ = ["STEPS_PER_CHECK", "ScipyDriver"]
 
 STEPS_PER_CHECK = 200  # the scipy adapter checks time limit and cancellation this often
 
@@ -89,87 +90,103 @@ class _RightHandSide:
         return self.K[0].copy()
 
 
-def run_scipy(job: Job, bar, stopper: Stopper) -> LoopOutput:
-    """Integrate ``job`` with its scipy solver; keeps every ``every``-th accepted step."""
-    import scipy.integrate as si
+class ScipyDriver(Driver):
+    """scipy's solver stepped :data:`STEPS_PER_CHECK` steps a chunk, each accepted step's
+    diagnostics into the running maxima, every ``every``-th state kept."""
 
-    assert isinstance(job.method, ScipyMethod)
-    stats, _, _ = initial_stats(job, job.module, job.p)
-    fun = _RightHandSide(job, stats)
-    ts, xs = [0.0], [job.x0.copy()]
-    status, stop, nfev, fail_msg = STATUS_OK, None, 0, None
-    count = [0]  # accepted steps, kept when the solver raises
-    try:
-        solver = getattr(si, job.method.solver)(
-            fun, 0.0, job.x0.copy(), job.t_final, rtol=job.rtol, atol=job.atol, first_step=min(job.dt, job.t_final)
+    def __init__(self, job: Job, bar, stopper: Stopper):
+        assert isinstance(job.method, ScipyMethod)
+        super().__init__(job, bar, stopper)
+        self.fun = _RightHandSide(job, self.stats)
+        self.ts, self.xs = [0.0], [job.x0.copy()]
+        self.count = 0  # accepted steps, kept when the solver raises
+        self.fail_msg: str | None = None
+        self.viol = np.empty(job.module.NV)
+        self.solver = None
+
+    def done(self) -> bool:
+        return self.solver is not None and self.solver.status == "finished"
+
+    def advance(self) -> bool:
+        import scipy.integrate as si
+
+        job = self.job
+        try:
+            if self.solver is None:  # its first right-hand side may raise: inside the try
+                method = job.method
+                assert isinstance(method, ScipyMethod)
+                self.solver = getattr(si, method.solver)(
+                    self.fun, 0.0, job.x0.copy(), job.t_final, rtol=job.rtol, atol=job.atol,
+                    first_step=min(job.dt, job.t_final),
+                )  # fmt: skip
+            self.status, self.stop, self.fail_msg = self._steps(self.solver)
+        except SingularMatrix as e:
+            self.status = STATUS_J2_SINGULAR if e.matrix == "J2" else STATUS_T_SINGULAR
+        except _NonFinite:
+            self.status = STATUS_DIVERGED
+        except _Stopped as e:
+            self.status = e.code
+        except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:  # raised inside scipy's solver
+            self.status = STATUS_FAILED
+            self.fail_msg = f"{job.method.name} failed after t = {self.ts[-1]:.6g} s: {e}"
+        if self.solver is not None:
+            self.bar.update(self.solver.t)
+        return self.status == STATUS_OK and self.stop is None
+
+    def _steps(self, solver) -> tuple[int, str | None, str | None]:
+        """Up to :data:`STEPS_PER_CHECK` steps, recording rows, running maxima and the count of
+        accepted steps in place.  Returns (status, stop, failure message)."""
+        job, stats, viol = self.job, self.stats, self.viol
+        for _ in range(STEPS_PER_CHECK):
+            if solver.status != "running":
+                break
+            msg = solver.step()
+            if solver.status == "failed":
+                return STATUS_FAILED, None, msg
+            y = solver.y
+            if not np.all(np.isfinite(y)):
+                return STATUS_DIVERGED, None, None
+            self.count += 1
+            E = job.module.diagnostics(solver.t, y, job.p, viol)
+            if not (math.isfinite(E) and np.all(np.isfinite(viol))):
+                return STATUS_DIVERGED, None, None
+            stats[STATS_MAX_DRIFT] = max(stats[STATS_MAX_DRIFT], abs(E - stats[STATS_E0]))
+            stats[STATS_FINAL_DRIFT] = E - stats[STATS_E0]
+            stats[STATS_VIOL:] = np.maximum(stats[STATS_VIOL:], np.abs(viol))
+            if self.count % job.every == 0 or solver.status == "finished":
+                self.ts.append(solver.t)
+                self.xs.append(y.copy())
+                if len(self.ts) >= LIMITS["max_rows"] and solver.status == "running":
+                    return STATUS_FAILED, "max_rows", None
+            if self.count >= LIMITS["max_steps"]:
+                return STATUS_FAILED, "max_steps", None
+        return STATUS_OK, None, None
+
+    def output(self) -> LoopOutput:
+        job, stats = self.job, self.stats
+        stats[STATS_RCOND_J2], stats[STATS_RCOND_T] = self.fun.rcmin
+        t_arr, x_arr = np.array(self.ts), np.array(self.xs)
+        E_arr, V_arr = np.empty(len(self.ts)), np.empty((len(self.ts), job.module.NV))
+        job.module.diagnostics_rows(t_arr, x_arr, job.p, E_arr, V_arr)
+        rows = len(self.ts) if job.forces else 0
+        n, m = (job.module.N, job.module.M) if job.forces else (0, 0)
+        F_arr, L_arr = np.zeros((rows, n)), np.zeros((rows, m))
+        if job.forces:  # the solver's steps are not the loops': one right-hand side per output row
+            job.module.forces_rows(t_arr, x_arr, job.p, job.G, job.G1, job.G2, F_arr, L_arr)
+        return LoopOutput(
+            status=self.status,
+            stop=self.stop,
+            t=t_arr,
+            x=x_arr,
+            E=E_arr,
+            V=V_arr,
+            F=F_arr,
+            L=L_arr,
+            stats=stats,
+            steps=self.count,
+            evals=self.solver.nfev if self.solver is not None else 0,
+            t_end=float(t_arr[-1]),
+            fail_msg=self.fail_msg,
+            solve_log=self.fun.solve.records,
+            solve_log_dropped=self.fun.solve.dropped,
         )
-        status, stop, fail_msg = _step(job, solver, stats, ts, xs, count, bar, stopper)
-        nfev = solver.nfev
-    except SingularMatrix as e:
-        status = STATUS_J2_SINGULAR if e.matrix == "J2" else STATUS_T_SINGULAR
-    except _NonFinite:
-        status = STATUS_DIVERGED
-    except _Stopped as e:
-        status = e.code
-    except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:  # raised inside scipy's solver
-        status = STATUS_FAILED
-        fail_msg = f"{job.method.name} failed after t = {ts[-1]:.6g} s: {e}"
-    stats[STATS_RCOND_J2], stats[STATS_RCOND_T] = fun.rcmin
-    t_arr, x_arr = np.array(ts), np.array(xs)
-    E_arr, V_arr = np.empty(len(ts)), np.empty((len(ts), job.module.NV))
-    job.module.diagnostics_rows(t_arr, x_arr, job.p, E_arr, V_arr)
-    n, m = (job.module.N, job.module.M) if job.forces else (0, 0)
-    F_arr, L_arr = np.zeros((len(ts) if job.forces else 0, n)), np.zeros((len(ts) if job.forces else 0, m))
-    if job.forces:  # the solver's steps are not the loops': one right-hand side per output row
-        job.module.forces_rows(t_arr, x_arr, job.p, job.G, job.G1, job.G2, F_arr, L_arr)
-    return LoopOutput(
-        status=status,
-        stop=stop,
-        t=t_arr,
-        x=x_arr,
-        E=E_arr,
-        V=V_arr,
-        F=F_arr,
-        L=L_arr,
-        stats=stats,
-        steps=count[0],
-        evals=nfev,
-        t_end=float(t_arr[-1]),
-        fail_msg=fail_msg,
-        solve_log=fun.solve.records,
-        solve_log_dropped=fun.solve.dropped,
-    )
-
-
-def _step(job: Job, solver, stats, ts: list, xs: list, count: list, bar, stopper: Stopper):
-    """Step the solver to the end (or a stop), recording rows, running maxima and the count of
-    accepted steps (``count[0]``) in place.  Returns (status, stop, failure message)."""
-    viol = np.empty(job.module.NV)
-    while solver.status == "running":
-        msg = solver.step()
-        if solver.status == "failed":
-            return STATUS_FAILED, None, msg
-        y = solver.y
-        if not np.all(np.isfinite(y)):
-            return STATUS_DIVERGED, None, None
-        count[0] += 1
-        nstep = count[0]
-        E = job.module.diagnostics(solver.t, y, job.p, viol)
-        if not (math.isfinite(E) and np.all(np.isfinite(viol))):
-            return STATUS_DIVERGED, None, None
-        stats[STATS_MAX_DRIFT] = max(stats[STATS_MAX_DRIFT], abs(E - stats[STATS_E0]))
-        stats[STATS_FINAL_DRIFT] = E - stats[STATS_E0]
-        stats[STATS_VIOL:] = np.maximum(stats[STATS_VIOL:], np.abs(viol))
-        if nstep % job.every == 0 or solver.status == "finished":
-            ts.append(solver.t)
-            xs.append(y.copy())
-            if len(ts) >= LIMITS["max_rows"] and solver.status == "running":
-                return STATUS_FAILED, "max_rows", None
-        if nstep >= LIMITS["max_steps"]:
-            return STATUS_FAILED, "max_steps", None
-        if nstep % STEPS_PER_CHECK == 0:
-            bar.update(solver.t)
-            stop = stopper.reason()
-            if stop:
-                return STATUS_OK, stop, None
-    return STATUS_OK, None, None
