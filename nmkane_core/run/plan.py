@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -75,30 +75,19 @@ class Plan:
             Alternative(v, b.module(v), b.param_vector(v, self.params))
             for v in (self.system.equivalents.get(self.variant, ()) if self.switching else ())
         )
-        module = b.module(self.variant)
+        # the numbers a job shares with the plan are copied by name: a new setting is a field of
+        # each, not a line here
+        shared = {f.name: getattr(self, f.name) for f in fields(Job) if f.name in _PLAN_FIELDS}
         return Job(
             method=self.integrator,
-            module=module,
-            variant=self.variant,
-            x0=self.x0,
-            p=self.p,
-            G=self.G,
-            G1=self.G1,
-            G2=self.G2,
-            dt=self.dt,
-            t_final=self.t_final,
-            every=self.every,
-            rtol=self.rtol,
-            atol=self.atol,
-            rcond_min=self.rcond_min,
-            rcond_switch=self.rcond_switch,
+            module=b.module(self.variant),
             proj=self.projection.as_array(self.info),
             alternatives=alternatives,
-            forces=self.forces,
-            solve=self.solve,
-            max_rank=self.max_rank,
-            order=self.order,
+            **shared,
         )
+
+
+_PLAN_FIELDS = frozenset(f.name for f in fields(Plan))
 
 
 def resolve(settings: RunSettings | Mapping) -> Plan:
