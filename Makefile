@@ -19,11 +19,13 @@ install = ($(BIN)/python -m pip install -q uv >/dev/null 2>&1 && $(BIN)/uv pip i
 $(VENV)/.installed-all: pyproject.toml
 	@$(PY) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11) else "nmkane needs Python >= 3.11 (set PY=python3.11)")'
 	$(PY) -m venv $(VENV)
+	@echo "nmkane: installing the packages into $(VENV) (about half a minute on a fresh machine)"
 	$(call install,-e '.[all]')
 	$(BIN)/python -m nmkane_core.kernel.core
 	@touch $@
 
 $(VENV)/.installed-dev: $(VENV)/.installed-all
+	@echo "nmkane: installing the test, lint and docs tools into $(VENV)"
 	$(call install,-e '.[dev]')
 	@touch $@
 
