@@ -117,7 +117,7 @@ def _plot_controls(core, prefix: str) -> list[Control]:
     """The plotted quantity: an expression of the run's quantities, against time or another one."""
     b = built(core)
     info = b.info(core.default_variant)
-    names = ex.names_of(b.state_names, info.viol_names, info.has_energy)
+    names = ex.names_of((*b.state_names, *info.outputs), info.viol_names, info.has_energy)  # the model's outputs too
     hint = f"an expression of {', '.join(names)}; functions such as sin, sqrt; ^ for powers"
     return [
         Control(f"{prefix}plot", "Plot y =", "option.plot", b.state_names[0], kind="text", options=names, hint=hint),

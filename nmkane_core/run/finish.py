@@ -174,7 +174,8 @@ def _arrays(plan: Plan, out: LoopOutput, O: np.ndarray) -> Run:
     state = {name: out.x[:, i].copy() for i, name in enumerate(md.state_names)}
     for i, name in enumerate(md.outputs):
         state[name] = O[:, i].copy()  # contiguous, like every other array
-    state = {k: state[k] for k in built(plan.system).state_names if k in state}
+    names = built(plan.system).state_names  # the system's order (the same in every variant), then the outputs
+    state = {k: state[k] for k in names if k in state} | {k: v for k, v in state.items() if k not in names}
     return Run(
         system=plan.system.name,
         settings=plan.settings,
