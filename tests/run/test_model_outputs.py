@@ -59,9 +59,9 @@ def test_a_models_outputs_are_in_the_runs_state_columns_and_csv(system):
 
 def test_a_models_outputs_are_in_the_rest_document(system):
     require("fastapi")
-    from fastapi.testclient import TestClient
-
     import tempfile
+
+    from fastapi.testclient import TestClient
 
     from backend.app import create_app
     from backend.config import Settings
