@@ -244,6 +244,21 @@ class Switch(BaseModel):
     model_config = ConfigDict(populate_by_name=True)
 
 
+class PartitionUsed(BaseModel):
+    """The partition a run started with: which speeds are independent, which coordinates are
+    solved from the holonomic constraints, and whether the model declared it or the library
+    picked it (Gaussian elimination with complete pivoting on J and ∂ψ/∂q at the system's
+    default state).  A rank-robust solve may change it during the run (``switches``)."""
+
+    u_independent: list[str] = Field(description="the independent speeds u_I")
+    q_dependent: list[str] = Field(
+        description="the coordinates solved from ψ = 0 (empty: none, or no holonomic constraint)"
+    )
+    chosen: Literal["declared", "pivoting"] = Field(
+        description="declared by the model (u_independent, q_dependent), or picked by pivoting at the default state"
+    )
+
+
 class Event(BaseModel):
     """The event that ended a run (a system's declared events, nmkane_core.run.events)."""
 
@@ -290,6 +305,7 @@ class RunSummary(BaseModel):
         "correction, changes of solve beyond those listed in switches",
     )
     event: Event | None = Field(None, description="the declared event that ended the run (status 'event'), if any")
+    partition: PartitionUsed | None = Field(None, description="the partition the run started with")
 
 
 class RunResult(BaseModel):

@@ -99,6 +99,10 @@ def format_summary(run) -> str:
     if s.get("max_abs_point_force"):
         at = ", ".join(f"{k} {v:.4g} N" for k, v in s["max_abs_point_force"].items())
         lines.append(f"max |F|  {at}  (forces at points: {', '.join(run.point_forces)})")
+    if (part := s.get("partition")) and run.violation:  # a constrained model: which speeds are independent
+        how = "declared" if part["chosen"] == "declared" else "picked by pivoting at the default state"
+        solved = f"; q solved: {', '.join(part['q_dependent'])}" if part["q_dependent"] else ""
+        lines.append(f"partition u_I: {', '.join(part['u_independent'])}{solved} ({how})")
     for sw in s.get("switches") or []:
         lines.append(f"switch   t = {sw['t']:.4g} s: {sw['from']} → {sw['to']} (rcond {sw['rcond']:.2g})")
     for w in s.get("warnings", []):

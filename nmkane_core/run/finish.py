@@ -33,6 +33,7 @@ from ..schema import LIMITS, RunSummary
 from .endings import OVERFLOW, ending
 from .events import apply_events
 from .forces import add_point_forces
+from .partition import partition
 from .plan import Plan
 from .result import Run
 from .solvelog import inconsistency, robust_summary, solve_switches
@@ -217,6 +218,17 @@ def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float
         "switches": switches,
         "initial_correction": dict(plan.initial_correction),
         "robust_solve": robust_summary(mod, out),
+        "partition": _partition(plan),
+    }
+
+
+def _partition(plan: Plan) -> dict:
+    """The partition the run started with (summary ``partition``)."""
+    part = partition(plan.system, plan.variant)
+    return {
+        "u_independent": list(part.u_independent),
+        "q_dependent": list(part.q_dependent),
+        "chosen": "declared" if part.declared else "pivoting",
     }
 
 
