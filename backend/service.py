@@ -387,7 +387,7 @@ class RunService:
             self.running += 1
         t0 = time.perf_counter()
         try:
-            plan = resolve(settings)
+            plan = resolve(settings, max_rows=self.settings.max_rows)
             self.check_limits(plan)
             guard = OutputGuard(plan, self.settings.max_rows, self._stopping)
             run = simulate(plan, progress=False, time_limit=self.settings.max_wall_time_s, cancel=guard)

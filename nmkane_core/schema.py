@@ -153,8 +153,13 @@ class RunSettings(BaseModel):
         json_schema_extra={"unit": "s"},
         description="final time, s; default: the system's",
     )
-    every: int = Field(
-        1, ge=1, le=LIMITS["max_steps"], description="keep every k-th step in the output (maxima use every step)"
+    every: int | None = Field(
+        None,
+        ge=1,
+        le=LIMITS["max_steps"],
+        description="keep every k-th step in the output (maxima use every step); unset: every step, or, for a "
+        "fixed-step run with more steps than the output row cap, the smallest k that keeps it within the cap "
+        "(said in the summary's warnings)",
     )
     rtol: float = Field(1e-10, ge=1e-14, le=0.1, description="relative tolerance (adaptive methods)")
     atol: float = Field(1e-12, gt=0, le=1.0, description="absolute tolerance (adaptive methods)")

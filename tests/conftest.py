@@ -153,6 +153,7 @@ HEAVY = {
     "tests/paper/test_paper_claims.py": "the paper's runs",
     "tests/run/test_nonpolynomial_constraints.py": "compiles its own systems",
     "tests/run/test_plugins.py": "compiles plugged-in systems in subprocesses",
+    "tests/run/test_catalogue_no_options.py": "runs and exports every catalogue system",
     "tests/run/test_user_system.py": "compiles its own systems",
     "tests/systems/test_closed_loops_compiled.py": "compiles the closed loops",
     "tests/systems/test_iftomm.py": "derives the IFToMM models",

@@ -90,20 +90,23 @@ class Plan:
 _PLAN_FIELDS = frozenset(f.name for f in fields(Plan))
 
 
-def resolve(settings: RunSettings | Mapping) -> Plan:
-    """Check settings against the system and fill in defaults."""
+def resolve(settings: RunSettings | Mapping, max_rows: int | None = None) -> Plan:
+    """Check settings against the system and fill in defaults.  ``max_rows``: the output row cap
+    an unset ``every`` keeps a run within (default: the library's, ``LIMITS["max_rows"]``; the
+    service gives its own)."""
     s = settings if isinstance(settings, RunSettings) else validate_settings(settings)
     system = get_system(s.system if s.system is not None else system_names()[0])
     variant = _variant(system, s)
     method = get_integrator(s.integrator or system.default_integrator)
     dt = s.dt if s.dt is not None else system.default_dt
     t_final = s.t_final if s.t_final is not None else system.default_t_final
-    check_budget(method, dt, t_final, s.every, LIMITS["max_steps"], LIMITS["max_rows"])
+    warnings: list[str] = []
+    every = _every(s, method, dt, t_final, max_rows or LIMITS["max_rows"], warnings)
+    check_budget(method, dt, t_final, every, LIMITS["max_steps"], LIMITS["max_rows"])
     params = system.resolve_params(s.params)
     b = built(system)
     info = b.info(variant)
     where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
-    warnings: list[str] = []
     proj = _projection(s, system, method, info, where, warnings)
     solve, rank, order = _solve(s, system, variant, where)
     G, G1, G2 = _gains(s, system, info, where, warnings)
@@ -127,7 +130,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         G2=G2,
         dt=dt,
         t_final=t_final,
-        every=s.every,
+        every=every,
         rtol=s.rtol,
         atol=s.atol,
         rcond_min=s.rcond_min,
@@ -136,7 +139,7 @@ def resolve(settings: RunSettings | Mapping) -> Plan:
         projection=proj,
         x0=x0,
         initial=full,
-        settings=_resolved(s, system, variant, method, dt, t_final, params, full, proj),
+        settings={**_resolved(s, system, variant, method, dt, t_final, params, full, proj), "every": every},
         warnings=warnings,
         initial_correction=correction,
         forces=s.constraint_forces,
@@ -157,6 +160,23 @@ def _variant(system: System, s: RunSettings) -> str:
             f"{system.name} has no {other}",
         )
     return system.check_variant(getattr(s, system.option), system.option)
+
+
+def _every(s: RunSettings, method, dt: float, t_final: float, max_rows: int, warnings: list[str]) -> int:
+    """``every`` as given, or (unset) 1, or, for a fixed-step run with more steps than ``max_rows``
+    output rows, the smallest ``every`` that keeps it within them, said in a warning."""
+    if s.every is not None:
+        return s.every
+    if method.kind != "fixed":
+        return 1
+    nsteps = math.ceil(t_final / dt - 1e-9)
+    every = min_every(nsteps, max_rows)
+    if every > 1:
+        warnings.append(
+            f"every = {every}: one output row every {every} steps of the run's {nsteps:,}, within {max_rows:,} "
+            "rows (set every to choose; the maxima use every step)"
+        )
+    return every
 
 
 def check_budget(method, dt: float, t_final: float, every: int, max_steps: int, max_rows: int, where: str = "") -> None:

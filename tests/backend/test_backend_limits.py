@@ -29,10 +29,12 @@ def test_service_step_and_row_caps_refuse_before_running(tmp_path):
     with TestClient(base_url="http://localhost", app=create_app(s)) as c:
         err = _error(c.post("/api/runs", json=SMALL))
         assert err["field"] == "dt" and "1,000" in err["allowed"] and err["reason"] == "2,000 steps"
-        err = _error(c.post("/api/runs", json={**SMALL, "t_final": 8}))
+        err = _error(c.post("/api/runs", json={**SMALL, "t_final": 8, "every": 1}))
         assert err["field"] == "every" and "500" in err["allowed"]
+        unset = c.post("/api/runs", json={**SMALL, "t_final": 8})  # every unset: within the service's 500 rows
+        assert unset.status_code == 201 and unset.json()["settings"]["every"] == 2
         assert c.post("/api/runs", json={**SMALL, "t_final": 8, "every": 2}).status_code == 201
-        assert c.get("/api/health").json()["runs_stored"] == 1
+        assert c.get("/api/health").json()["runs_stored"] == 2
 
 
 @pytest.mark.parametrize("integrator,rows", [("kutta-merson-adaptive", 20_000), ("rk45", 1_000)])

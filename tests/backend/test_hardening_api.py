@@ -85,9 +85,9 @@ def test_head_on_get_routes_answers_like_get_without_a_body(client):
 
 def test_every_violated_service_limit_in_one_answer(tmp_path):
     with _client(Settings(data_dir=tmp_path, warm_kernels=False, max_steps=1000, max_rows=50)) as c:
-        items = _error(c.post("/api/runs", json={**SMALL, "dt": 0.0001, "t_final": 1}), 422)
+        items = _error(c.post("/api/runs", json={**SMALL, "dt": 0.0001, "t_final": 1, "every": 1}), 422)
         assert [i["field"] for i in items] == ["dt", "every"]
-        items = _error(c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10}), 422)  # rows only
+        items = _error(c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10, "every": 1}), 422)  # rows only
         hint = int(items[0]["allowed"].split("≥")[1].split()[0])
         assert c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10, "every": hint}).status_code == 201
         assert _error(c.post("/api/runs", json={**SMALL, "dt": 0.01, "t_final": 10, "every": hint - 1}), 422)

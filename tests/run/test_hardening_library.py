@@ -84,7 +84,7 @@ def test_every_violated_limit_is_reported_in_one_message():
 def test_the_every_and_dt_hints_are_accepted():
     t_final, dt = 1000.0, 2e-5  # 50,000,000 steps: the most allowed
     with pytest.raises(InputError) as e:
-        resolve({"dt": dt, "t_final": t_final})
+        resolve({"dt": dt, "t_final": t_final, "every": 1})  # unset, every would be this hint, said
     hint = int(e.value.allowed.split("≥")[1].split()[0])
     assert hint == min_every(50_000_000, LIMITS["max_rows"])
     plan = resolve({"dt": dt, "t_final": t_final, "every": hint})  # the hint is accepted...
