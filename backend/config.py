@@ -107,8 +107,8 @@ class Settings(BaseSettings):
         10.0,
         gt=0,
         allow_inf_nan=False,
-        description="integration wall time per run, s; a run past it ends with status 'timeout' "
-        "and keeps what it computed so far",
+        description="wall time per run in its worker, s (resolving the settings — a model's first use derives it "
+        "— and integrating); a run past it ends with status 'timeout' and keeps what it computed so far",
     )
     cors_origins: Names = Field(
         (),

@@ -390,7 +390,10 @@ class RunService:
             plan = resolve(settings, max_rows=self.settings.max_rows)
             self.check_limits(plan)
             guard = OutputGuard(plan, self.settings.max_rows, self._stopping)
-            run = simulate(plan, progress=False, time_limit=self.settings.max_wall_time_s, cancel=guard)
+            # the wall limit bounds the whole request in its worker: what resolving took (a model's
+            # first use derives it) is taken from the integration's share
+            left = max(0.0, self.settings.max_wall_time_s - (time.perf_counter() - t0))
+            run = simulate(plan, progress=False, time_limit=left, cancel=guard)
             guard.explain(run)
             run.thin(self.settings.max_rows, f"service limit max_rows = {self.settings.max_rows:,}")
             run_id = new_run_id()

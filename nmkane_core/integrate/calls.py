@@ -106,24 +106,18 @@ def solve_state(job: Job, module: CompiledModel, state: SolveState | None) -> So
 
 
 class Stopper:
-    """Why a run should stop between chunks of compiled work: cancelled, or past its time limit.
-
-    The limit bounds integration, not compilation: time spent loading a kernel's loop during
-    the run (a switch target's, on its first use) is excluded (:meth:`exclude`)."""
+    """Why a run should stop between chunks of compiled work: cancelled, or past its time limit
+    (which bounds integration: every kernel the run may use is loaded before it starts)."""
 
     def __init__(self, time_limit: float | None, cancel: Callable[[], bool] | None):
         self.start = time.perf_counter()
         self.time_limit = time_limit
         self.cancel = cancel
-        self.excluded = 0.0
-
-    def exclude(self, seconds: float) -> None:
-        self.excluded += seconds
 
     def reason(self) -> str | None:
         if self.cancel is not None and self.cancel():
             return "cancelled"
-        spent = time.perf_counter() - self.start - self.excluded
+        spent = time.perf_counter() - self.start
         if self.time_limit is not None and spent > self.time_limit:
             return "timeout"
         return None
