@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 
 from .argtypes import finite
@@ -42,7 +43,7 @@ def _current_fingerprints() -> dict:
 
 
 def _run(args: argparse.Namespace) -> int:
-    from ..kernel import cache
+    from ..kernel import cache, special
 
     if args.action == "info":
         data = cache.info()
@@ -65,6 +66,12 @@ def _run(args: argparse.Namespace) -> int:
         print(json.dumps({"bytes": freed}) if args.json else f"cleared {_mb(freed)}")
         return 0
     done = cache.prune(_current_fingerprints(), args.unused_days)
+    done["builds"] = []
+    for path in special.stale_builds(cache.cache_root()):  # the core's and models' builds of older sources
+        with contextlib.suppress(OSError):
+            done["bytes"] += path.stat().st_size
+            path.unlink()
+            done["builds"].append(str(path))
     if args.json:
         print(json.dumps(done, indent=2))
     else:
@@ -74,7 +81,8 @@ def _run(args: argparse.Namespace) -> int:
             print(f"removed damaged {d['path']} ({d['reason']})")
         print(
             f"pruned {len(done['entries'])} index entries and {len(done['kernels'])} kernels "
-            f"({len(done['damaged'])} damaged), {_mb(done['bytes'])} freed"
+            f"({len(done['damaged'])} damaged) and {len(done['builds'])} compiled builds of older sources, "
+            f"{_mb(done['bytes'])} freed"
         )
     return 0
 

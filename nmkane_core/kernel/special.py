@@ -25,7 +25,7 @@ from pathlib import Path
 
 from . import core
 
-__all__ = ["MIN_EVALUATIONS", "build", "library_path", "source"]
+__all__ = ["MIN_EVALUATIONS", "build", "library_path", "source", "stale_builds"]
 
 #: a run expected to take more right-hand-side evaluations than this asks for the specialised
 #: build (about 0.15 s of the generic core on the paper's model; interactive re-runs stay below)
@@ -45,6 +45,15 @@ def library_path(model_path: str) -> Path:
     h = hashlib.sha256(f"{core.source_key()}\0{FLAGS}".encode())
     h.update(Path(__file__).read_bytes())
     return Path(model_path).with_name(f"special_{h.hexdigest()[:24]}.so")
+
+
+def stale_builds(root: Path) -> list[Path]:
+    """Builds of the compiled core and specialised builds left by other sources (an update) in
+    the cache at ``root``: nothing loads them any more (``nmkane cache prune`` removes them)."""
+    core_now = f"nmkcore_{core.source_key()}.so"
+    special_now = library_path(str(root / "kernels" / "any" / "model.json")).name
+    old = [p for p in (root / "core").glob("nmkcore_*.so") if p.name != core_now]
+    return old + [p for p in (root / "kernels").glob("*/special_*.so") if p.name != special_now]
 
 
 def source(description: dict) -> str:

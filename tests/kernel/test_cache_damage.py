@@ -99,3 +99,20 @@ def test_cache_prune_counts_and_removes_a_damaged_kernel(tmp_path):
     assert "removed sliding-particle / nonminimal (damaged)" in done.stdout
     assert not folder.exists()
     assert list((tmp_path / "kernels" / "index").glob("*.json")) == []
+
+
+def test_cache_prune_removes_compiled_builds_of_older_sources(tmp_path):
+    """An update leaves the core's and the models' specialised builds of the old sources in the
+    cache (keyed by their sources, never loaded again): ``nmkane cache prune`` removes those and
+    keeps the current ones."""
+    folder = _cached(tmp_path)
+    (current,) = (tmp_path / "core").glob("nmkcore_*.so")
+    old_core = tmp_path / "core" / "nmkcore_000000000000000000000000.so"
+    old_special = folder / "special_000000000000000000000000.so"
+    for path in (old_core, old_special):
+        path.write_bytes(b"an older build")
+    cli = [sys.executable, "-m", "nmkane_core.cli", "cache", "prune"]
+    done = subprocess.run(cli, env=_env(tmp_path), capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert "and 2 compiled builds of older sources" in done.stdout, done.stdout
+    assert current.exists() and not old_core.exists() and not old_special.exists()
