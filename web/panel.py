@@ -190,6 +190,23 @@ def summary_table(traj) -> str:
     return "\n".join(lines + ["| " + " | ".join(row) + " |" for row in rows[1:]])
 
 
+def _partition_lines(traj) -> list[str]:
+    """Which speeds the shown runs took independent (and the coordinates solved from ψ = 0), and
+    whether the model declared it or the library picked it; runs that share one share a line."""
+    groups: dict[tuple, list[str]] = {}
+    for label, run in traj.runs.items():
+        part = run.summary.get("partition")
+        if part and run.violation:  # a constrained model
+            key = (tuple(part["u_independent"]), tuple(part["q_dependent"]), part["chosen"])
+            groups.setdefault(key, []).append(label)
+    lines = []
+    for (u_ind, q_dep, chosen), labels in groups.items():
+        solved = f" · q solved from ψ = 0: {', '.join(q_dep)}" if q_dep else ""
+        how = "declared" if chosen == "declared" else "picked by pivoting"
+        lines.append(f"{', '.join(labels)}: u_I = {', '.join(u_ind)}{solved} ({how})")
+    return lines
+
+
 def status_text(traj, installs: int) -> str:
     lines: list[str] = []
     groups: dict[tuple[str, str], list[str]] = {}
@@ -204,6 +221,7 @@ def status_text(traj, installs: int) -> str:
             lines.append(f"↪ {label}: t = {sw['t']:.3f} s: {sw['from']} → {sw['to']} (rcond {sw['rcond']:.1e})")
         for w in s.get("warnings", []):
             lines.append(f"⚠ {label}: {w}")
+    lines += _partition_lines(traj)
     st = traj.request["settings"]
     lines.append(
         f"Δt = {st['dt']:g} s · update {installs} (#{traj.seq}) in "

@@ -415,3 +415,10 @@ def test_a_paused_phase_portrait_catches_up_with_a_seek_once_its_redraw_limit_ha
     clock[0] += 2.0
     app.tick(0.0, refresh=True)  # the animation thread's next slow-rate frame, still paused
     assert not np.array_equal(image(), at_2)
+
+
+def test_the_status_says_which_speeds_the_run_took_independent(app):
+    """Issue 45 item 4: the partition in view (the summary's ``partition``)."""
+    assert "nonlinear: u_I = u1, u2 · q solved from ψ = 0: z (declared)" in app.status.content
+    choose(app, PT)
+    assert "u_I = u1 · q solved from ψ = 0: y (declared)" in app.status.content
