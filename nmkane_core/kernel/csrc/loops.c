@@ -177,6 +177,32 @@ static void scratch_free(nmk_scratch *s) {
     free(s->ps);
 }
 
+/* The rank-robust solve's settings into w, in kernels that have it. */
+static void loop_solve_setup(const nmk_model *md, double *w, i64 solve, double rank_tol, i64 max_rank,
+                             double consistency_tol, double rcond_robust, double rcond_min, const i64 *order,
+                             int projected) {
+    if (md->ROBUST)
+        solve_setup(md, w, solve, rank_tol, max_rank, consistency_tol, rcond_robust, rcond_min, order, projected);
+}
+
+/* The work arrays of a loop call with the solve's settings in them; 0 when they could not be
+ * allocated.  A macro: the two loops' argument records are two types with these fields in common. */
+#define LOOP_SCRATCH(md, a, S, s)                                                                               \
+    (scratch_alloc((md), (S), (s)) &&                                                                            \
+     (loop_solve_setup((md), (s)->w, (a)->solve, (a)->rank_tol, (a)->max_rank, (a)->consistency_tol,            \
+                       (a)->rcond_robust, (a)->rcond_min, (a)->order, (a)->proj != NULL),                        \
+      1))
+
+/* An accepted state as output row `row` (its time, state, energy and violations). */
+static void write_row(const nmk_model *md, i64 row, double t, const double *x, double E, const double *viol,
+                      double *out_t, double *out_x, double *out_E, double *out_V) {
+    const i64 n2 = 2 * md->N;
+    out_t[row] = t;
+    memcpy(out_x + row * n2, x, (size_t)n2 * sizeof(double));
+    out_E[row] = E;
+    for (i64 j = 0; j < md->NV; ++j) out_V[row * md->NV + j] = viol[j];
+}
+
 /* Steps k0 ... k1-1 of a fixed-step run of nsteps steps; x is advanced in place.  Row r of the
  * outputs holds the state after step r*every (and the final state), and its constraint forces
  * (out_F, out_L; none when they have no rows): those of a row come with the first stage of the
@@ -191,15 +217,12 @@ static i64 integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double 
     i64 row = a->row, pending = a->pending, k = a->k0;
     i64 status = STATUS_OK;
     nmk_scratch s;
-    if (!scratch_alloc(md, S, &s)) {
+    if (!LOOP_SCRATCH(md, a, S, &s)) {
         scratch_free(&s);
         ret[0] = (double)k, ret[1] = (double)row, ret[2] = (double)pending;
         return STATUS_FAILED;
     }
     double *K = s.K, *xn = s.xn, *w = s.w;
-    if (md->ROBUST)
-        solve_setup(md, w, a->solve, a->rank_tol, a->max_rank, a->consistency_tol, a->rcond_robust, a->rcond_min,
-                    a->order, proj != NULL);
     const int with_forces = a->out_F_n0 > 0;
     for (; k < a->k1; ++k) {
         double t = a->t0 + (double)k * a->dt;
@@ -237,10 +260,7 @@ static i64 integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double 
         }
         for (i64 j = 0; j < n2; ++j) x[j] = xn[j];
         if ((k + 1) % every == 0 || k + 1 == nsteps) {
-            a->out_t[row] = tn;
-            memcpy(a->out_x + row * n2, x, (size_t)n2 * sizeof(double));
-            a->out_E[row] = E;
-            for (i64 j = 0; j < md->NV; ++j) a->out_V[row * md->NV + j] = s.viol[j];
+            write_row(md, row, tn, x, E, s.viol, a->out_t, a->out_x, a->out_E, a->out_V);
             if (with_forces) pending = row;
             ++row;
         }
@@ -315,15 +335,12 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
     i64 row = 0, attempts = 0, accepted = a->accepted, pending = a->pending;
     i64 status = STATUS_OK;
     nmk_scratch s;
-    if (!scratch_alloc(md, S, &s)) {
+    if (!LOOP_SCRATCH(md, a, S, &s)) {
         scratch_free(&s);
         status = STATUS_FAILED;
         goto done;
     }
     double *K = s.K, *xn = s.xn, *w = s.w;
-    if (md->ROBUST)
-        solve_setup(md, w, a->solve, a->rank_tol, a->max_rank, a->consistency_tol, a->rcond_robust, a->rcond_min,
-                    a->order, proj != NULL);
     const int with_forces = a->out_F_n0 > 0;
     while (t < t_final && row < cap) {
         if (attempts >= a->max_steps) {
@@ -374,10 +391,7 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
             for (i64 j = 0; j < n2; ++j) x[j] = xn[j];
             ++accepted;
             if (accepted % every == 0 || t >= t_final) {
-                a->out_t[row] = t;
-                memcpy(a->out_x + row * n2, x, (size_t)n2 * sizeof(double));
-                a->out_E[row] = E;
-                for (i64 j = 0; j < md->NV; ++j) a->out_V[row * md->NV + j] = s.viol[j];
+                write_row(md, row, t, x, E, s.viol, a->out_t, a->out_x, a->out_E, a->out_V);
                 if (with_forces) pending = row;
                 ++row;
             }
