@@ -11,7 +11,8 @@
 
 Every request must name an allowed host (``Host``: loopback names, the bound address and
 ``--allow-host`` names; 400 otherwise); with a token configured (``nmkane serve`` on a
-non-loopback address), requests that write need ``Authorization: Bearer <token>`` (401).
+non-loopback address), requests that write, and reads of the stored runs and sweeps, need
+``Authorization: Bearer <token>`` (401).
 A full store refuses new runs with 507 (or evicts the oldest, when configured so).
 
 :func:`create_app` is the one place that builds the app: the settings and the run service

@@ -10,7 +10,8 @@ The rule for hosts and tokens is the one the web app's server keeps too,
   ``TrustedHostMiddleware`` does not fit: it has no rule for IP addresses and answers in
   plain text, not in the service's error shape.)
 * :class:`TokenCheck` (ASGI): with a token configured, every request that writes (not GET,
-  HEAD or OPTIONS) must carry ``Authorization: Bearer <token>``; otherwise 401 with a
+  HEAD or OPTIONS), and every read of the stored runs and sweeps, must carry
+  ``Authorization: Bearer <token>``; otherwise 401 with a
   ``WWW-Authenticate`` header.  The header is read as FastAPI's ``HTTPBearer`` reads it
   (``get_authorization_scheme_param``; the scheme in any case); ``HTTPBearer`` itself, a
   dependency of each route, would not guard paths without a route, and would change the
@@ -77,16 +78,22 @@ class HostCheck:
 
 
 class TokenCheck:
-    """Pure ASGI: with ``token``, requests that write need ``Authorization: Bearer <token>`` (401)."""
+    """Pure ASGI: with ``token``, requests that write, and every request for the stored runs and
+    sweeps (users' data: reading them is not for anyone who can reach the port), need
+    ``Authorization: Bearer <token>`` (401).  The health route, the catalogue of systems and the
+    API's documentation stay open to reads (they hold no user's data); CORS preflights too."""
 
     READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
+    #: paths under which reads need the token as well
+    PRIVATE_PREFIXES = ("/api/runs", "/api/sweeps")
 
     def __init__(self, app, token: str):
         self.app = app
         self.token = token
 
     async def __call__(self, scope, receive, send):
-        if scope["type"] != "http" or scope["method"] in self.READ_METHODS:
+        private = scope.get("path", "").startswith(self.PRIVATE_PREFIXES) and scope.get("method") != "OPTIONS"
+        if scope["type"] != "http" or (scope["method"] in self.READ_METHODS and not private):
             return await self.app(scope, receive, send)
         header = _header(scope, b"authorization")
         scheme, given = get_authorization_scheme_param(header)
@@ -103,7 +110,7 @@ class TokenCheck:
                     ["header", "authorization"],
                     "unauthorized",
                     None,
-                    "missing or wrong access token" if sent else "this service asks for an access token to change runs",
+                    "missing or wrong access token" if sent else "this service asks for an access token for runs",
                     "Authorization: Bearer <the token printed by `nmkane serve` at start>",
                 )
             ],

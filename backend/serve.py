@@ -260,7 +260,10 @@ def _announce_api(host: str, port: int, settings: Settings) -> None:
     url = f"http://{_url_host(host)}:{port}"
     print(f"nmkane REST API    {url}/api   (docs: {url}/docs; runs stored in {settings.database})", flush=True)
     if settings.token:
-        print(f"nmkane access token {settings.token}   (REST writes: 'Authorization: Bearer <token>')", flush=True)
+        print(
+            f"nmkane access token {settings.token}   (REST runs and sweeps: 'Authorization: Bearer <token>')",
+            flush=True,
+        )
 
 
 def _start_web(host: str, port: int, settings: Settings, options: dict, in_process: bool):

@@ -186,15 +186,24 @@ def test_allowed_host_names_can_be_added(tmp_path):
         assert c.get("/api/health").status_code == 200
 
 
-def test_with_a_token_writes_need_it_and_reads_do_not(tmp_path):
+def test_with_a_token_writes_and_reads_of_runs_need_it_and_the_catalogue_does_not(tmp_path):
+    """Issue 44: the stored runs are users' data; with a token (an exposed server) reading them needs
+    it too.  The health route, the catalogue and the API's documentation stay open."""
     token = "t" * 32
     with _client(Settings(data_dir=tmp_path, warm_kernels=False, token=token)) as c:
         assert c.get("/api/health").status_code == 200
+        assert c.get("/api/systems").status_code == 200 and c.get("/openapi.json").status_code == 200
         r = c.post("/api/runs", json=SMALL)
         assert _error(r, 401)[0]["type"] == "unauthorized" and r.headers["www-authenticate"].startswith("Bearer")
         _error(c.post("/api/runs", json=SMALL, headers={"Authorization": "Bearer wrong"}), 401)
         ok = c.post("/api/runs", json=SMALL, headers={"Authorization": f"Bearer {token}"})
         assert ok.status_code == 201
+        run_id, auth = ok.json()["id"], {"Authorization": f"Bearer {token}"}
+        for path in ("/api/runs", f"/api/runs/{run_id}", f"/api/runs/{run_id}.csv"):
+            assert _error(c.get(path), 401)[0]["type"] == "unauthorized", path
+            assert c.get(path, headers=auth).status_code == 200, path
+        assert _error(c.get("/api/sweeps/no-such-sweep"), 401)  # refused before it is looked up
+        assert c.get("/api/sweeps/no-such-sweep", headers=auth).status_code == 404
         _error(c.delete(f"/api/runs/{ok.json()['id']}"), 401)
         assert c.delete(f"/api/runs/{ok.json()['id']}", headers={"Authorization": f"Bearer {token}"}).status_code == 204
 
