@@ -334,7 +334,7 @@ class RunService:
         finally:
             self._unwait(ticket)  # also when the run never started (cancelled)
         self.check_store_room(store, len(record[3]) + len(record[4]) + len(record[5]))
-        await loop.run_in_executor(writer, store.insert, record)
+        await loop.run_in_executor(writer, store.insert, record, self.sweeps.stored_bytes)
         return run_id, body
 
     def _execute_waited(self, settings: RunSettings, ticket: list[bool]) -> tuple[str, bytes, tuple]:

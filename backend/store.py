@@ -202,13 +202,15 @@ class RunStore:
         if self.cap.policy == "refuse" and (self._count >= self.cap.max_runs or self._bytes >= self.cap.max_bytes):
             raise StoreFull(self.cap, self._count, self._bytes)
 
-    def _make_room(self, need: int) -> None:
-        """Under the write lock, in the insert's transaction: room for one row of ``need`` bytes."""
+    def _make_room(self, need: int, reserved: int = 0) -> None:
+        """Under the write lock, in the insert's transaction: room for one row of ``need`` bytes
+        beside ``reserved`` bytes of other stored data counted against the cap (the sweeps' rows)."""
         cap = self.cap
+        need += reserved
         if self._count + 1 <= cap.max_runs and self._bytes + need <= cap.max_bytes:
             return
-        if cap.policy == "refuse" or need > cap.max_bytes:
-            raise StoreFull(cap, self._count, self._bytes, need)
+        if cap.policy == "refuse" or need > cap.max_bytes:  # (evicting every run would not make room)
+            raise StoreFull(cap, self._count, self._bytes + reserved, need - reserved)
         rows = self._db.execute(f"SELECT id, {_ROW_BYTES} FROM runs ORDER BY created, rowid").fetchall()
         count, size, drop = self._count, self._bytes, []
         for run_id, nbytes in rows:
@@ -268,8 +270,10 @@ class RunStore:
         """Store one run in one transaction; returns its creation time (Unix s)."""
         return self.insert(self.record(run_id, system, status, settings, summary, document))
 
-    def insert(self, record: tuple) -> float:
-        """Write one run (a :meth:`record`) in one transaction, on disk when this returns."""
+    def insert(self, record: tuple, reserved: int = 0) -> float:
+        """Write one run (a :meth:`record`) in one transaction, on disk when this returns;
+        ``reserved``: bytes of other data counted against the cap (the sweeps' stored rows), which
+        the ``evict-oldest`` policy makes room beside."""
         run_id, system, status, settings, summary, blob = record
         created = time.time()
         row = (run_id, created, system, status, settings, summary, blob)
@@ -277,7 +281,7 @@ class RunStore:
 
         def write() -> None:
             self._refresh_totals()  # another process (`nmkane store prune`) may have deleted
-            self._make_room(need)
+            self._make_room(need, reserved)
             self._db.execute(
                 "INSERT INTO runs (id, created, system, status, settings, summary, document) "
                 "VALUES (?, ?, ?, ?, ?, ?, ?)",

@@ -309,3 +309,25 @@ def test_many_stalled_clients_do_not_stay(tmp_path):
             s.close()
         server.should_exit = True
         thread.join(15)
+
+
+def test_evict_oldest_makes_room_beside_the_sweeps_stored_rows(tmp_path):
+    """Issue 44: the sweeps' stored rows count against max_store_bytes, but evict-oldest made room
+    for a new run as if the runs were all there is; now it evicts until the new run fits beside
+    them, and refuses when even an empty run table would not make room."""
+    from backend.store import RunStore, StoreCap, StoreFull
+
+    store = RunStore(tmp_path / "runs.sqlite3", StoreCap(100, 10**9, "evict-oldest"))
+    try:
+        records = [store.record(f"r{i}", "s", "ok", {"i": i}, {}, b"x" * 2000) for i in range(4)]
+        row = len(records[0][3]) + len(records[0][4]) + len(records[0][5])
+        for rec in records[:3]:
+            store.insert(rec)
+        store.cap = StoreCap(100, 4 * row, "evict-oldest")  # room for four runs' rows in all
+        store.insert(records[3], reserved=2 * row)  # the sweeps hold two runs' worth: two runs go
+        assert sorted(r["id"] for r in store.list(limit=10, offset=0)) == ["r2", "r3"]
+        assert store.size + 2 * row <= store.cap.max_bytes
+        with pytest.raises(StoreFull):  # the sweeps alone fill the cap: no eviction can help
+            store.insert(store.record("r9", "s", "ok", {}, {}, b"x" * 2000), reserved=4 * row)
+    finally:
+        store.close()
