@@ -62,8 +62,9 @@ WARM_THREAD_PREFIX = "nmkane-warm"
 log = logging.getLogger("nmkane.serve")
 
 
-#: open connections to the REST API (idle keep-alive ones included); each slow reader holds
-#: about 1 MB (a piece of the document and the decompressor's window) until the read deadline
+#: open connections to the REST API (idle keep-alive ones included; uvicorn counts a new one with
+#: the open ones, so 255 are served and the next is answered 503); each slow reader holds about
+#: 1 MB (a piece of the document and the decompressor's window) until the read deadline
 MAX_CONNECTIONS = 256
 
 

@@ -331,3 +331,51 @@ def test_evict_oldest_makes_room_beside_the_sweeps_stored_rows(tmp_path):
             store.insert(store.record("r9", "s", "ok", {}, {}, b"x" * 2000), reserved=4 * row)
     finally:
         store.close()
+
+
+def test_connections_past_the_cap_are_answered_503_and_the_cap_frees_when_they_close(tmp_path, monkeypatch):
+    """Issue 44: the REST API holds at most MAX_CONNECTIONS open connections (uvicorn's
+    limit_concurrency counts the new one too; idle keep-alive ones included: each slow reader
+    holds a piece of a document).  With the cap made 4: three idle keep-alive connections are
+    served, a fourth is answered 503, and once one of them closes a new one is served.  Each step
+    waits for the server's own state (its connections and requests in flight), not a clock."""
+    import backend.serve as serve_module
+
+    monkeypatch.setattr(serve_module, "MAX_CONNECTIONS", 4)
+    server, thread, port = _run_api(tmp_path, 30.0)
+    state = server.server_state
+
+    def settled(connections: int) -> None:  # no request in flight, this many connections open
+        deadline = time.monotonic() + 30  # a safety net only: the state normally settles at once
+        while state.tasks or len(state.connections) != connections:
+            assert time.monotonic() < deadline, (len(state.tasks), len(state.connections))
+            time.sleep(0.01)
+
+    def status_of(sock) -> int:
+        sock.sendall(b"GET /api/health HTTP/1.1\r\nHost: localhost\r\n\r\n")
+        head = b""
+        while b"\r\n\r\n" not in head:
+            chunk = sock.recv(4096)
+            assert chunk, "closed before answering"
+            head += chunk
+        return int(head.split(b" ", 2)[1])
+
+    held = []
+    try:
+        for n in range(3):
+            settled(n)
+            held.append(socket.create_connection(("127.0.0.1", port), timeout=10))
+            assert status_of(held[-1]) == 200  # answered, and kept open (keep-alive)
+        settled(3)
+        extra = socket.create_connection(("127.0.0.1", port), timeout=10)
+        assert status_of(extra) == 503
+        extra.close()
+        held.pop().close()
+        settled(2)
+        fresh = socket.create_connection(("127.0.0.1", port), timeout=10)
+        assert status_of(fresh) == 200
+        fresh.close()
+    finally:
+        for sock in held:
+            sock.close()
+        serve_module._stop_api(server, thread)
