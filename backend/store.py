@@ -9,13 +9,11 @@ half-written run, and every acknowledged run is still there after a restart.
 One connection writes (behind a lock); each thread that reads gets its own read-only
 connection, so fetches never wait for a commit.
 
-The store has a cap (:class:`StoreCap`): at most ``max_runs`` runs and ``max_bytes`` bytes of
-stored rows (settings, summary and the compressed document).  When a new run would pass it,
-the policy decides: ``refuse`` (the default) raises :class:`StoreFull` and nothing already
-stored is touched — an acknowledged run is never deleted behind anyone's back; ``evict-oldest``
-deletes the oldest runs, in the same transaction as the insert, until the new one fits.  Runs
-are deleted explicitly with :meth:`RunStore.delete` and :meth:`RunStore.prune`.  (SQLite
-reuses the pages of deleted rows; the file itself shrinks only with ``VACUUM``.)
+The store has a cap (:class:`StoreCap`): ``max_runs`` runs, ``max_bytes`` bytes of stored rows
+(settings, summary, the compressed document; the sweeps' rows count too).  A new run past it:
+``refuse`` (the default) raises :class:`StoreFull`, nothing stored is touched; ``evict-oldest``
+deletes the oldest runs, in the insert's transaction, until it fits.  Runs are deleted with
+:meth:`RunStore.delete` and :meth:`RunStore.prune` (SQLite reuses the pages; ``VACUUM`` shrinks).
 
 Faults of the file and the disk (:mod:`backend.store_disk`) become a :class:`StoreError` naming
 the file and what to do: one line in the CLI; from the service 507 for a full disk, 503 otherwise.
@@ -203,13 +201,12 @@ class RunStore:
             raise StoreFull(self.cap, self._count, self._bytes)
 
     def _make_room(self, need: int, reserved: int = 0) -> None:
-        """Under the write lock, in the insert's transaction: room for one row of ``need`` bytes
-        beside ``reserved`` bytes of other stored data counted against the cap (the sweeps' rows)."""
+        """Under the write lock, in the insert's transaction: room for a row of ``need`` bytes (:meth:`insert`)."""
         cap = self.cap
         need += reserved
         if self._count + 1 <= cap.max_runs and self._bytes + need <= cap.max_bytes:
             return
-        if cap.policy == "refuse" or need > cap.max_bytes:  # (evicting every run would not make room)
+        if cap.policy == "refuse" or need > cap.max_bytes:  # (or no eviction can make room)
             raise StoreFull(cap, self._count, self._bytes + reserved, need - reserved)
         rows = self._db.execute(f"SELECT id, {_ROW_BYTES} FROM runs ORDER BY created, rowid").fetchall()
         count, size, drop = self._count, self._bytes, []
@@ -271,9 +268,8 @@ class RunStore:
         return self.insert(self.record(run_id, system, status, settings, summary, document))
 
     def insert(self, record: tuple, reserved: int = 0) -> float:
-        """Write one run (a :meth:`record`) in one transaction, on disk when this returns;
-        ``reserved``: bytes of other data counted against the cap (the sweeps' stored rows), which
-        the ``evict-oldest`` policy makes room beside."""
+        """Write one run (a :meth:`record`) in one transaction, on disk when this returns; ``evict-oldest``
+        makes room beside ``reserved`` bytes of other data counted against the cap (the sweeps' rows)."""
         run_id, system, status, settings, summary, blob = record
         created = time.time()
         row = (run_id, created, system, status, settings, summary, blob)
