@@ -120,8 +120,9 @@ def require(module: str):
 
 
 def require_compiler() -> None:
-    """A C compiler for the kernels' C functions (kernel/native.py): skipped on a developer machine
-    without one, an error under CI (``.ci/run`` installs gcc), where nothing may silently skip."""
+    """A C compiler (kernel/core.py builds the compiled core with it, kernel/native.py each model's
+    functions; nmkane runs nothing without one): skipped on a developer machine without one, an
+    error under CI (``.ci/run`` installs gcc), where nothing may silently skip."""
     import os
 
     import pytest

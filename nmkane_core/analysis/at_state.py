@@ -31,7 +31,7 @@ def _setup(system: System | str, state: Mapping[str, float], params, variant):
     system = get_system(system) if isinstance(system, str) else system
     variant = system.check_variant(variant)
     values = system.resolve_params(params or {})
-    module, info = built(system).kernel_now(variant)
+    module, info = built(system).kernel(variant)
     p = built(system).param_vector(variant, values)
     names = info.state_names
     unknown = sorted(set(state) - set(names))

@@ -66,21 +66,19 @@ def _chain_row(add) -> None:
 def _chain_warm_row(add) -> None:
     """The benchmark's N = 40 case, 20 s at its default step, warm: CPU and the error achieved."""
     from ..run.registry import register, system_names
+    from ..run.simulate import simulate
     from ..systems import iftomm_a02
 
     system = iftomm_a02.iftomm_a02(40)
     if system.name not in system_names():
         register(system)
     settings = {"system": system.name, "t_final": 20.0, "every": 5}  # the benchmark's 400 output steps
-    from ..run.simulate import simulate
-
     simulate(settings, progress=False)  # warm (derives the model on a first use)
-    best, run = float("inf"), None
+    best = float("inf")
     for _ in range(2):
         t0 = time.process_time()
         run = simulate(settings, progress=False)
         best = min(best, time.process_time() - t0)
-    assert run is not None
     qn, un = iftomm_a02.names(40)
     acc = iftomm_a02.acceptance(run.t, np.column_stack([run.state[k] for k in (*qn, *un)]), 40, energy=run.energy)
     add(

@@ -102,12 +102,8 @@ class Built:
             return self._kernels[variant]
 
     def module(self, variant: str | None = None):
-        """The compiled kernel module of a variant."""
+        """The compiled kernel of a variant (a :class:`~nmkane_core.kernel.cmodel.CModel`)."""
         return self.kernel(variant)[0]
-
-    def kernel_now(self, variant: str | None = None) -> tuple[Any, ModelInfo]:
-        """The kernel for a few evaluations now (an initial state, a partition), and its info."""
-        return self.kernel(variant)
 
     def info(self, variant: str | None = None) -> ModelInfo:
         """What the numeric side knows of a variant's model: names and counts (no sympy)."""

@@ -65,8 +65,28 @@ def _ptr(a: np.ndarray, name: str, dtype=np.float64) -> int:
 
 
 _SPECIAL_LOCK = threading.Lock()
-_WRITTEN = {"x", "K", "w", "E", "V", "O", "F", "L", "stats", "order", "solve_log", "out_t", "out_x", "out_E"}
-_WRITTEN |= {"out_V", "out_F", "out_L"}
+#: the arguments the core writes into
+_WRITTEN = frozenset(
+    [
+        "x",
+        "K",
+        "w",
+        "E",
+        "V",
+        "O",
+        "F",
+        "L",
+        "stats",
+        "order",
+        "solve_log",
+        "out_t",
+        "out_x",
+        "out_E",
+        "out_V",
+        "out_F",
+        "out_L",
+    ]
+)
 
 
 class CModel:
@@ -88,7 +108,7 @@ class CModel:
     ROBUST: bool
     PERM: np.ndarray
 
-    def __init__(self, name: str, description: dict[str, Any], library: ctypes.CDLL, tag: str, path: str = ""):
+    def __init__(self, name: str, description: dict[str, Any], library: ctypes.CDLL, path: str = ""):
         self.__name__ = name
         self.__file__ = path
         self.description = description
@@ -96,23 +116,21 @@ class CModel:
         self._generic = core.library()
         self._core = self._generic  # the specialised build once it is there (specialize)
         self._special: threading.Thread | None = None
-        rec = core.ModelRecord()
-        self._arrays = {}
-        for key, value in description["ints"].items():
-            setattr(self, key, int(value))
-        for key, value in description["floats"].items():
-            setattr(self, key, float(value))
-        for key, value in description["arrays"].items():
-            arr = np.ascontiguousarray(value, dtype=np.int64)
-            if arr.size == 0:
-                arr = np.zeros(1, dtype=np.int64)
+        rec = core.ModelRecord()  # the record's fields, also the kernel's attributes
+        for key in (*core.MODEL_INTS, *core.offset_names()):
+            value = int(description["ints"][key])
+            setattr(self, key, value)
+            setattr(rec, key, value)
+        for key in core.MODEL_FLOATS:
+            setattr(self, key, float(description["floats"][key]))
+            setattr(rec, key, getattr(self, key))
+        self._arrays = {}  # kept alive: the record points into them
+        for key in core.MODEL_ARRAYS:
+            arr = np.ascontiguousarray(description["arrays"][key] or [0], dtype=np.int64)
             self._arrays[key] = arr
             setattr(rec, key, arr.ctypes.data)
         self.PERM = self._arrays["PERM"][: self.N].copy()
-        for key in core.MODEL_INTS + core.offset_names():
-            setattr(rec, key, int(description["ints"][key]))
-        for key in core.MODEL_FLOATS:
-            setattr(rec, key, float(description["floats"][key]))
+        tag = description["tag"]
         for fname, _ in core.MODEL_FUNCTIONS:
             setattr(rec, fname, ctypes.cast(getattr(library, f"nmk_{tag}_{fname}"), ctypes.c_void_p).value)
         self.ROBUST = bool(self.ROBUST)

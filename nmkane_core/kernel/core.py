@@ -31,7 +31,7 @@ from pathlib import Path
 from . import constants
 from .interface import LOOPS, PROJECTION_SCRATCH, WORKSPACE, AdaptiveArgs, FixedArgs
 
-__all__ = ["CSRC", "FLAGS", "MODEL_FUNCTIONS", "args_record", "header", "library", "model_record"]
+__all__ = ["CSRC", "FLAGS", "MODEL_FUNCTIONS", "AdaptiveRecord", "FixedRecord", "ModelRecord", "header", "library"]
 
 CSRC = Path(__file__).parent / "csrc"
 #: -O2 for the loops (-O3 and unrolling measured no faster); no -ffast-math (NaN and ±inf must
@@ -136,14 +136,6 @@ FixedRecord = _record("FixedRecord", _loop_fields(FixedArgs))
 AdaptiveRecord = _record("AdaptiveRecord", _loop_fields(AdaptiveArgs))
 
 
-def model_record() -> type[ctypes.Structure]:
-    return ModelRecord
-
-
-def args_record(loop: str) -> type[ctypes.Structure]:
-    return {"integrate_fixed": FixedRecord, "integrate_adaptive": AdaptiveRecord}[loop]
-
-
 def sources() -> dict[str, str]:
     """The core's source files (name → text), the generated header among them."""
     files = {p.name: p.read_text() for p in sorted(CSRC.iterdir()) if p.suffix in (".c", ".h")}
@@ -153,7 +145,13 @@ def sources() -> dict[str, str]:
 
 def source_key() -> str:
     """A hash of everything the compiled core depends on: its sources, the header, the flags."""
-    h = hashlib.sha256("\0".join((*FLAGS, *_extra_flags())).encode())
+    return _key(_extra_flags())
+
+
+@functools.cache
+def _key(extra: tuple[str, ...]) -> str:
+    """:func:`source_key` for these extra flags (the sources are read once a process)."""
+    h = hashlib.sha256("\0".join((*FLAGS, *extra)).encode())
     for name, text in sorted(sources().items()):
         h.update(f"\0{name}\0{text}".encode())
     return h.hexdigest()[:24]

@@ -45,7 +45,7 @@ def _import(folder: Path, key: str, source: str | None) -> CModel:
     if source is not None:
         write_kernel(folder, key, source)
     description, library, path = import_kernel(folder, key)
-    return CModel(f"nmkane_kernel_{key}", description, library, description["tag"], str(path))
+    return CModel(f"nmkane_kernel_{key}", description, library, str(path))
 
 
 class _Damaged(Exception):

@@ -16,6 +16,7 @@ source key, so a later process loads it at once.
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import re
@@ -42,9 +43,14 @@ FLAGS = tuple("-O3" if f == "-O2" else f for f in core.FLAGS)
 def library_path(model_path: str) -> Path:
     """Where the specialised build of the model described at ``model_path`` lives: keyed by the
     core's sources, these flags and this generator."""
-    h = hashlib.sha256(f"{core.source_key()}\0{FLAGS}".encode())
+    return Path(model_path).with_name(f"special_{_key(core.source_key())}.so")
+
+
+@functools.cache
+def _key(core_key: str) -> str:
+    h = hashlib.sha256(f"{core_key}\0{FLAGS}".encode())
     h.update(Path(__file__).read_bytes())
-    return Path(model_path).with_name(f"special_{h.hexdigest()[:24]}.so")
+    return h.hexdigest()[:24]
 
 
 def stale_builds(root: Path) -> list[Path]:

@@ -45,7 +45,7 @@ FLOAT_MAX = sys.float_info.max
 
 def finish(plan: Plan, out: LoopOutput, wall: float, kernel_load_s: float = 0.0) -> Run:
     """The :class:`Run` of a driver's output (``wall``: integration wall time, s)."""
-    mod = built(plan.system).kernel_now(plan.variant)[0]
+    mod = built(plan.system).module(plan.variant)
     outputs = _outputs(plan, mod, out)
     out, outputs, overflow = _finite_rows(plan, out, outputs)
     notes = _finite_forces(out) + _unknown_multipliers(out)

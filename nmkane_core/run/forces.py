@@ -82,7 +82,7 @@ def add_point_forces(plan, run, out) -> list[str]:
         if kept is not None and kept.shape == x.shape:
             xdot = kept
         else:
-            xdot = rates_rows(b.kernel_now(plan.variant)[0], plan.p, plan.G, plan.G1, plan.G2, run.t, x)
+            xdot = rates_rows(b.module(plan.variant), plan.p, plan.G, plan.G1, plan.G2, run.t, x)
     comps = _evaluate(compiled, info, run.state, plan.params, run.t, run.multipliers, run.constraint_forces, xdot)
     notes = _switched_rows(plan, run, out, compiled, comps)
     notes += _finite(run.t, comps)
@@ -116,7 +116,7 @@ def _switched_rows(plan, run, out, home: CompiledForces, comps: dict) -> list[st
         missing = [c for c in home.columns if other is None or c not in other.columns]
         if other is not None:
             info = b.info(variant)
-            module = b.kernel_now(variant)[0]
+            module = b.module(variant)
             p = b.param_vector(variant, plan.params)
             xr = np.ascontiguousarray(x[rows])
             tr = run.t[rows]

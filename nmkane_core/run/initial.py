@@ -296,7 +296,7 @@ def _given_dependent(b, names, given) -> list[str]:
 def _complete(system: System, variant: str, params, given, full: dict) -> None:
     """Solve the dependent values of ``full`` (in place) from the constraints of ``variant``."""
     b = built(system)
-    module, info = b.kernel_now(variant)
+    module, info = b.kernel(variant)
     xc = np.array([full.get(s, 0.0) for s in info.state_names], float)
     try:
         xc = complete_state(module, info, xc, b.param_vector(variant, params), b.partitions.get(variant))
@@ -318,7 +318,7 @@ def _complete(system: System, variant: str, params, given, full: dict) -> None:
 def _project(system: System, variant: str, params, given, full: dict, correction: dict | None) -> None:
     """Move the full state ``full`` (in place) onto the constraint manifold of ``variant``."""
     b = built(system)
-    module, info = b.kernel_now(variant)
+    module, info = b.kernel(variant)
     xc = np.array([full[s] for s in info.state_names], float)
     try:
         rank = max_rank(system, variant, default_state(system))
@@ -338,7 +338,7 @@ def _check_consistent(system: System, variant: str, params, full: dict, checks: 
     b = built(system)
     failed = {}
     for var in dict.fromkeys(checks):
-        module, info = b.kernel_now(var)
+        module, info = b.kernel(var)
         if any(s not in full for s in info.state_names):
             continue
         xv = np.array([full[s] for s in info.state_names], float)

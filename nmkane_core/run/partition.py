@@ -68,7 +68,7 @@ def partition(system: System, variant: str | None = None) -> Partition:
 
 def _make_partition(system: System, variant: str) -> Partition:
     b = built(system)
-    module, info = b.kernel_now(variant)
+    module, info = b.kernel(variant)
     if not info.m or info.u_independent:
         part = Partition(info.q_dependent, info.u_independent if info.m else info.u, tuple(range(info.n)), True)
     else:
@@ -100,7 +100,7 @@ def constraint_report(system: System, variant: str | None, state: dict[str, floa
 
 def _make_report(system: System, variant: str, state: dict[str, float]) -> dict:
     b = built(system)
-    module, info = b.kernel_now(variant)
+    module, info = b.kernel(variant)
     part = partition(system, variant)
     out = {
         "rank": 0,

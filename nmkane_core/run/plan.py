@@ -366,7 +366,7 @@ def _resolved(s: RunSettings, system: System, variant, method, dt, t_final, para
 def _check_finite_start(system: System, variant: str, p: np.ndarray, x0: np.ndarray, full: dict) -> None:
     """The energy, constraint violations and outputs at the initial state must be finite (a
     finite but huge state can overflow them: a run would have nothing finite to show)."""
-    mod = built(system).kernel_now(variant)[0]
+    mod = built(system).module(variant)
     E, V, O = np.empty(1), np.empty((1, mod.NV)), np.empty((1, mod.NO))
     mod.diagnostics_rows(np.zeros(1), x0[None, :], p, E, V)
     if mod.NO:

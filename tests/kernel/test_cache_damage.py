@@ -60,28 +60,27 @@ def test_a_truncated_cached_description_is_rebuilt_with_one_line_naming_it(tmp_p
     assert again.returncode == 0 and again.stderr == "", again.stderr
 
 
-def test_a_garbage_c_library_is_rebuilt_with_one_line_naming_it(tmp_path):
-    require_compiler()
-    folder = _cached(tmp_path)
-    (library,) = folder.glob("native_*.so")
+def _garbage_is_rebuilt(cache: Path, library: Path) -> None:
+    """``library`` overwritten with garbage: the next run is ok, says so in one line, rebuilds it."""
     library.write_bytes(os.urandom(4096))
-    done = _simulate(tmp_path)
+    done = _simulate(cache)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["ok"]
     _one_notice(done.stderr, library)
     assert library.read_bytes()[:4] == b"\x7fELF"
+
+
+def test_a_garbage_c_library_is_rebuilt_with_one_line_naming_it(tmp_path):
+    require_compiler()
+    (library,) = _cached(tmp_path).glob("native_*.so")
+    _garbage_is_rebuilt(tmp_path, library)
 
 
 def test_a_garbage_compiled_core_is_rebuilt_with_one_line_naming_it(tmp_path):
     require_compiler()
     _cached(tmp_path)
     (library,) = (tmp_path / "core").glob("nmkcore_*.so")
-    library.write_bytes(os.urandom(4096))
-    done = _simulate(tmp_path)
-    assert done.returncode == 0, done.stderr
-    assert done.stdout.split() == ["ok"]
-    _one_notice(done.stderr, library)
-    assert library.read_bytes()[:4] == b"\x7fELF"
+    _garbage_is_rebuilt(tmp_path, library)
 
 
 def test_cache_prune_counts_and_removes_a_damaged_kernel(tmp_path):

@@ -274,49 +274,34 @@ static i64 integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double 
 /* The embedded step's new state into xn and its scaled RMS error estimate h sum TE_i K_i
  * (returns inf and *finite = 0 when the new state is not finite).  With the robust solve and a
  * projection, without the error's components along the constraint normals (the projection's
- * business): tangent() in robust_projection.c. */
+ * business): the estimate is kept at w[ODX] for tangent() in robust_projection.c; otherwise in
+ * dx (2N entries of scratch). */
 static double step_error(const nmk_model *md, double t, double h, const double *x, double *xn, const double *p,
                          const double *K, i64 S, const double *TB, const double *TE, double *w, const i64 *proj,
-                         double atol, double rtol, int *finite) {
+                         double atol, double rtol, double *dx, int *finite) {
     const i64 n2 = 2 * md->N;
-    double errsum = 0.0;
+    const int tangential = md->ROBUST && proj != NULL;
+    double *d = tangential ? w + md->ODX : dx;
     *finite = 1;
-    if (md->ROBUST && proj != NULL) {
-        for (i64 j = 0; j < n2; ++j) {
-            double acc = 0.0, accE = 0.0;
-            for (i64 i = 0; i < S; ++i) {
-                acc += TB[i] * K[i * n2 + j];
-                accE += TE[i] * K[i * n2 + j];
-            }
-            xn[j] = x[j] + h * acc;
-            w[md->ODX + j] = h * accE;
-            if (!isfinite(xn[j])) {
-                *finite = 0;
-                return INFINITY;
-            }
+    for (i64 j = 0; j < n2; ++j) {
+        double acc = 0.0, accE = 0.0;
+        for (i64 i = 0; i < S; ++i) {
+            acc += TB[i] * K[i * n2 + j];
+            accE += TE[i] * K[i * n2 + j];
         }
-        tangent(md, t + h, xn, p, w, proj);
-        for (i64 j = 0; j < n2; ++j) {
-            double sc = atol + rtol * nmk_max(fabs(x[j]), fabs(xn[j]));
-            double e = w[md->ODX + j] / sc;
-            errsum += e * e;
+        xn[j] = x[j] + h * acc;
+        d[j] = h * accE;
+        if (!isfinite(xn[j])) {
+            *finite = 0;
+            return INFINITY;
         }
-    } else {
-        for (i64 j = 0; j < n2; ++j) {
-            double acc = 0.0, accE = 0.0;
-            for (i64 i = 0; i < S; ++i) {
-                acc += TB[i] * K[i * n2 + j];
-                accE += TE[i] * K[i * n2 + j];
-            }
-            xn[j] = x[j] + h * acc;
-            if (!isfinite(xn[j])) {
-                *finite = 0;
-                return INFINITY;
-            }
-            double sc = atol + rtol * nmk_max(fabs(x[j]), fabs(xn[j]));
-            double e = h * accE / sc;
-            errsum += e * e;
-        }
+    }
+    if (tangential) tangent(md, t + h, xn, p, w, proj);
+    double errsum = 0.0;
+    for (i64 j = 0; j < n2; ++j) {
+        double sc = atol + rtol * nmk_max(fabs(x[j]), fabs(xn[j]));
+        double e = d[j] / sc;
+        errsum += e * e;
     }
     return sqrt(errsum / (double)n2);
 }
@@ -370,7 +355,8 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
             break;
         }
         double err = INFINITY;
-        if (finite) err = step_error(md, t, h, x, xn, a->p, K, S, a->TB, a->TE, w, proj, a->atol, a->rtol, &finite);
+        if (finite)  /* the stages are done with xs: it holds the error estimate */
+            err = step_error(md, t, h, x, xn, a->p, K, S, a->TB, a->TE, w, proj, a->atol, a->rtol, s.xs, &finite);
         int nonfinite = !finite;
         double fac;
         if (err <= 1.0) {
