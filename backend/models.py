@@ -7,7 +7,7 @@ from typing import Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from nmkane_core.schema import RunSettings as CoreRunSettings
-from nmkane_core.schema import RunSummary
+from nmkane_core.schema import RunStatus, RunSummary
 
 __all__ = ["RunSettings", "Health", "RunListItem", "RunList", "Catalog", "STATUSES"]
 
@@ -20,7 +20,7 @@ class RunSettings(CoreRunSettings):
     model_config = ConfigDict(strict=True)
 
 
-STATUSES = Literal["ok", "event", "singular", "diverged", "timeout", "failed"]
+STATUSES = RunStatus
 
 
 class Health(BaseModel):

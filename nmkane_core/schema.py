@@ -64,6 +64,13 @@ Name = Annotated[str, AfterValidator(_not_empty), WithJsonSchema({"type": "strin
 ProjectionName = Literal["none", "blajer", "yoon"]
 PROJECTIONS: tuple[str, ...] = typing.get_args(ProjectionName)
 
+#: how a run ended (``summary.status``; nmkane_core.run.endings)
+RunStatus = Literal["ok", "event", "singular", "diverged", "drifted", "timeout", "failed"]
+
+#: the constraint solves a run can ask for (docs/closed-loops.md)
+SolveName = Literal["auto", "paper", "robust"]
+SOLVES: tuple[str, ...] = typing.get_args(SolveName)
+
 
 class RunSettings(BaseModel):
     """A run request. Names follow the CLI's options with underscores."""
@@ -111,13 +118,13 @@ class RunSettings(BaseModel):
         "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.integrate.projection; "
         "default: the system's (none for most; yoon for mechanisms that pass singular positions)",
     )
-    solve: Literal["auto", "paper", "robust"] = Field(
-        "auto",
-        description="the constraint solve, for models whose kernel has the rank-robust one (no declared "
-        "partition, redundant equations, or singular positions declared): auto (the paper's T u̇ = V̂ where "
-        "J2 is well-conditioned, another partition or the robust solve elsewhere) | paper (the declared "
-        "partition only: a singular J2 stops the run) | robust (Gauss's principle in the mass metric "
-        "everywhere); the paper's systems always use the paper's solve",
+    solve: SolveName | None = Field(
+        None,
+        description="the constraint solve of a model with constraints: auto (the declared partition's "
+        "T u̇ = V̂ where its J2 is well-conditioned, another partition or the rank-robust solve elsewhere) | "
+        "paper (the declared partition only: a singular J2 ends the run singular) | robust (Gauss's "
+        "principle in the mass metric everywhere); default: the system's (auto; paper for the paper's "
+        "two examples, whose claims are about it)",
     )
     projection_weight: Literal["identity", "mass"] | None = Field(
         None, description="override the projection's weighting matrix W"
@@ -168,6 +175,19 @@ class RunSettings(BaseModel):
         ge=0,
         le=0.1,
         description="J2 or T with a pivot-ratio reciprocal condition below this stops the run with status 'singular'",
+    )
+    max_energy_drift: float | None = Field(
+        None,
+        gt=0,
+        description="stop the run (status 'drifted') where |E − E0| exceeds this, J; unset: 10⁶ times the "
+        "initial energy scale max(|E0|, ½u₀ᵀQu₀) — a bound only a blow-up reaches (none when both are 0 or the "
+        "model declares no energy); the bound used is in the summary's bounds",
+    )
+    max_violation: float | None = Field(
+        None,
+        gt=0,
+        description="stop the run (status 'drifted') where a reported constraint violation |φ_i| or |ψ_i| "
+        "exceeds this, in the constraint's own unit; unset: no bound",
     )
     switching: bool = Field(
         True,
@@ -272,7 +292,7 @@ class Event(BaseModel):
 
 
 class RunSummary(BaseModel):
-    status: Literal["ok", "event", "singular", "diverged", "timeout", "failed"]
+    status: RunStatus
     message: str
     steps: int
     rhs_evals: int
@@ -307,7 +327,13 @@ class RunSummary(BaseModel):
         None,
         description="what the rank-robust constraint solve did (models whose kernel has it): evaluations that "
         "used it, its smallest kept pivot and rank, the largest kinetic-energy share of a projection's speed "
-        "correction, changes of solve beyond those listed in switches",
+        "correction, changes of solve beyond those listed in switches; null for the paper's solve on a declared "
+        "partition",
+    )
+    bounds: dict[str, float | None] | None = Field(
+        None,
+        description="the bounds past which the run stops with status 'drifted': energy_drift (|E − E0|, J) and "
+        "violation (null: none)",
     )
     event: Event | None = Field(None, description="the declared event that ended the run (status 'event'), if any")
     partition: PartitionUsed | None = Field(None, description="the partition the run started with")

@@ -1,7 +1,8 @@
 """``nmkane run SYSTEM [options]``: one simulation, a readable summary or a file.
 
-Exit code 0 when the run's status is ``ok``, 1 when it ended ``singular``, ``diverged``,
-``timeout`` or ``failed`` (its output file is written either way), 2 on bad input.
+Exit code 0 when the run's status is ``ok`` (or ``event``), 1 when it ended ``singular``,
+``diverged``, ``drifted``, ``timeout`` or ``failed`` (its output file is written either way), 2 on
+bad input.
 ``--plot Y[:X]`` also draws the run's quantities to a PNG (:mod:`.plot_out`).
 """
 

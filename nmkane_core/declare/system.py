@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InputError
-from ..schema import LIMITS, PROJECTIONS, allowed, field_range
+from ..schema import LIMITS, PROJECTIONS, SOLVES, allowed, field_range
 from .parameter import Parameter
 
 if TYPE_CHECKING:
@@ -93,6 +93,12 @@ class System:
         The post-step projection of runs that do not choose one (``none``, ``blajer``, ``yoon``):
         a mechanism that passes singular positions needs the mass-metric projection (``yoon``)
         to stay on its branch (docs/closed-loops.md §5); scipy integrators run without it.
+    default_solve:
+        The constraint solve of runs that do not choose one: ``"auto"`` (the default: the
+        declared partition where its J2 is well-conditioned, another partition or the
+        rank-robust solve elsewhere), ``"paper"`` (the declared partition only: a singular J2
+        ends the run ``singular``; the paper's two examples, whose claims are about it) or
+        ``"robust"``.
     visuals:
         A zero-argument function returning :class:`~nmkane_core.declare.visuals.Visuals` (shapes on
         frames and points, sympy expressions of the state and parameters), or None: the web
@@ -145,6 +151,7 @@ class System:
     default_gamma1: float = 0.0
     default_gamma2: float = 0.0
     default_projection: str = "none"
+    default_solve: str = "auto"
     source_files: tuple[str, ...] = ()
     visuals: Callable[[], Any] | None = None
     what_to_try: str = ""
@@ -190,6 +197,8 @@ class System:
             raise InputError(
                 f"{self.name}: default_projection", self.default_projection, " | ".join(PROJECTIONS), "unknown"
             )
+        if self.default_solve not in SOLVES:
+            raise InputError(f"{self.name}: default_solve", self.default_solve, " | ".join(SOLVES), "unknown")
         for gain in ("default_gamma", "default_gamma1", "default_gamma2"):
             g = self._finite(gain, getattr(self, gain))
             if abs(g) > LIMITS["max_gain"]:

@@ -7,6 +7,7 @@ setting (the adaptive loop's minimum step included) is the run's own.
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 
@@ -138,9 +139,11 @@ def fixed_args(
     t0: float = 0.0,
     steps: tuple[float, float, int] | None = None,
     solve: SolveState,
+    bounded: bool = True,
 ) -> FixedArgs:
     """``integrate_fixed``'s arguments: steps k0 … k1−1 of the job's fixed-step run (or, with
-    ``steps = (dt, t_final, nsteps)`` from ``t0``, of another grid: a trial step)."""
+    ``steps = (dt, t_final, nsteps)`` from ``t0``, of another grid: a trial step, with
+    ``bounded=False``: its statistics start afresh, so the run's drift bounds do not apply)."""
     tab = job.method
     assert isinstance(tab, Tableau)
     dt, t_final, nsteps = steps if steps is not None else (job.dt, job.t_final, fixed_steps(job))
@@ -152,12 +155,21 @@ def fixed_args(
         k1=k1,
         nsteps=nsteps,
         row=row,
-        **_common_args(job, tab, p, x, rows, stats, rcond_min, pending, solve),
+        **_common_args(job, tab, p, x, rows, stats, rcond_min, pending, solve, bounded),
     )
 
 
 def _common_args(
-    job: Job, tab: Tableau, p: np.ndarray, x: np.ndarray, rows: Rows, stats: np.ndarray, rcond_min, pending, solve
+    job: Job,
+    tab: Tableau,
+    p: np.ndarray,
+    x: np.ndarray,
+    rows: Rows,
+    stats: np.ndarray,
+    rcond_min,
+    pending,
+    solve,
+    bounded: bool,
 ) -> dict:
     """The arguments both compiled loops take (:class:`FixedArgs` and :class:`AdaptiveArgs`
     share these fields by name): the run's numbers from the job, the solve's state, the buffers."""
@@ -172,6 +184,8 @@ def _common_args(
         "TB": tab.b,
         "TC": tab.c,
         "rcond_min": rcond_min,
+        "drift_limit": job.drift_limit if bounded else math.inf,
+        "violation_limit": job.violation_limit if bounded else math.inf,
         "solve": job.solve,
         "rank_tol": RANK_TOL,
         "max_rank": solve.max_rank,
@@ -206,9 +220,11 @@ def adaptive_args(
     pending: int = -1,
     t_final: float | None = None,
     solve: SolveState,
+    bounded: bool = True,
 ) -> AdaptiveArgs:
     """``integrate_adaptive``'s arguments: from ``t`` with first step ``h``, at most ``max_steps``
-    attempts and as many rows as ``rows`` holds."""
+    attempts and as many rows as ``rows`` holds (``bounded=False``: a trial step, without the
+    run's drift bounds)."""
     tab = job.method
     assert isinstance(tab, Tableau) and tab.E is not None and tab.error_order is not None
     return AdaptiveArgs(
@@ -223,7 +239,7 @@ def adaptive_args(
         accepted=accepted,
         TE=tab.E,
         err_exp=1.0 / (tab.error_order + 1),
-        **_common_args(job, tab, p, x, rows, stats, rcond_min, pending, solve),
+        **_common_args(job, tab, p, x, rows, stats, rcond_min, pending, solve, bounded),
     )
 
 
@@ -264,11 +280,25 @@ def conditioning(
     trial = solve_state(job, module, solve).trial()
     if job.method.kind == "adaptive":
         module.integrate_adaptive(
-            *adaptive_args(job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, solve=trial)
+            *adaptive_args(
+                job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, solve=trial, bounded=False
+            )
         )
     else:
         args = fixed_args(
-            job, p, y, rows, stats, k0=0, k1=1, row=0, rcond_min=0.0, t0=t, steps=(h, t + h, 1), solve=trial
+            job,
+            p,
+            y,
+            rows,
+            stats,
+            k0=0,
+            k1=1,
+            row=0,
+            rcond_min=0.0,
+            t0=t,
+            steps=(h, t + h, 1),
+            solve=trial,
+            bounded=False,
         )
         module.integrate_fixed(*args)
     return float(min(stats[STATS_RCOND_J2], stats[STATS_RCOND_T]))
@@ -307,11 +337,25 @@ def forces_at(
             pending=0,
             t_final=t + h,
             solve=trial,
+            bounded=False,
         )
         module.integrate_adaptive(*adaptive)
     else:
         fixed = fixed_args(
-            job, p, y, out, stats, k0=0, k1=1, row=1, rcond_min=0.0, pending=0, t0=t, steps=(h, t + h, 1), solve=trial
+            job,
+            p,
+            y,
+            out,
+            stats,
+            k0=0,
+            k1=1,
+            row=1,
+            rcond_min=0.0,
+            pending=0,
+            t0=t,
+            steps=(h, t + h, 1),
+            solve=trial,
+            bounded=False,
         )
         module.integrate_fixed(*fixed)
     rows.F[row], rows.L[row] = out.F[0], out.L[0]

@@ -7,6 +7,7 @@ nothing of systems, registries or settings.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -52,6 +53,8 @@ class Job:
     solve: int = 2  # kernels with the rank-robust solve: 0 the paper's, 1 robust, 2 auto (others: the paper's)
     max_rank: int = -1  # the model's independent equations (n − p, or the rank found); −1: the kernel's default
     order: tuple[int, ...] = ()  # the partition to start with, as J's column order [u_I, u_D] (): J's own
+    drift_limit: float = math.inf  # |E − E0| above this ends the run (STATUS_DRIFTED)
+    violation_limit: float = math.inf  # a reported violation above this ends it too
 
 
 @dataclass

@@ -21,6 +21,7 @@ from ..kernel.constants import (
     STATS_RCOND_T,
     STATS_VIOL,
     STATUS_DIVERGED,
+    STATUS_DRIFTED,
     STATUS_FAILED,
     STATUS_J2_SINGULAR,
     STATUS_OK,
@@ -153,6 +154,8 @@ class ScipyDriver(Driver):
             stats[STATS_MAX_DRIFT] = max(stats[STATS_MAX_DRIFT], abs(E - stats[STATS_E0]))
             stats[STATS_FINAL_DRIFT] = E - stats[STATS_E0]
             stats[STATS_VIOL:] = np.maximum(stats[STATS_VIOL:], np.abs(viol))
+            if abs(E - stats[STATS_E0]) > job.drift_limit or np.any(np.abs(viol) > job.violation_limit):
+                return STATUS_DRIFTED, None, None  # past the run's bounds (csrc/loops.c past_bounds)
             if self.count % job.every == 0 or solver.status == "finished":
                 self.ts.append(solver.t)
                 self.xs.append(y.copy())

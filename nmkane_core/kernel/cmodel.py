@@ -106,6 +106,8 @@ class CModel:
     OSV: int
     MAX_RANK_DEFAULT: int
     ROBUST: bool
+    DECLARED: bool
+    OQ: int
     PERM: np.ndarray
 
     def __init__(self, name: str, description: dict[str, Any], library: ctypes.CDLL, path: str = ""):
@@ -133,7 +135,7 @@ class CModel:
         tag = description["tag"]
         for fname, _ in core.MODEL_FUNCTIONS:
             setattr(rec, fname, ctypes.cast(getattr(library, f"nmk_{tag}_{fname}"), ctypes.c_void_p).value)
-        self.ROBUST = bool(self.ROBUST)
+        self.ROBUST, self.DECLARED = bool(self.ROBUST), bool(self.DECLARED)
         self._rec = rec
         self._md = ctypes.addressof(rec)
         for key, value in SV.items():

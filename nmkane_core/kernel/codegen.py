@@ -91,13 +91,18 @@ def _cse(kt, assignments: list[tuple]) -> Block:
 
 
 def needs_robust(derivation) -> bool:
-    """Whether a model's kernel gets the rank-robust solve (``ROBUST``): it has constraints and
-    either no declared partition, more equations than dependent speeds (redundant ones), or
-    the declaration that its motion may pass singular positions.  Other kernels (the paper's
-    systems) run the paper's solve alone."""
+    """Whether a model's kernel gets the rank-robust solve (``ROBUST``): every model with
+    constraints.  A declared partition is the preferred one (``solve="auto"`` keeps it where its
+    J2 is well-conditioned, and re-partitions or uses the robust solve elsewhere); ``"paper"``
+    with a declared, non-redundant partition runs the paper's solve alone (``DECLARED``)."""
+    return bool(derivation.m)
+
+
+def declared_partition(derivation) -> bool:
+    """Whether J's columns are a declared, non-redundant partition [u_I, u_D] (``DECLARED``): the
+    paper's solve of such a kernel is the paper's own path (its bits, its condition estimate)."""
     d = derivation
-    md = d.model
-    return bool(d.m) and (d.p == 0 or md.n - d.p != d.m or bool(getattr(md, "singular_positions", False)))
+    return bool(d.m) and d.p > 0 and d.model.n - d.p == d.m
 
 
 def kernel_dims(kt, robust: bool) -> dict[str, int]:
@@ -197,6 +202,7 @@ def _record_fields(kt, dims: dict[str, int], derivation, robust: bool) -> tuple[
     ints = {
         **dims,
         "ROBUST": int(robust),
+        "DECLARED": int(declared_partition(derivation)),
         "C_IS_I": int(sp.eye(dims["N"]) == derivation.C),
         "SCALE_ROWS": int(any(k > 1 for k in kt.row_degree)),
         "NORM_ROWS": int(any(k == 0 for k in kt.row_degree)),

@@ -20,6 +20,8 @@ STATUS_INCONSISTENT = 7  # J u̇ = c has no solution: the dependent equations mi
 STATUS_Q_SINGULAR = 8  # Q is not positive definite (its Cholesky factorization failed)
 STATUS_LEFT_CONSTRAINTS = 9  # a step's constraint correction (the projection's, or the Baumgarte terms') carried
 # more than ROBUST_LEAVE_KE of the kinetic energy: the motion left its branch near a singular position
+STATUS_DRIFTED = 10  # the energy drift or a constraint violation passed the run's bound (drift_limit,
+# violation_limit): the state that passed it is not kept
 
 # stats = [E0, max|ΔE|, last ΔE, min rcond J2, min rcond T, the robust solve's counters,
 #          max|viol_i| for each violation]
@@ -46,6 +48,8 @@ LOG_HEAD = 4  # t, kind, value, rank
 
 # the rank-robust solve's run-time decisions (docs/closed-loops.md)
 ROBUST_LEAVE_KE = 1e-6  # a step's constraint correction above this share of T: the run left the constraints
+ROBUST_NEAR_SINGULAR = 1e-2  # ... judged for the Baumgarte terms only near a singular position: a row of J
+# shorter than this share of the longest (the rows that vanish there), or the rank-robust solve in use
 
 # adaptive step control: h ← h · clamp(STEP_SAFETY · err^(−1/(q+1)), STEP_FAC_MIN, STEP_FAC_MAX)
 STEP_SAFETY = 0.9

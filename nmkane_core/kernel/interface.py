@@ -62,6 +62,8 @@ class FixedArgs(NamedTuple):
     TB: Annotated[np.ndarray, VEC]
     TC: Annotated[np.ndarray, VEC]
     rcond_min: Annotated[float, FLOAT]  # stop threshold of the rcond estimates
+    drift_limit: Annotated[float, FLOAT]  # stop (STATUS_DRIFTED) where |E − E0| exceeds this (inf: never)
+    violation_limit: Annotated[float, FLOAT]  # … or where a reported violation exceeds this
     solve: Annotated[int, INT]  # the constraint solve: 0 the paper's, 1 rank-robust, 2 auto (kernels with ROBUST)
     rank_tol: Annotated[float, FLOAT]  # the robust solve's rank threshold (symbolic.robust.RANK_TOL)
     max_rank: Annotated[int, INT]  # the model's number of independent equations (n − p, or the rank found)
@@ -106,6 +108,8 @@ class AdaptiveArgs(NamedTuple):
     TC: Annotated[np.ndarray, VEC]
     err_exp: Annotated[float, FLOAT]  # step-control exponent 1/(q+1)
     rcond_min: Annotated[float, FLOAT]
+    drift_limit: Annotated[float, FLOAT]
+    violation_limit: Annotated[float, FLOAT]
     solve: Annotated[int, INT]  # the constraint solve: 0 the paper's, 1 rank-robust, 2 auto (kernels with ROBUST)
     rank_tol: Annotated[float, FLOAT]  # the robust solve's rank threshold (symbolic.robust.RANK_TOL)
     max_rank: Annotated[int, INT]  # the model's number of independent equations (n − p, or the rank found)
@@ -129,23 +133,30 @@ class CompiledModel(Protocol):
     ``integrate/`` (and ``run/``) and ``kernel/``.  :class:`~nmkane_core.kernel.cmodel.CModel`
     is the one implementation: a model's description and library bound to the compiled core.
 
-    Sizes: ``N`` speeds (and coordinates), ``M`` constraint equations, ``PI`` independent speeds
-    of the declared partition, ``NV`` reported violations, ``NO`` outputs, ``PERM`` the speeds'
-    order [u_I, u_D] in model order; ``ROBUST``: the rank-robust solve is compiled in,
-    ``MAX_RANK_DEFAULT`` its rank cap; ``ORC``: the work array's offset of the condition
-    estimates.  The loops take their records (:class:`FixedArgs`, :class:`AdaptiveArgs`) as
-    positional arguments; the rest are the right-hand side and the diagnostics at given states."""
+    Sizes: ``N`` speeds (and coordinates), ``M`` constraint equations (``MNH`` nonholonomic,
+    ``MH`` holonomic), ``PI`` independent speeds of the declared partition, ``NV`` reported
+    violations, ``NO`` outputs, ``PERM`` the speeds' order [u_I, u_D] in model order; ``ROBUST``:
+    the rank-robust solve is compiled in (every model with constraints), ``MAX_RANK_DEFAULT`` its
+    rank cap; ``DECLARED``: J's columns are a declared, non-redundant partition, whose paper's
+    solve is the paper's own path; ``ORC``, ``OQ``: the work array's offsets of the condition
+    estimates and of Q.  The loops take their records (:class:`FixedArgs`,
+    :class:`AdaptiveArgs`) as positional arguments; the rest are the right-hand side and the
+    diagnostics at given states."""
 
     __name__: str
     N: int
     M: int
+    MNH: int
+    MH: int
     PI: int
     NV: int
     NO: int
     PERM: np.ndarray
     ROBUST: bool
+    DECLARED: bool
     MAX_RANK_DEFAULT: int
     ORC: int
+    OQ: int
     integrate_fixed: Callable[..., tuple[int, int, int, int]]  # *FixedArgs -> status, k, row, pending
     integrate_adaptive: Callable[..., tuple[int, float, float, int, int, int, int]]  # *AdaptiveArgs
     make_workspace: Callable[[], np.ndarray]

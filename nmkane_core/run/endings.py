@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from ..kernel.constants import (
     ROBUST_LEAVE_KE,
     STATUS_DIVERGED,
+    STATUS_DRIFTED,
     STATUS_FAILED,
     STATUS_INCONSISTENT,
     STATUS_J2_SINGULAR,
@@ -61,6 +62,12 @@ ENDINGS: dict[tuple[int, str | None], Ending] = {
         "the state or its derivative stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "
         "the last finite state (an unstable step: try a smaller dt or gains of smaller magnitude; or the motion "
         "reached " + _UNDEFINED + ")",
+    ),
+    (STATUS_DRIFTED, None): Ending(
+        "drifted",
+        "{drift} after t = {t_end:.6g} s, past the run's bound of {bound:.3g}; the run stopped there and keeps the "
+        "last state within it (the motion blew up or left its branch: try a smaller dt, the projection, other "
+        "gains; max_energy_drift and max_violation set the bounds)",
     ),
     (STATUS_INCONSISTENT, None): Ending(
         "singular",

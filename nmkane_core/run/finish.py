@@ -145,11 +145,26 @@ def _ending(plan: Plan, out: LoopOutput, overflow: bool) -> tuple[str, str]:
         "max_rows": LIMITS["max_rows"],
         **_left_constraints(plan, out),
         **inconsistency(plan.info, out),
+        **_drift(plan, out),
     }
     if overflow:
         return OVERFLOW.status, OVERFLOW.message.format(**facts)
     hint = plan.system.singular_hints.get(plan.variant, "")
     return ending(out.status, out.stop, facts, out.fail_msg, hint)
+
+
+def _drift(plan: Plan, out: LoopOutput) -> dict:
+    """Which bound a drifted run passed (STATUS_DRIFTED): the energy drift, or the violation."""
+    stats, info = out.stats, plan.info
+    if stats[STATS_MAX_DRIFT] > plan.drift_limit:
+        return {"drift": f"|E − E0| reached {stats[STATS_MAX_DRIFT]:.3g} J", "bound": plan.drift_limit}
+    viol = stats[STATS_VIOL:]
+    i = int(np.argmax(viol)) if viol.size else 0
+    name = info.viol_names[i] if viol.size else "?"
+    return {
+        "drift": f"the violation of {name} reached {viol[i] if viol.size else 0.0:.3g}",
+        "bound": plan.violation_limit,
+    }
 
 
 def _left_constraints(plan: Plan, out: LoopOutput) -> dict:
@@ -217,7 +232,11 @@ def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float
         "warnings": list(plan.warnings),
         "switches": switches,
         "initial_correction": dict(plan.initial_correction),
-        "robust_solve": robust_summary(mod, out),
+        "robust_solve": robust_summary(mod, out, plan.solve),
+        "bounds": {
+            "energy_drift": plan.drift_limit if math.isfinite(plan.drift_limit) else None,
+            "violation": plan.violation_limit if math.isfinite(plan.violation_limit) else None,
+        },
         "partition": _partition(plan),
     }
 

@@ -161,7 +161,7 @@ def project_onto_manifold(module, info, x: np.ndarray, p: np.ndarray, max_rank: 
     proj = ProjectionOptions(
         "onto-manifold", weight="identity", iterations=20, jacobian="updated", energy=False
     ).as_array(info)
-    if module.ROBUST:
+    if module.ROBUST and not module.DECLARED:  # no declared partition, or redundant equations
         y, code = module.project_state_robust(0.0, x, p, proj, max_rank)
     else:
         y, code = module.project_state(0.0, x, p, proj)

@@ -24,6 +24,7 @@ from ..integrate.projection import ProjectionOptions, projection_options
 from ..kernel.built import built
 from ..kernel.info import ModelInfo
 from ..schema import LIMITS, RunSettings
+from .bounds import run_bounds
 from .initial import default_state, initial_state
 from .partition import max_rank, partition
 from .registry import get_system, system_names
@@ -62,6 +63,8 @@ class Plan:
     solve: int = 2  # the constraint solve (kernels with the rank-robust one): 0 paper, 1 robust, 2 auto
     max_rank: int = -1  # independent constraint equations (n − p, or the rank at the default state)
     order: tuple[int, ...] = ()  # the partition to start with, as the kernel's column order
+    drift_limit: float = math.inf  # |E − E0| past this ends the run "drifted" (run.bounds)
+    violation_limit: float = math.inf  # a reported violation past this too
 
     @property
     def info(self) -> ModelInfo:
@@ -114,6 +117,7 @@ def resolve(settings: RunSettings | Mapping, max_rows: int | None = None) -> Pla
     x0, full = initial_state(system, variant, params, dict(s.initial), project=s.project_initial, correction=correction)
     p = b.param_vector(variant, params)
     _check_finite_start(system, variant, p, x0, full)
+    drift_limit, violation_limit = run_bounds(s, b.module(variant), info, x0, p)
     if correction:
         warnings.append(
             "the initial state was projected onto the constraint manifold: "
@@ -146,6 +150,8 @@ def resolve(settings: RunSettings | Mapping, max_rows: int | None = None) -> Pla
         solve=solve,
         max_rank=rank,
         order=order,
+        drift_limit=drift_limit,
+        violation_limit=violation_limit,
     )
 
 
@@ -284,29 +290,22 @@ SOLVES = {"paper": 0, "robust": 1, "auto": 2}
 
 def _solve(s: RunSettings, system: System, variant: str, where: str) -> tuple[int, int, tuple[int, ...]]:
     """(solve code, the rank the robust solve may keep, the partition to start with as the
-    kernel's column order) — checked against what the variant's kernel can do."""
+    kernel's column order) — the request's solve, or the system's default, checked against
+    the variant's constraints."""
     module = built(system).module(variant)
-    if not module.ROBUST:
-        if s.solve == "robust":
-            raise InputError(
-                "solve",
-                s.solve,
-                f"auto | paper for {where} (its kernel has the paper's solve only: it declares a partition "
-                "with one dependent speed per constraint; declare singular_positions=True in its model for the "
-                "rank-robust one)",
-                "no rank-robust solve in this kernel",
-            )
-        return 0, -1, ()
+    name = s.solve or system.default_solve
+    if not module.ROBUST:  # no constraints: nothing to solve for
+        return SOLVES[name], -1, ()
     rank = max_rank(system, variant, default_state(system))
-    if s.solve == "paper" and rank < module.M:
+    if name == "paper" and rank < module.M:
         raise InputError(
             "solve",
-            s.solve,
+            name,
             f"auto | robust for {where}: its {module.M} constraint equations have rank {rank} (redundant ones), "
             "so no partition has a square, invertible J2",
             "no partition for the paper's solve",
         )
-    return SOLVES[s.solve], rank, partition(system, variant).order
+    return SOLVES[name], rank, partition(system, variant).order
 
 
 def _projection(
@@ -351,6 +350,7 @@ def _resolved(s: RunSettings, system: System, variant, method, dt, t_final, para
             "gamma1": system.default_gamma1 if s.gamma1 is None else s.gamma1,
             "gamma2": system.default_gamma2 if s.gamma2 is None else s.gamma2,
             "projection": proj.name,
+            "solve": s.solve or system.default_solve,
         }
     )
     if proj.name != "none":

@@ -21,7 +21,7 @@ from ..kernel.constants import (
     STATS_ROBUST_EVALS,
 )
 
-__all__ = ["inconsistency", "robust_summary", "solve_switches"]
+__all__ = ["inconsistency", "robust_in_use", "robust_summary", "solve_switches"]
 
 NAMES_SHOWN = 6  # equations named in a switch before "… (k in all)"
 
@@ -80,11 +80,19 @@ def inconsistency(info, out: LoopOutput) -> dict:
     return {"rank": int(row[3]), "m": info.m, "dropped": _names(_dropped(info, row)), "residual": float(row[2])}
 
 
-def robust_summary(module, out: LoopOutput) -> dict | None:
-    """What the rank-robust solve did in a run (kernels with it): how many evaluations used it,
-    its smallest kept pivot and rank, the largest kinetic-energy share of a projection's speed
-    correction, and the solve changes not listed (beyond the loops' record buffers)."""
-    if not getattr(module, "ROBUST", False):
+def robust_in_use(module, solve: int) -> bool:
+    """Whether a run's evaluations went through the rank-robust machinery: kernels with it,
+    unless the paper's solve (0) was asked for on a declared partition (csrc/nmk.h's
+    ``robust_in_use``)."""
+    return bool(getattr(module, "ROBUST", False)) and not (getattr(module, "DECLARED", False) and solve == 0)
+
+
+def robust_summary(module, out: LoopOutput, solve: int) -> dict | None:
+    """What the rank-robust solve did in a run (kernels with it, unless the run asked for the
+    paper's solve on a declared partition): how many evaluations used it, its smallest kept
+    pivot and rank, the largest kinetic-energy share of a projection's speed correction, and the
+    solve changes not listed (beyond the loops' record buffers)."""
+    if not robust_in_use(module, solve):
         return None
     stats = out.stats
     evals = int(stats[STATS_ROBUST_EVALS])

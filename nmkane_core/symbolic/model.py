@@ -108,9 +108,9 @@ class MechanicalModel:
     singular_positions : bool, optional
         Declare that the motion may pass positions where the constraints lose rank (a
         mechanism through a dead centre or a bifurcation: the N-four-bar at its horizontal
-        position).  The kernel then gets the rank-robust solve even with a declared,
-        non-redundant partition (models without a partition or with redundant equations get
-        it anyway; ``docs/closed-loops.md``).
+        position).  Kept for compatibility: every model with constraints now has the
+        rank-robust solve, a declared partition being the preferred one
+        (``docs/closed-loops.md`` §7.5).
     name : str, optional
         Optional short name (``"nonlinear"``, ``"linear"``, ``"nonminimal"``), shown in
         generated code and messages; a system names its variants itself.

@@ -319,6 +319,9 @@ def appell_hamel() -> System:
         default_dt=0.01,
         default_t_final=20.0,
         default_integrator="kutta-merson",
+        # the paper's solve on the declared partition: the paper's claims (and its singular J2
+        # where the wheel stops rolling) are about it; solve="auto" is one option away
+        default_solve="paper",
         description=(
             "The paper's Example 1: a frame sliding on the plane carries a wheel W that rolls without "
             "slipping and two pulleys; a thread from the wheel's drum over the pulleys holds a load P that "

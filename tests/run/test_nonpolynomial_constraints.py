@@ -408,7 +408,7 @@ def test_end_of_a_square_roots_branch_is_reported_not_integrated(integrator):
     settings = {"system": "np-branch", "integrator": integrator, "dt": 0.001, "t_final": 3.0}
     run = simulate(settings, progress=False, time_limit=60)
     s = run.summary
-    assert run.status in ("singular", "diverged", "failed"), s["message"]
+    assert run.status in ("singular", "diverged", "drifted", "failed"), s["message"]
     assert run.status != "failed" or "cannot be continued" in s["message"] or "max_rows" in s["message"], s
     assert T_STAR - 0.05 < s["t_end"] < T_STAR + 0.01, s
     arrays = [run.t, run.energy, *run.state.values(), *run.violation.values()]
@@ -427,7 +427,7 @@ def test_end_of_a_square_roots_branch_with_projection_and_gamma():
         progress=False,
         time_limit=60,
     )
-    assert run.status in ("singular", "diverged", "failed"), run.summary["message"]
+    assert run.status in ("singular", "diverged", "drifted", "failed"), run.summary["message"]
     assert run.summary["t_end"] < T_STAR + 0.02
     assert all(np.all(np.isfinite(v)) for v in run.state.values())
 

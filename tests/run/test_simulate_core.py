@@ -110,10 +110,20 @@ def test_singular_start_of_nonlinear_model_is_reported_not_integrated():
     assert all(np.all(np.isfinite(v)) for v in run.state.values())
 
 
-def test_diverging_run_stops_with_status_and_finite_data():
-    # a destabilizing gain with a large step blows up: reported, never NaN in the result
-    run = simulate({"system": "sliding-particle", "gamma1": 500, "gamma2": 5000, "dt": 0.05, "t_final": 200})
-    assert run.status == "diverged"
+@pytest.mark.parametrize("bound", [None, 1e300])
+def test_diverging_run_stops_with_status_and_finite_data(bound):
+    """A destabilizing gain with a large step blows up: reported, never NaN in the result.  The
+    default energy bound (10⁶ × the initial energy scale) stops it ``drifted`` at the first state
+    past it; without it the run goes on until the state is no longer finite (``diverged``)."""
+    req = {"system": "sliding-particle", "gamma1": 500, "gamma2": 5000, "dt": 0.05, "t_final": 200}
+    run = simulate({**req, "max_energy_drift": bound}, progress=False)
+    if bound is None:
+        assert run.status == "drifted" and "past the run's bound" in run.summary["message"]
+        limit = run.summary["bounds"]["energy_drift"]
+        assert limit == pytest.approx(1e6 * 9.81)  # |E0| = 9.81 J, at rest
+        assert limit < run.summary["max_abs_energy_drift"] < 1e20  # stopped at the first state past it
+    else:
+        assert run.status == "diverged" and run.summary["bounds"]["energy_drift"] == 1e300
     assert all(np.all(np.isfinite(v)) for v in run.state.values())
     assert np.all(np.isfinite(run.energy))
     assert any("not stable" in w for w in run.summary["warnings"])

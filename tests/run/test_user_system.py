@@ -80,7 +80,9 @@ def test_user_system_compiled_rhs_agrees_with_reference():
         got, rc_j2, _ = mod.rhs(0.0, x, p, G, empty, empty)
         want = ref.rhs(0.0, x, p, G, empty, empty)
         np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
-        assert rc_j2 == 1.0  # a 1×1 J2 = cos θ: pivot ratio 1
+        # a 1×1 J2 = cos θ; auto (the default) measures it in the row equilibrated over [J1 J2]
+        c, s = abs(np.cos(x[2])), abs(np.sin(x[2]))
+        assert rc_j2 == pytest.approx(c / max(c, s), rel=1e-12)
 
 
 @pytest.mark.parametrize("integrator", ["rk4", "kutta-merson", "kutta-merson-adaptive", "dop853"])
@@ -101,12 +103,19 @@ def test_user_system_follows_the_closed_form_circle(integrator):
 
 def test_user_system_singular_constraint_jacobian_is_reported_not_integrated():
     # θ̇ = π/2: θ reaches π/2 on the step ending at t = 1 s, where J2 = cos θ vanishes (to
-    # round-off): the run stops there, says why, and keeps the good part
-    run = simulate({"system": NAME, "dt": 0.001, "t_final": 3.0, "initial": {"u3": np.pi / 2}}, progress=False)
+    # round-off).  The paper's solve stops there, says why, and keeps the good part; the default
+    # (auto) solves for u1 there instead, says so in the switches, and stays on the exact motion
+    req = {"system": NAME, "dt": 0.001, "t_final": 3.0, "initial": {"u3": np.pi / 2}}
+    run = simulate({**req, "solve": "paper"}, progress=False)
     assert run.status == "singular", run.summary["message"]
     assert 0.99 <= run.summary["t_end"] <= 1.0
     assert np.all(np.isfinite(run.state["u2"]))
     np.testing.assert_allclose(run.state["x"], 2 / np.pi * np.sin(np.pi / 2 * run.t), atol=1e-9)
+    auto = simulate(req, progress=False)
+    assert auto.status == "ok", auto.summary["message"]
+    first = auto.summary["switches"][0]
+    assert 0.9 < first["t"] <= 1.0 and first["to"] == "partition u_I = (u3, u2)", first
+    np.testing.assert_allclose(auto.state["x"], 2 / np.pi * np.sin(np.pi / 2 * auto.t), atol=1e-9)
 
 
 def test_user_system_passes_near_the_singularity_accurately_and_reports_how_near():

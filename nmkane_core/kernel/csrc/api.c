@@ -103,7 +103,8 @@ NMK_EXPORT void nmk_state_terms(const nmk_model *md, double t, const double *x, 
 }
 
 /* Project one state (y, in place) onto the constraint manifold (initial states); max_rank >= 0
- * sets the rank of the model's constraints (kernels with the robust solve).  Returns the
+ * sets the rank of the model's constraints and asks for the robust projection (kernels with the
+ * robust solve), −1 the paper's (on a declared partition: project_paper).  Returns the
  * projection's code (0 ok, 1 a singular correction matrix, 2 left the constraints; -1 no memory). */
 NMK_EXPORT i64 nmk_project_state(const nmk_model *md, double t, double *y, const double *p, const i64 *proj,
                                  i64 max_rank) {
@@ -115,6 +116,7 @@ NMK_EXPORT i64 nmk_project_state(const nmk_model *md, double t, double *y, const
     if (w && ps && viol) {
         init_workspace(md, w);
         if (md->ROBUST && max_rank >= 0) w[md->OSV + SV_MAX_RANK] = (double)max_rank;
+        if (md->ROBUST && max_rank < 0) w[md->OSV + SV_MODE] = 0.0;
         code = project(md, t, y, p, w, ps, proj, 0.0, viol, md->PERM);
     }
     free(w);

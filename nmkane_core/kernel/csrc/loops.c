@@ -19,7 +19,7 @@ static void init_workspace(const nmk_model *md, double *w) {
  * w[OFLAG] set, what forces() needs is kept (keep_for_forces). */
 static NMK_HOT void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                    const double *G1, const double *G2, double *K, i64 row, double *w) {
-    if (md->ROBUST)
+    if (robust_in_use(md, w))
         rhs_robust(md, t, x, p, G, G1, G2, K, row, w);
     else
         rhs_paper(md, t, x, p, G, G1, G2, K, row, w);
@@ -48,6 +48,7 @@ static int finite_work(const nmk_model *md, const double *w) {
 static i64 robust_outcome(const nmk_model *md, double t, double h, double *w, double *stats, i64 *order,
                           nmk_log *solve_log, int start) {
     const i64 OSV = md->OSV;
+    if (!robust_in_use(md, w)) return STATUS_OK;
     double st = w[OSV + SV_STATUS];
     if (st == 2.0 && !start) {
         st = 0.0;
@@ -122,12 +123,22 @@ static double record(const nmk_model *md, double t, const double *x, const doubl
     return E;
 }
 
+/* Whether an accepted state (its energy E and violations, from record) is past the run's bounds:
+ * |E − E0| above drift_limit or a violation above violation_limit (STATUS_DRIFTED). */
+static int past_bounds(const nmk_model *md, double E, const double *viol, const double *stats, double drift_limit,
+                       double violation_limit) {
+    if (fabs(E - stats[STATS_E0]) > drift_limit) return 1;
+    for (i64 i = 0; i < md->NV; ++i)
+        if (fabs(viol[i]) > violation_limit) return 1;
+    return 0;
+}
+
 /* The constraint forces of the state whose derivative is K[krow] (after rhs_ws with w[OFLAG]
  * set): F_c = Q u' - P into w[OFC] ([u_I, u_D] order) and the multipliers lambda of F_c =
  * J^T lambda into w[OLAM], from the dependent rows (F_c)_D = J2^T lambda.  u' is the run's own,
  * the Baumgarte terms included. */
 static void forces(const nmk_model *md, double *w, const double *K, i64 krow) {
-    if (md->ROBUST)
+    if (robust_in_use(md, w))
         forces_robust(md, w, K, krow);
     else
         forces_paper(md, w, K, krow);
@@ -258,6 +269,10 @@ static i64 integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double 
             status = STATUS_DIVERGED;
             break;
         }
+        if (past_bounds(md, E, s.viol, a->stats, a->drift_limit, a->violation_limit)) {
+            status = STATUS_DRIFTED;
+            break;
+        }
         for (i64 j = 0; j < n2; ++j) x[j] = xn[j];
         if ((k + 1) % every == 0 || k + 1 == nsteps) {
             write_row(md, row, tn, x, E, s.viol, a->out_t, a->out_x, a->out_E, a->out_V);
@@ -371,6 +386,10 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
             double E = record(md, tn, xn, a->p, s.viol, a->stats, md->NV);
             if (!isfinite(E)) {
                 status = STATUS_DIVERGED;
+                break;
+            }
+            if (past_bounds(md, E, s.viol, a->stats, a->drift_limit, a->violation_limit)) {
+                status = STATUS_DRIFTED;
                 break;
             }
             t = tn;

@@ -48,6 +48,14 @@ typedef double (*nmk_diag)(double t, const double *x, const double *p, double *v
 #define SV_STAB 15    /* the Baumgarte terms' share of the kinetic energy (per step: x h^2) */
 #define SV_FADE 16    /* 1.0: the Baumgarte terms of vanishing rows fade */
 
+/* Whether a work array's evaluations go through the rank-robust machinery (robust.c, the
+ * robust projection): in kernels with it, unless the paper's solve is asked for on a declared,
+ * non-redundant partition (DECLARED) — that is the paper's own path (rhs_paper, forces_paper,
+ * project_paper: its bits and its condition estimate). */
+static inline int robust_in_use(const nmk_model *md, const double *w) {
+    return md->ROBUST && !(md->DECLARED && w[md->OSV + SV_MODE] == 0.0);
+}
+
 /* The right-hand side's own functions: pasted into their caller in the specialised build (its
  * sizes constant, so the small loops unroll), called in the generic one. */
 #ifdef NMK_SPECIAL

@@ -114,6 +114,6 @@ static i64 project_paper(const nmk_model *md, double t, double *x, const double 
  * the constraints). */
 static i64 project(const nmk_model *md, double t, double *x, const double *p, double *w, double *ps,
                    const i64 *proj, double E0, double *viol, const i64 *perm) {
-    if (md->ROBUST) return project_robust(md, t, x, p, w, proj, E0, viol);
+    if (robust_in_use(md, w)) return project_robust(md, t, x, p, w, proj, E0, viol);
     return project_paper(md, t, x, p, w, ps, proj, E0, viol, perm);
 }

@@ -436,6 +436,21 @@ static void stab_share(const nmk_model *md, const double *x, double *w, int pape
     w[md->OSV + SV_STAB] = ke > 0.0 ? ds / ke : 0.0;
 }
 
+/* Whether an evaluation is near a singular position, where the Baumgarte terms' share of the
+ * kinetic energy is judged (ROBUST_LEAVE_KE): the robust solve was used (used = 1), or a row of J
+ * is shorter than ROBUST_NEAR_SINGULAR of the longest (|J_i|∞ at ORN, from constraint_rhs).  Away
+ * from one — a start from rest, say — the share is no sign of a motion leaving its branch. */
+static int near_singular(const nmk_model *md, const double *w, i64 m, double used) {
+    if (used == 1.0)
+        return 1;
+    double longest = 0.0, shortest = INFINITY;
+    for (i64 i = 0; i < m; i++) {
+        longest = nmk_max(longest, w[md->ORN + i]);
+        shortest = nmk_min(shortest, w[md->ORN + i]);
+    }
+    return longest > 0.0 && shortest < ROBUST_NEAR_SINGULAR * longest;
+}
+
 /* rhs_ws of a kernel with the rank-robust solve: ẋ = [C u + D; u'] into K[row] by the paper's
  * solve with the current partition, another partition, or the robust solve (w[OSV]). */
 static void rhs_robust(const nmk_model *md, double t, const double *x, const double *p, const double *G,
@@ -455,6 +470,19 @@ static void rhs_robust(const nmk_model *md, double t, const double *x, const dou
     w[md->ORC] = 1.0;
     w[md->ORC + 1] = 1.0;
     constraint_rhs(md, w, G, G1, G2, m);
+    for (i64 i = 0; i < m; i++) {
+        if (!isfinite(w[md->ORN + i]) || !isfinite(w[md->OCV + i])) {
+            /* the constraints' expressions are not defined here (the end of a square root's branch,
+             * a zero denominator): no partition or solve helps; u' is NaN, the estimates 0, and
+             * the loops end the run diverged at the last good state, as with the paper's solve */
+            for (i64 j = 0; j < n; j++)
+                K[row * 2 * n + n + j] = NAN;
+            w[md->ORC] = 0.0;
+            w[md->ORC + 1] = 0.0;
+            w[md->OSV + SV_STAB] = 0.0;
+            return;
+        }
+    }
     double used = 1.0;
     if (w[md->OSV + SV_MODE] != 1.0 && w[md->OSV + SV_MAX_RANK] == (double)md->M && md->M <= md->N) {
         used = 0.0;
@@ -475,7 +503,7 @@ static void rhs_robust(const nmk_model *md, double t, const double *x, const dou
         w[md->ORC] = 1.0; /* no J2 in this solve */
         robust_rhs(md, w, K, row, n, m);
     }
-    if (w[md->ORC + 1] > 0.0 && w[md->OSV + SV_STATUS] == 0.0)
+    if (w[md->ORC + 1] > 0.0 && w[md->OSV + SV_STATUS] == 0.0 && near_singular(md, w, m, used))
         stab_share(md, x, w, used == 0.0);
     else
         w[md->OSV + SV_STAB] = 0.0;
