@@ -116,7 +116,8 @@ class RunSettings(BaseModel):
         None,
         description="post-step constraint correction (geometric elimination): none | blajer "
         "(Euclidean weight, energy restored) | yoon (kinetic-energy weight); see nmkane_core.integrate.projection; "
-        "default: the system's (none for most; yoon for mechanisms that pass singular positions)",
+        "default: the system's (none for most; yoon for mechanisms that pass singular positions and for "
+        "redundant constraint equations)",
     )
     solve: SolveName | None = Field(
         None,

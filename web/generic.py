@@ -25,6 +25,7 @@ import numpy as np
 from nmkane_core.analysis import expressions as ex
 from nmkane_core.kernel.built import built
 from nmkane_core.run.initial import default_state
+from nmkane_core.run.plan import default_projection
 from nmkane_core.run.registry import get_system
 from nmkane_core.schema import PROJECTIONS
 
@@ -157,7 +158,7 @@ def _choosers(core, prefix: str, show: dict) -> list[Control]:
     integ = show.get("integrator", core.default_integrator)
     integ = integ if integ in INTEGRATORS else core.default_integrator
     out.append(Control(f"{prefix}integrator", "Integrator", "integrator", integ, kind="dropdown", options=INTEGRATORS))
-    proj = show.get("projection", core.default_projection)  # the system's own (A02 declares one)
+    proj = show.get("projection", default_projection(core, core.default_variant))  # the system's own
     proj = proj if proj in PROJECTIONS else "none"
     out.append(Control(f"{prefix}projection", "Projection", "projection", proj, kind="dropdown", options=PROJECTIONS))
     return out

@@ -90,8 +90,10 @@ class System:
     default_dt, default_t_final, default_integrator, default_gamma, default_gamma1, default_gamma2:
         Run settings used when a request leaves them out.
     default_projection:
-        The post-step projection of runs that do not choose one (``none``, ``blajer``, ``yoon``):
-        a mechanism that passes singular positions needs the mass-metric projection (``yoon``)
+        The post-step projection of runs that do not choose one (``none``, ``blajer``, ``yoon``,
+        or ``auto``, the default: ``yoon`` for a model whose constraint equations are redundant
+        — their rank below their number, which drift makes inconsistent — else ``none``): a
+        mechanism that passes singular positions needs the mass-metric projection (``yoon``)
         to stay on its branch (docs/closed-loops.md §5); scipy integrators run without it.
     default_solve:
         The constraint solve of runs that do not choose one: ``"auto"`` (the default: the
@@ -150,7 +152,7 @@ class System:
     default_gamma: float = 0.0
     default_gamma1: float = 0.0
     default_gamma2: float = 0.0
-    default_projection: str = "none"
+    default_projection: str = "auto"
     default_solve: str = "auto"
     source_files: tuple[str, ...] = ()
     visuals: Callable[[], Any] | None = None
@@ -193,9 +195,12 @@ class System:
         }
         for label, setting in (("default_dt", "dt"), ("default_t_final", "t_final")):
             self._in_range(label, setting)
-        if self.default_projection not in PROJECTIONS:
+        if self.default_projection not in (*PROJECTIONS, "auto"):
             raise InputError(
-                f"{self.name}: default_projection", self.default_projection, " | ".join(PROJECTIONS), "unknown"
+                f"{self.name}: default_projection",
+                self.default_projection,
+                " | ".join((*PROJECTIONS, "auto")),
+                "unknown",
             )
         if self.default_solve not in SOLVES:
             raise InputError(f"{self.name}: default_solve", self.default_solve, " | ".join(SOLVES), "unknown")

@@ -30,7 +30,16 @@ from .partition import max_rank, partition
 from .registry import get_system, system_names
 from .settings import raise_all, shown, validate_settings
 
-__all__ = ["Plan", "check_budget", "min_every", "output_rows", "resolve", "round_up", "validate_settings"]
+__all__ = [
+    "Plan",
+    "check_budget",
+    "default_projection",
+    "min_every",
+    "output_rows",
+    "resolve",
+    "round_up",
+    "validate_settings",
+]
 
 
 @dataclass
@@ -110,7 +119,7 @@ def resolve(settings: RunSettings | Mapping, max_rows: int | None = None) -> Pla
     b = built(system)
     info = b.info(variant)
     where = system.name if len(system.variants) == 1 else f"the {variant} {system.option} of {system.name}"
-    proj = _projection(s, system, method, info, where, warnings)
+    proj = _projection(s, system, variant, method, info, where, warnings)
     solve, rank, order = _solve(s, system, variant, where)
     G, G1, G2 = _gains(s, system, info, where, warnings)
     correction: dict[str, float] = {}
@@ -308,12 +317,25 @@ def _solve(s: RunSettings, system: System, variant: str, where: str) -> tuple[in
     return SOLVES[name], rank, partition(system, variant).order
 
 
+def default_projection(system: System, variant: str | None = None) -> str:
+    """The projection a run of ``variant`` gets when it names none: the system's
+    ``default_projection``, with ``auto`` resolved — ``yoon`` where the variant's constraint
+    equations are redundant (rank below their number: drift makes them inconsistent, and the
+    mass-metric projection keeps the state where they agree), else ``none``."""
+    name = system.default_projection
+    if name != "auto":
+        return name
+    variant = system.check_variant(variant)
+    m = built(system).info(variant).m
+    return "yoon" if m and max_rank(system, variant, default_state(system)) < m else "none"
+
+
 def _projection(
-    s: RunSettings, system: System, method, info: ModelInfo, where: str, warnings: list[str]
+    s: RunSettings, system: System, variant: str, method, info: ModelInfo, where: str, warnings: list[str]
 ) -> ProjectionOptions:
     name: str = "none" if s.projection is None else s.projection
     if s.projection is None:  # the system's default — one a scipy solver cannot use is left out
-        name = system.default_projection
+        name = default_projection(system, variant)
         if name != "none" and method.kind == "scipy":
             warnings.append(f"{where} projects after each step by default ({name}); scipy integrators cannot: none")
             name = "none"

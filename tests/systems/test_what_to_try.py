@@ -22,6 +22,7 @@ import pytest
 
 from nmkane_core import simulate
 from nmkane_core.errors import InputError
+from nmkane_core.run.plan import default_projection, resolve
 from nmkane_core.run.registry import get_system, system_names
 from nmkane_core.systems import iftomm_a01
 from web.controls import settings_from
@@ -447,11 +448,13 @@ def test_iftomm_a05_softer_springs_stretch():
 
 def test_the_page_starts_with_each_systems_declared_projection():
     """A02's paragraph speaks of its defaults' projection: the page's chooser starts at the
-    system's ``default_projection`` (it started at "none" whatever the system declared)."""
+    system's ``default_projection`` (it started at "none" whatever the system declared), with
+    ``auto`` resolved as runs resolve it (yoon for redundant constraint equations)."""
     for name in system_names():
         core = get_system(name)
         chosen = {c.field: c.default for c in generic_controls(core, "p_")}.get("projection")
-        assert chosen == core.default_projection, name
+        assert chosen == default_projection(core, core.default_variant) == resolve({"system": name}).projection.name
+        assert chosen in ("none", "yoon"), name
 
 
 def test_every_systems_default_gains_lie_on_the_pages_gain_sliders():
