@@ -5,8 +5,9 @@ This module is the app's public face; the parts live in:
 
 * :mod:`web.server` — the viser server, one session per browser, the animation thread,
   :func:`launch_app` / :func:`launch` (background) and :func:`main` (``python -m web``);
-* :mod:`web.session` — one browser's page (:class:`MechanismApp`): controls, scene, camera
-  and trajectory wired together;
+* :mod:`web.session` — one browser's page (:class:`MechanismApp`): a small coordinator of
+  :mod:`web.playback` (the shown time, the frames), :mod:`web.scenes` (scene switching) and
+  :mod:`web.session_runs` (a control change run and installed);
 * :mod:`web.generic` — the one system view, :class:`~web.generic.GenericView`: controls,
   runs (with compare ghosts), plots and scene from the core system's declaration;
 * :mod:`web.declared` — the visuals a system declares (:mod:`nmkane_core.declare.visuals`) as a
@@ -15,7 +16,8 @@ This module is the app's public face; the parts live in:
   non-finite or out-of-range slider values;
 * :mod:`web.runs` — re-simulation on a control change via :mod:`web.worker`;
 * :mod:`web.panel` — plots, summary, status text and the derived-matrices panel;
-* :mod:`web.camera` — following the system while keeping the viewer's orbit.
+* :mod:`web.camera` — following the system while keeping the viewer's orbit;
+* :mod:`web.viser_compat` — every use of viser's private API, in one place.
 
 Geometry helpers live in :mod:`web.geometry`, plot data in :mod:`web.plots`, the matrices
 in :mod:`web.matrices`.  Nothing in ``web/`` names a system (a test checks it).

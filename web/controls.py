@@ -172,6 +172,12 @@ class ControlPanel:
             c.label, float(c.default), c.min, c.max, c.step, log=c.log, digits=c.digits, unit=c.unit, hint=c.hint
         )
 
+    def form(self, label: str, **kw):
+        """A folder whose boxes apply what is typed on Enter (viser's form)."""
+        form = self.gui.add_form(label, **kw)
+        form.on_submit(lambda _: self.submit())
+        return form
+
     def number(self, label: str, default: float, lo: float, hi: float, step: float, **kw) -> NumberField:
         f = NumberField(
             self.gui, label, default, lo, hi, step, deadlines=self.deadlines, report=self._report, lock=self.lock, **kw

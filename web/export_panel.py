@@ -7,7 +7,9 @@ time the playback bar shows.
 The panel sits where the live page's control panel does (right of the canvas, the camera
 frames the scene left of it) and folds away (``<details>``).  Its script reads the playback
 bar's time from viser's slider (``[role=slider]``, ``aria-valuenow``: seconds of playback)
-and converts it to simulated time with the recording's speed.
+and converts it to simulated time with the recording's speed.  The page also gets the
+live page's whole frames (:func:`web.viser_compat.whole_frames_script`): every recorded
+instant is drawn together, the rods with the bodies.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ import re
 from nmkane_core.kernel.built import built
 
 from . import plots as pl
+from . import viser_compat as compat
 from .camera import PANEL_PX
 from .panel import summary_rows
 
@@ -152,8 +155,9 @@ def panel_html(view, traj, shots, title: str | None = None) -> str:
 
 
 def inject(page: str, view, traj, shots, title: str | None = None) -> str:
-    """viser's standalone page with the panel added and the system's title as the page's."""
+    """viser's standalone page with the panel added, each frame drawn whole, and the system's
+    title as the page's."""
     name = html.escape(f"{title or view.title} — nmkane")
     page = page.replace("<title>Viser</title>", f"<title>{name}</title>", 1)
     end = page.rindex("</body>")
-    return page[:end] + panel_html(view, traj, shots, title) + page[end:]
+    return page[:end] + panel_html(view, traj, shots, title) + compat.whole_frames_script() + page[end:]

@@ -17,17 +17,19 @@ every scene however it is declared.  :func:`follow_camera` sends the two camera 
 the setters would send and keeps viser's camera state consistent, without the orientation
 (nothing of ours reads it; the browser reports its own camera back).
 
-Both reach into viser 1.1 internals; :func:`install` checks the function it replaces has
-the signature it expects and leaves viser alone otherwise (correct, only slower).
+Both reach into viser 1.1 internals, through :mod:`web.viser_compat`: :func:`install`
+leaves viser alone when the function it replaces has another signature, and
+:func:`follow_camera` falls back to the setters when the camera differs (correct, only
+slower).
 """
 
 from __future__ import annotations
 
-import inspect
 import math
-import time
 
 import numpy as np
+
+from . import viser_compat as compat
 
 RTOL, ATOL = 1e-5, 1e-8  # np.allclose's defaults, as viser's change test
 
@@ -65,30 +67,16 @@ def install() -> bool:
     global _installed
     if _installed:
         return True
-    from viser import _scene_handles
-
-    original = getattr(_scene_handles, "_set_pose_vector", None)
-    if original is None or list(inspect.signature(original).parameters) != [
-        "current",
-        "value",
-        "length",
-        "queue",
-        "make_message",
-    ]:
-        return False
-    _scene_handles._set_pose_vector = _set_pose_vector
-    _installed = True
-    return True
+    _installed = compat.replace_pose_setter(_set_pose_vector)
+    return _installed
 
 
 def follow_camera(camera, position, look_at) -> None:
     """Move a client's camera to ``position`` looking at ``look_at`` (3-vectors): the
     messages ``camera.position = …; camera.look_at = …`` send, without recomputing the
     orientation.  Falls back to the setters if viser's camera differs from 1.1's."""
-    from viser import _messages
-
-    state = getattr(camera, "_state", None)
-    if state is None or not hasattr(state, "client"):
+    current = compat.camera_pose(camera)
+    if current is None:
         camera.position = position
         camera.look_at = look_at
         return
@@ -97,11 +85,8 @@ def follow_camera(camera, position, look_at) -> None:
     pos, at = (px, py, pz), (ax, ay, az)
     if not all(map(math.isfinite, pos + at)):
         raise ValueError(f"camera position {pos} / look_at {at}: finite numbers are needed")
-    conn = state.client._websock_connection
-    if not _unchanged(pos, state.position):
-        state.position = np.array(pos)
-        conn.queue_message(_messages.SetCameraPositionMessage(pos))
-    if not _unchanged(at, state.look_at):
-        state.look_at = np.array(at)
-        conn.queue_message(_messages.SetCameraLookAtMessage(at))
-    state.update_timestamp = time.time()
+    compat.send_camera(
+        camera,
+        None if _unchanged(pos, current[0]) else pos,
+        None if _unchanged(at, current[1]) else at,
+    )

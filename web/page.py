@@ -1,14 +1,17 @@
-"""The browser page's own side of a session: its address bar, its clipboard, its renderer.
+"""The browser page's own side of a session: its address bar, its clipboard, its renderer,
+its frames.
 
 viser 1.1 gives the server no view of the page's address (its websocket URL drops the
 query) and no public way to run script in the page, but its client runs the source of a
 ``RunJavascriptMessage`` (the message viser itself uses to load plotly) and exposes
-``window.__viserMutable.sendMessage``.  :class:`PageBridge` uses both: a small script asks
-the page for ``location.search`` or copies ``location.href`` to the clipboard and answers
-through a hidden text box of the session (a ``GuiUpdateMessage`` to its uuid, exactly what
-typing in a box sends), and another writes the address with ``history.replaceState`` (no
-reload, no history entry).  Everything sent to the page is JSON-encoded data in a fixed
-script, so nothing typed by a person or read from a link becomes code.
+``window.__viserMutable.sendMessage`` (both reached through :mod:`web.viser_compat`).
+:class:`PageBridge` uses both: a small script asks the page for ``location.search`` or
+copies ``location.href`` to the clipboard and answers through a hidden text box of the
+session (what typing in a box sends), and another writes the address with
+``history.replaceState`` (no reload, no history entry).  Everything sent to the page is
+JSON-encoded data in a fixed script, so nothing typed by a person or read from a link
+becomes code.  :meth:`PageBridge.whole_frames` makes the page draw every frame whole
+(:data:`web.viser_compat.WHOLE_FRAMES`).
 
 Without a browser (a test's shared server, or a viser whose internals differ) the bridge
 does nothing and says so: ``active`` is False.
@@ -20,10 +23,7 @@ import json
 from collections.abc import Callable
 from typing import Any
 
-_SEND = (
-    "const m = window.__viserMutable; if (!m || !m.sendMessage) return;"
-    "const send = (o) => m.sendMessage({type: 'GuiUpdateMessage', uuid: UUID, updates: {value: JSON.stringify(o)}});"
-)
+from . import viser_compat as compat
 
 _ASK = "send({kind: 'address', search: window.location.search});"
 
@@ -154,7 +154,7 @@ class PageBridge:
         # was answered, replaced that answer (the page never opened on its link)
         self.renderer_inbox = gui.add_text("page renderer", "", visible=False)
         self.renderer_inbox.on_update(lambda _: self._received(self.renderer_inbox))
-        self.active = client is not None and _queue(client) is not None
+        self.active = compat.queue(client) is not None
 
     def _received(self, box) -> None:
         try:
@@ -168,16 +168,12 @@ class PageBridge:
         """Run a script in the page: ``body`` with the names of ``data`` bound to their values
         (JSON) and ``send(obj)`` answering (into ``inbox``, default the shared one); False when
         there is no page to run it in."""
-        queue = _queue(self.client) if self.client is not None else None
-        if queue is None:
+        if self.client is None:
             return False
-        from viser import _messages
-
         binds = "".join(f"const {k} = {json.dumps(v)};" for k, v in data.items())
         box = inbox if inbox is not None else self.inbox
-        source = "(function () {" + _SEND.replace("UUID", json.dumps(box._impl.uuid)) + binds + body + "})();"
-        queue(_messages.RunJavascriptMessage(source=source))
-        return True
+        source = "(function () {" + compat.page_send(compat.gui_uuid(box)) + binds + body + "})();"
+        return compat.run_javascript(self.client, source)
 
     def ask_address(self) -> bool:
         return self.run(_ASK)
@@ -194,20 +190,12 @@ class PageBridge:
     def copy_address(self) -> bool:
         return self.run(_COPY)
 
+    def whole_frames(self) -> bool:
+        """Every frame drawn whole (:data:`web.viser_compat.WHOLE_FRAMES`): what the server
+        sends for one instant is shown together; False when there is no page."""
+        return self.client is not None and compat.run_javascript(self.client, compat.whole_frames_source())
+
     def help_plots(self) -> bool:
         """Values under the cursor at the cursor (read from uPlot's live legend), and the
         viewer's pointing and zooming reported: ``{"kind": "plots", "busy": bool}``."""
         return self.run(_PLOTS)
-
-
-def _queue(client) -> Callable[[Any], None] | None:
-    """The client's message queue (viser 1.1's ``_websock_connection.queue_message``), or None."""
-    conn = getattr(client, "_websock_connection", None)
-    queue = getattr(conn, "queue_message", None)
-    try:
-        from viser import _messages
-
-        _messages.RunJavascriptMessage  # noqa: B018
-    except (ImportError, AttributeError):
-        return None
-    return queue

@@ -13,12 +13,12 @@ URL passes it to viser's client as ``?websocket=ws://…/?token=…``), and find
 (``max_sessions``, ``NMKANE_MAX_SESSIONS``, default 40).  A turned-away browser is closed
 with code 1002, which viser's client shows as a "Connection rejected" notice with the
 reason; it retries every second while its tab has focus, and gets in when a seat is free.
-(viser 1.1 has no public hook for this: the gate is registered on its websocket server,
-``ViserServer._websock_server``, and reads the handshake from ``_live_connections``.)
+(viser 1.1 has no public hook for this: the gate is registered on its websocket server and
+reads the handshake there, through :mod:`web.viser_compat`.)
 
 viser's HTTP server (the page and its scripts, on the same port) answers the same Host
-allow-list: a request naming another host gets 403 (:meth:`WebApp._guard_http` wraps the
-``process_request`` hook of viser's ``websockets`` server, found once at start).
+allow-list: a request naming another host gets 403 (:meth:`WebApp._guard_http`, through
+:func:`web.viser_compat.guard_http`).
 
 Capacity: the animation thread poses every session at ``FPS``, or less with many sessions:
 it works at most ``DUTY`` of its time (a frame that took w seconds of the thread's CPU
@@ -49,6 +49,7 @@ from nmkane_core.run.simulate import simulate as core_simulate
 
 from . import fastpath
 from . import matrices as mx
+from . import viser_compat as compat
 from .generic import warm_systems
 from .session import MechanismApp, racing_a_leave
 
@@ -92,18 +93,9 @@ def _release_memory() -> None:
 
 
 def _backlog(client) -> int:
-    """Messages queued for a browser that its connection has not taken yet (0 for a test's
-    shared server, or when viser's internals differ from 1.1's; -1 once the connection is
-    closed: nothing sent to it would be delivered)."""
-    try:
-        conn = client._websock_connection
-        buf = conn.get_message_buffer()
-        cursor = buf.generator_cursors.get(conn.client_id)
-    except AttributeError:
-        return 0
-    if buf.done:
-        return -1
-    return 0 if cursor is None else max(0, buf.message_counter - 1 - cursor)
+    """Messages queued for a browser that its connection has not taken yet (−1: closed; see
+    :func:`web.viser_compat.backlog`)."""
+    return compat.backlog(client)
 
 
 def _max_sessions_default() -> int:
@@ -145,9 +137,7 @@ class WebApp:
         self.rejected = 0
         fastpath.install()  # the per-frame pose updates without viser's numpy overhead
         self.server = viser.ViserServer(host=host, port=port, label="nmkane", verbose=False)
-        ws = self.server._websock_server  # the gate runs before anything is sent
-        ws.on_client_connect(self._gate)
-        ws.on_client_disconnect(self._ungate)
+        compat.on_handshake(self.server, self._gate, self._ungate)  # the gate runs before anything is sent
         self.server.gui.configure_theme(control_width="large", show_share_button=False, show_logo=False)
         self.server.scene.set_up_direction("+z")
         self.scene = scene  # the system new browsers open on (None: the first)
@@ -197,40 +187,19 @@ class WebApp:
     def _guard_http(self) -> None:
         """Make viser's HTTP server (the page) answer 403 to a Host not allowed (see the module
         docstring); RuntimeError if viser's server cannot be found (a viser other than 1.1)."""
-        import gc
-        from http import HTTPStatus
 
-        from websockets.asyncio.server import Server
+        def refusal(request) -> str | None:
+            host = request.headers.get("Host", "")
+            if self.allowed_hosts.admits(host):
+                return None
+            self.rejected += 1
+            return f"host {host_name(host)[:40]!r} not allowed (nmkane serve --allow-host)"
 
-        found = [
-            o
-            for o in gc.get_objects()
-            # the type itself: isinstance() asks a weakref.proxy for its referent's class, and a
-            # dead proxy anywhere in the process raised ReferenceError (a CI run, after other tests)
-            if issubclass(type(o), Server)
-            and o.server is not None
-            and any(sock.getsockname()[1] == self.port for sock in o.server.sockets)
-        ]
-        if len(found) != 1:
-            raise RuntimeError(f"viser's HTTP server on port {self.port} not found (viser {viser.__version__})")
-        server = found[0]
-        original = server.process_request
-
-        def process_request(connection, request):
-            if request.headers.get("Upgrade", "").lower() != "websocket":  # the websocket: see _gate
-                host = request.headers.get("Host", "")
-                if not self.allowed_hosts.admits(host):
-                    self.rejected += 1
-                    return connection.respond(
-                        HTTPStatus.FORBIDDEN, f"host {host_name(host)[:40]!r} not allowed (nmkane serve --allow-host)\n"
-                    )
-            return original(connection, request) if original is not None else None
-
-        server.process_request = process_request
+        compat.guard_http(self.port, refusal)
 
     async def _gate(self, conn) -> None:
         """On the websocket server's event loop, before any message is sent to the connection."""
-        ws = self.server._websock_server._live_connections.get(conn.client_id)
+        ws = compat.handshake(self.server, conn.client_id)
         if ws is None:
             return
         reason = self._refusal(ws.request)
