@@ -20,8 +20,8 @@ import contextlib
 import datetime as dt
 import functools
 import threading
-from collections.abc import AsyncIterator, Iterator
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import AsyncIterator, Generator, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
@@ -103,6 +103,49 @@ class CSVResponse(Response):
     media_type = "text/csv"
 
 
+class ClosingStream(StreamingResponse):
+    """A streamed answer that closes its chunks' generator when the answer ends, sent or not.
+
+    Starlette stops reading the generator when the client is gone (dropped at the read deadline)
+    and leaves it to the garbage collector; held in a reference cycle, it stayed open until a
+    cyclic collection, with what it held (a CSV's columns) and the ``_streaming`` count, so the
+    heap trim after the last download waited as long."""
+
+    async def __call__(self, scope, receive, send) -> None:
+        try:
+            await super().__call__(scope, receive, send)
+        finally:
+            aclose = getattr(self.body_iterator, "aclose", None)  # ours are async generators
+            if aclose is not None:
+                await aclose()
+
+
+@functools.cache
+def _csv_makers() -> ThreadPoolExecutor:
+    """The threads that make CSV chunks: two, however many clients download (each chunk is made
+    from the run's columns; starlette's pool has 40 threads, each with its malloc arena, and an
+    idle one kept the arguments of its last call: a dropped client's generator)."""
+    return ThreadPoolExecutor(2, thread_name_prefix="nmkane-csv")
+
+
+async def made_in_thread(chunks: Generator[str, None, None]) -> AsyncIterator[str]:
+    """The chunks of ``chunks``, each made in a CSV thread; ``chunks`` is closed when this ends
+    (after the chunk under way, when the client left while it was made)."""
+    making: Future[str | None] | None = None
+    try:
+        while True:
+            making = _csv_makers().submit(next, chunks, None)
+            chunk = await asyncio.wrap_future(making)
+            if chunk is None:
+                return
+            yield chunk
+    finally:
+        if making is not None and not making.done():
+            making.add_done_callback(lambda _: chunks.close())
+        else:
+            chunks.close()
+
+
 @router.post(
     "/api/runs",
     status_code=201,
@@ -155,8 +198,8 @@ def get_run_csv(store: Store, run_id: str = RUN_ID):
     doc = store.document(run_id)
     if doc is None:
         return _no_run(run_id)
-    return StreamingResponse(
-        csv_chunks(doc),
+    return ClosingStream(
+        made_in_thread(csv_chunks(doc)),
         media_type=CSVResponse.media_type,
         headers={"Content-Disposition": f'attachment; filename="{run_id}.csv"'},
     )
@@ -176,7 +219,7 @@ async def get_run(store: Store, run_id: str = RUN_ID):
         return _no_run(run_id)
     size, chunks = found
     headers = {"Content-Length": str(size)} if size >= 0 else None
-    return StreamingResponse(chunks, media_type=JSONBytes.media_type, headers=headers)
+    return ClosingStream(chunks, media_type=JSONBytes.media_type, headers=headers)
 
 
 @router.delete("/api/runs/{run_id}", status_code=204, responses=DELETE_RESPONSES, operation_id="delete_run")
