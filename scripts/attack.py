@@ -173,6 +173,15 @@ def _idle(url: str) -> bool:
     return r.status_code == 200 and r.json()["runs_in_flight"] == 0
 
 
+def _in_own_loop(coroutine):
+    """Run a coroutine to its end in a thread of its own: the caller's thread may already run an
+    event loop (a test process beside Playwright's sync API), where asyncio.run refuses."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, coroutine).result()
+
+
 def hostile(url: str, pid: int, rounds: int, flood_n: int, floods: int) -> dict:
     port = int(url.rsplit(":", 1)[1])
     integrators = httpx.get(f"{url}/api/systems", timeout=60).json()["integrators"]
@@ -185,9 +194,9 @@ def hostile(url: str, pid: int, rounds: int, flood_n: int, floods: int) -> dict:
     )
     rss0, flooded = rss_mib(pid), Counter()
     t0 = time.perf_counter()
-    seen = asyncio.run(burst(port, each * rounds + once, concurrency=32))
+    seen = _in_own_loop(burst(port, each * rounds + once, concurrency=32))
     for i in range(floods):
-        flooded += asyncio.run(flood(port, flood_n))
+        flooded += _in_own_loop(flood(port, flood_n))
         print(f"attack:   flood {i + 1}/{floods} of {flood_n} connections: {dict(flooded)}", flush=True)
     wall = time.perf_counter() - t0
     until(lambda: _idle(url), 120, 0.5)  # the runs the burst started have ended
