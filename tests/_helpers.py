@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
 import re
 import signal
 import subprocess
@@ -88,6 +90,14 @@ class ServerProcess:
             self.proc.kill()
         self.proc.wait(10)
         self._reader.join(10)
+
+
+def run_coroutine(coro):
+    """``asyncio.run(coro)`` in a thread of its own: a test worker that ran the browser tests
+    keeps their Playwright session, whose event loop runs in the main thread (asyncio.run
+    there raises "cannot be called from a running event loop")."""
+    with concurrent.futures.ThreadPoolExecutor(1) as pool:
+        return pool.submit(asyncio.run, coro).result()
 
 
 def start_backend(db, env: dict | None = None) -> tuple[ServerProcess, int]:

@@ -28,7 +28,7 @@ import pytest
 from fastapi.testclient import TestClient
 
 from backend import Settings, create_app
-from tests._helpers import start_backend
+from tests._helpers import run_coroutine, start_backend
 
 ROUTES = importlib.import_module("backend.routes.runs")  # the module (backend.routes.runs is its router)
 LONG = {"system": "sliding-particle", "dt": 0.001, "t_final": 20}  # 20,001 rows: five CSV chunks
@@ -88,7 +88,7 @@ def test_a_download_whose_client_left_is_closed_at_once(tmp_path, suffix):
         assert ROUTES._streams[0] == 0
         gc.disable()  # what is closed must be closed by the answer, not found later by the collector
         try:
-            seen, still_open = asyncio.run(_leave_after_the_first_piece(client.app, f"/api/runs/{run_id}{suffix}"))
+            seen, still_open = run_coroutine(_leave_after_the_first_piece(client.app, f"/api/runs/{run_id}{suffix}"))
             assert seen[:2] == ["http.response.start", "http.response.body"], seen
             assert still_open == 0, "the download's generator is still open after its client left"
         finally:

@@ -1,28 +1,19 @@
 """Issue 16, classroom capacity: the load script's parts work (no timing asserted here: the
 numbers come from ``scripts/classroom.py`` on a quiet machine, see docs/reliability.md, "Classroom")."""
 
-import asyncio
-import concurrent.futures
 import sys
 import time
 from pathlib import Path
 
 import viser
 
+from tests._helpers import run_coroutine
 from web.server import WebApp, _backlog
 
 SCRIPTS = Path(__file__).resolve().parents[2] / "scripts"
 sys.path.insert(0, str(SCRIPTS))
 
 from viser_client import POSE_TYPES, run_clients
-
-
-def _run(coro):
-    """``asyncio.run(coro)`` in a thread of its own: a test worker that ran the browser tests
-    keeps their Playwright session, whose event loop runs in the main thread (asyncio.run
-    there raises "cannot be called from a running event loop")."""
-    with concurrent.futures.ThreadPoolExecutor(1) as pool:
-        return pool.submit(asyncio.run, coro).result()
 
 
 def test_headless_viser_clients_receive_frames():
@@ -37,7 +28,7 @@ def test_headless_viser_clients_receive_frames():
 
     app = WebApp(host="127.0.0.1", port=0)
     try:
-        stats = _run(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 3, 60.0, enough=enough))
+        stats = run_coroutine(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 3, 60.0, enough=enough))
         for s in stats:
             assert s.error is None, s.error
             assert s.types.get("GuiFolderMessage", 0) > 0 and s.types.get("GuiSliderMessage", 0) > 0
@@ -153,7 +144,7 @@ def test_a_browser_that_leaves_while_its_page_is_built_leaves_no_session(monkeyp
     monkeypatch.setattr(ws, "MechanismApp", SlowPage)
     app = WebApp(host="127.0.0.1", port=0)
     try:
-        _run(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 1, 0.5))  # comes and goes
+        run_coroutine(run_clients(f"ws://127.0.0.1:{app.port}/", viser.__version__, 1, 0.5))  # comes and goes
         assert started.wait(30), "the page was never built"
         deadline = time.monotonic() + 10
         while app.server.get_clients() and time.monotonic() < deadline:
