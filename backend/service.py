@@ -18,6 +18,7 @@ from concurrent.futures import ThreadPoolExecutor
 import orjson
 
 from nmkane_core.integrate.drivers import ROWS_PER_CHUNK
+from nmkane_core.run.accuracy import check_refined_budget
 from nmkane_core.run.plan import Plan, check_budget, resolve
 from nmkane_core.run.registry import get_system, system_names
 from nmkane_core.run.result import Run
@@ -379,6 +380,7 @@ class RunService:
         adaptive runs are bounded while running: OutputGuard and max_wall_time_s."""
         s = self.settings
         check_budget(plan.integrator, plan.dt, plan.t_final, plan.every, s.max_steps, s.max_rows, " on this service")
+        check_refined_budget(plan, s.max_steps, " on this service")  # error_estimate's second run, at dt/2
 
     def execute(self, settings: RunSettings) -> tuple[str, bytes, tuple]:
         """Resolve, check, simulate, encode (in a run worker); returns the id, the document

@@ -21,6 +21,7 @@ __all__ = [
     "RunResult",
     "Switch",
     "Event",
+    "ErrorEstimate",
     "LIMITS",
     "REST_DEFAULT_LIMITS",
     "Gain",
@@ -119,6 +120,12 @@ class RunSettings(BaseModel):
         "default: the system's (none for most; yoon for mechanisms that pass singular positions and for "
         "redundant constraint equations)",
     )
+    singular_projection: bool = Field(
+        True,
+        description="without a projection, still project (yoon: the mass metric) each step that comes near a "
+        "singular position of the constraints (a row of J shorter than 1e-2 of the longest), where the equations "
+        "amplify any drift off the branch; summary.robust_solve counts them (near_singular_projections)",
+    )
     solve: SolveName | None = Field(
         None,
         description="the constraint solve of a model with constraints: auto (the declared partition's "
@@ -169,6 +176,20 @@ class RunSettings(BaseModel):
         "fixed-step run with more steps than the output row cap, the smallest k that keeps it within the cap "
         "(said in the summary's warnings)",
     )
+    output_times: list[float] | None = Field(
+        None,
+        min_length=1,
+        max_length=LIMITS["max_rows"],
+        description="report the state at these times only (s; increasing, within [0, t_final]), like scipy's "
+        "t_eval: each computed by the run's method stepping from the output row before it, to the integrator's "
+        "accuracy (every then only thins what is kept in between); the summary's maxima still cover every step",
+    )
+    stop_at: list[Name] | None = Field(
+        None,
+        description="the declared events that end the run at their first rising crossing (summary.event); [] none: "
+        "every crossing is only recorded (summary.crossings) and the run goes on; unset: the system's stop_events "
+        "(all its events unless it says otherwise)",
+    )
     rtol: float = Field(1e-10, ge=1e-14, le=0.1, description="relative tolerance (adaptive methods)")
     atol: float = Field(1e-12, gt=0, le=1.0, description="absolute tolerance (adaptive methods)")
     rcond_min: float = Field(
@@ -213,6 +234,13 @@ class RunSettings(BaseModel):
         description="move a full initial state that violates the "
         "constraints onto the constraint manifold (the correction is reported) "
         "instead of refusing it",
+    )
+    error_estimate: bool = Field(
+        False,
+        description="estimate the run's global error: run it again with the same settings at half the step "
+        "(fixed-step methods) or a tenth of rtol and atol (adaptive ones) and report the largest difference of "
+        "each state at the run's output times (summary.error_estimate); costs a second run (2× the steps; 1.3–1.8× "
+        "for an adaptive method), within the same time limit",
     )
     params: dict[Name, float] = Field(
         default_factory=dict,
@@ -289,7 +317,49 @@ class Event(BaseModel):
     """The event that ended a run (a system's declared events, nmkane_core.run.events)."""
 
     name: str = Field(description="the event's name, as the system declares it")
-    t: float = Field(description="when it fired, s (interpolated between output rows)")
+    t: float = Field(description="when it fired, s (located to the integrator's accuracy)")
+
+
+class Crossing(BaseModel):
+    """A crossing of a declared event's zero (nmkane_core.run.events)."""
+
+    name: str = Field(description="the event's name, as the system declares it")
+    t: float = Field(description="when, s (located to the integrator's accuracy)")
+    direction: Literal["rising", "falling"] = Field(
+        description="rising: from negative to ≥ 0 (the event fires); falling: back below 0"
+    )
+
+
+class ErrorEstimate(BaseModel):
+    """A run's estimated global error (``error_estimate``, nmkane_core.run.accuracy): the run repeated with
+    the same settings, refined, and the largest difference of each state between the two at the run's
+    output times.  Without numbers (``max_abs`` null) when either run did not reach its end; ``message``
+    says why."""
+
+    method: Literal["half step", "tolerance / 10"] = Field(
+        description="how the second run was refined: half step (fixed-step methods, dt/2 with every × 2: the "
+        "same output times) or tolerance / 10 (adaptive methods: rtol/10, atol/10, its states interpolated to "
+        "the run's times)"
+    )
+    refined: dict[str, float] = Field(description="the settings of the refined run that differ from the run's")
+    refined_status: RunStatus | None = Field(
+        None, description="how the refined run ended (null: it was not run, message says why)"
+    )
+    message: str = Field(description="what was compared, or why there are no numbers")
+    rows: int = Field(0, description="the output rows compared")
+    order: int | None = Field(None, description="the order p of a fixed-step method (Richardson's factor)")
+    max_abs: dict[str, float] | None = Field(
+        None,
+        description="the largest |x − x_refined| of each state and output over the rows compared: the estimated "
+        "global error of the run (null: no estimate)",
+    )
+    richardson: dict[str, float] | None = Field(
+        None,
+        description="fixed-step methods: max_abs × 2^p/(2^p − 1), the estimate of the error itself when the "
+        "error is C h^p (null: adaptive methods, or no estimate)",
+    )
+    steps: int = Field(0, description="steps of the refined run")
+    wall_time_s: float = Field(0.0, description="integration wall time of the refined run, s")
 
 
 class RunSummary(BaseModel):
@@ -337,7 +407,16 @@ class RunSummary(BaseModel):
         "violation (null: none)",
     )
     event: Event | None = Field(None, description="the declared event that ended the run (status 'event'), if any")
+    crossings: list[Crossing] = Field(
+        default_factory=list,
+        description="every crossing of the system's declared events up to the run's end, in time order (the first "
+        "1,000)",
+    )
+    crossings_not_listed: int = Field(0, description="crossings beyond those listed")
     partition: PartitionUsed | None = Field(None, description="the partition the run started with")
+    error_estimate: ErrorEstimate | None = Field(
+        None, description="the estimated global error, when the run asked for it (error_estimate); else null"
+    )
 
 
 class RunResult(BaseModel):

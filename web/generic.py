@@ -161,6 +161,29 @@ def _choosers(core, prefix: str, show: dict) -> list[Control]:
     proj = show.get("projection", default_projection(core, core.default_variant))  # the system's own
     proj = proj if proj in PROJECTIONS else "none"
     out.append(Control(f"{prefix}projection", "Projection", "projection", proj, kind="dropdown", options=PROJECTIONS))
+    out.append(
+        Control(
+            f"{prefix}error_estimate",
+            "Estimate the error",
+            "error_estimate",
+            bool(show.get("error_estimate", False)),
+            kind="checkbox",
+            hint="run the same settings again at half the step (or a tenth of the tolerance) and show the "
+            "difference: the estimated global error (a second run: about twice the time)",
+        )
+    )
+    if built(core).info(core.default_variant).m:  # constraints: the steps near a singular position
+        out.append(
+            Control(
+                f"{prefix}singular_projection",
+                "Project near singular positions",
+                "singular_projection",
+                bool(show.get("singular_projection", True)),
+                kind="checkbox",
+                hint="with Projection none, still project the steps that come near a singular position of the "
+                "constraints, where the equations amplify any drift off the branch",
+            )
+        )
     return out
 
 

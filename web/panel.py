@@ -207,6 +207,22 @@ def _partition_lines(traj) -> list[str]:
     return lines
 
 
+def _error_lines(traj) -> list[str]:
+    """The estimated global error of the runs that asked for it (``error_estimate``): the largest
+    over the states, and which state."""
+    lines = []
+    for label, run in traj.runs.items():
+        est = run.summary.get("error_estimate")
+        if not est:
+            continue
+        if not est.get("max_abs"):
+            lines.append(f"± {label}: no error estimate — {est.get('message', '')}")
+            continue
+        name, value = max(est["max_abs"].items(), key=lambda kv: kv[1])
+        lines.append(f"± {label}: estimated global error ≤ {value:.1e} ({name}; {est['method']})")
+    return lines
+
+
 def status_text(traj, installs: int) -> str:
     lines: list[str] = []
     groups: dict[tuple[str, str], list[str]] = {}
@@ -222,6 +238,7 @@ def status_text(traj, installs: int) -> str:
         for w in s.get("warnings", []):
             lines.append(f"⚠ {label}: {w}")
     lines += _partition_lines(traj)
+    lines += _error_lines(traj)
     st = traj.request["settings"]
     lines.append(
         f"Δt = {st['dt']:g} s · update {installs} (#{traj.seq}) in "

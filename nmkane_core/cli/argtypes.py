@@ -19,6 +19,16 @@ def finite(text: str) -> float:
     return v
 
 
+def finite_list(text: str) -> list[float]:
+    """argparse type: comma-separated finite floats (``0,0.5,1``)."""
+    return [finite(part) for part in text.split(",") if part.strip()]
+
+
+def name_list(text: str) -> list[str]:
+    """argparse type: comma-separated names (``a,b``; ``""``: none)."""
+    return [part.strip() for part in text.split(",") if part.strip()]
+
+
 def positive_int(text: str) -> int:
     """argparse type: an integer ≥ 1."""
     try:

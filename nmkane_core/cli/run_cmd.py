@@ -106,12 +106,31 @@ def format_summary(run) -> str:
         lines.append(f"partition u_I: {', '.join(part['u_independent'])}{solved} ({how})")
     for sw in s.get("switches") or []:
         lines.append(f"switch   t = {sw['t']:.4g} s: {sw['from']} → {sw['to']} (rcond {sw['rcond']:.2g})")
+    if crossings := s.get("crossings"):
+        listed = ", ".join(f"{c['name']} {c['direction']} at {c['t']:.6g} s" for c in crossings[:MOST])
+        more = len(crossings) - MOST + s.get("crossings_not_listed", 0)
+        lines.append(f"events   {listed}" + (f", … ({more} more; --out FILE.json lists them)" if more > 0 else ""))
+    if est := s.get("error_estimate"):  # --error-estimate: the run against a refined one
+        lines.append(f"error    {_error_estimate(est)}")
     for w in s.get("warnings", []):
         lines.append(f"warning  {w}")
     final = [f"{k} = {v[-1]:.6g}" for k, v in run.state.items()]
     more = f", … ({len(final)} values; --out FILE.json has them all)" if len(final) > 2 * MOST else ""
     lines.append(f"final    t = {run.t[-1]:.6g} s: {', '.join(final[: 2 * MOST] if more else final)}{more}")
     return "\n".join(lines)
+
+
+def _error_estimate(est: dict) -> str:
+    """The summary's ``error_estimate`` on one line: the estimated global error of each state, or
+    why there is none."""
+    if est["max_abs"] is None:
+        return est["message"]
+    refined = ", ".join(f"{k} = {v:g}" + (" s" if k == "dt" else "") for k, v in est["refined"].items() if k != "every")
+    how = f"estimated global error, from a run at {refined}"
+    if est["richardson"]:
+        p = est["order"]
+        return f"{_largest(est['richardson'])}  ({how}; Richardson ×{2**p}/{2**p - 1})"
+    return f"{_largest(est['max_abs'])}  ({how})"
 
 
 MOST = 8  # entries of a summary line; a large model's lines show the largest (a chain: 80 constraints)

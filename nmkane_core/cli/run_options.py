@@ -5,7 +5,8 @@ field's description and declared range as its help and its choices from the fiel
 the schema stays the one definition.  A few fields read better another way on a command
 line and are spelled here once: the system is the positional ``SYSTEM``, ``params`` and
 ``initial`` are repeated ``--set NAME=VALUE`` and ``--init NAME=VALUE``, ``switching`` is
-``--no-switching``, ``project_initial`` is ``--project-initial``, and a gain is a scalar
+``--no-switching``, ``project_initial`` and ``error_estimate`` are flags (``--project-initial``,
+``--error-estimate``), and a gain is a scalar
 (Γ·I) — the library and REST also take matrices.
 """
 
@@ -17,7 +18,7 @@ import typing
 from typing import Any, Literal
 
 from ..schema import RunSettings, allowed, field_range
-from .argtypes import add_systems_option, assignment, finite, positive_int
+from .argtypes import add_systems_option, assignment, finite, finite_list, name_list, positive_int
 
 __all__ = ["SPELLED", "add_run_options", "option_of", "settings_from_args"]
 
@@ -28,6 +29,7 @@ SPELLED = {
     "initial": "--init",
     "switching": "--no-switching",
     "project_initial": "--project-initial",
+    "error_estimate": "--error-estimate",
 }
 GAINS = ("gamma", "gamma1", "gamma2")
 #: options of the commands that are not run settings, by the field name errors use
@@ -62,6 +64,7 @@ def _argument(name: str, choices: dict[str, tuple[str, ...]]) -> dict[str, Any]:
     members = [m for m in _members(info.annotation) if m is not type(None)]
     kw: dict[str, Any] = {"dest": name, "default": None}
     literal = [m for m in members if typing.get_origin(m) is Literal]
+    lists = [typing.get_args(m)[0] for m in members if typing.get_origin(m) is list]
     if name in choices:
         kw.update(choices=choices[name], metavar="NAME")
     elif literal:
@@ -70,6 +73,9 @@ def _argument(name: str, choices: dict[str, tuple[str, ...]]) -> dict[str, Any]:
         kw["choices"] = ("yes", "no")
     elif name in GAINS or float in members:
         kw["type"] = finite
+    elif lists:  # comma-separated on the command line
+        numbers = lists[0] is float
+        kw.update(type=finite_list if numbers else name_list, metavar="T1,T2,..." if numbers else "NAME,...")
     elif int in members:
         kw["type"] = positive_int
     help_text = info.description or ""
@@ -101,6 +107,7 @@ def add_run_options(parser: argparse.ArgumentParser, choices: dict[str, tuple[st
             parser.add_argument(option_of(name), **_argument(name, choices))
     parser.add_argument("--no-switching", action="store_true", help=_help("switching", "turn it off"))
     parser.add_argument("--project-initial", action="store_true", help=_help("project_initial"))
+    parser.add_argument("--error-estimate", action="store_true", help=_help("error_estimate"))
     meta = "NAME=VALUE"
     parser.add_argument(
         "--set", type=assignment, action="append", default=[], metavar=meta, help=_help("params", "e.g. --set rho=4")
@@ -128,6 +135,7 @@ def settings_from_args(args: argparse.Namespace) -> dict:
         "initial": dict(args.init),
         "switching": not args.no_switching,
         "project_initial": args.project_initial,
+        "error_estimate": args.error_estimate,
     }
     for name, info in RunSettings.model_fields.items():
         value = getattr(args, name, None)

@@ -122,7 +122,10 @@ class System:
     events:
         A zero-argument function returning ``{name: expression}`` (sympy, of the state and
         parameters, negative in normal motion): a run ends with status ``"event"`` when one
-        reaches zero (:mod:`nmkane_core.run.events`).
+        reaches zero (:mod:`nmkane_core.run.events`); every crossing is recorded.
+    stop_events:
+        The events that end a run (at their first rising crossing) when the run does not say
+        (``RunSettings.stop_at``); None: all of them.
     initial_controls:
         ``{name: (min, max, label)}``: the initial values a user interface offers (sliders),
         with their ranges; empty: every independent value, ranges from the defaults.
@@ -159,6 +162,7 @@ class System:
     what_to_try: str = ""
     showcase: Mapping[str, Any] = field(default_factory=dict)
     events: Callable[[], Any] | None = None
+    stop_events: tuple[str, ...] | None = None
     forces: Callable[..., Any] | None = None
     stability: Any = None
     initial_controls: Mapping[str, tuple[float, float, str]] = field(default_factory=dict)

@@ -194,6 +194,7 @@ def _common_args(
         "order": solve.order,
         "solve_log": solve.log,
         "proj": job.proj,
+        "near_proj": job.near_proj,
         "out_t": rows.t,
         "out_x": rows.x,
         "out_E": rows.E,

@@ -48,6 +48,7 @@ class Job:
     rcond_min: float  # J2 or T below this condition estimate: the run ends singular
     rcond_switch: float  # ... below this: switch to an alternative, when there is one
     proj: np.ndarray | None  # the loops' projection options (ProjectionOptions.as_array), None: none
+    near_proj: np.ndarray | None = None  # without proj: the projection of steps near a singular position
     alternatives: tuple[Alternative, ...] = ()
     forces: bool = True  # report the constraint forces and multipliers of every output row
     solve: int = 2  # kernels with the rank-robust solve: 0 the paper's, 1 robust, 2 auto (others: the paper's)

@@ -49,6 +49,7 @@ SV = {
     "SV_LEAVE": 14,
     "SV_STAB": 15,
     "SV_FADE": 16,
+    "SV_NEAR": 17,
 }
 
 

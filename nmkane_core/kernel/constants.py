@@ -36,7 +36,8 @@ STATS_MIN_RANK = 7  # smallest rank of J they found
 STATS_SOLVE_LOG = 8  # solve-log records written by this call (the driver reads and resets it)
 STATS_MAX_LEAVE = 9  # largest kinetic-energy share of a projection's speed correction
 STATS_MAX_STAB = 10  # largest kinetic-energy share of the velocity change the Baumgarte terms make in a step
-STATS_VIOL = 11  # first of the NV running maxima of |violation|
+STATS_NEAR_PROJECTIONS = 11  # steps projected because they came near a singular position (near_proj)
+STATS_VIOL = 12  # first of the NV running maxima of |violation|
 
 # the solve log (the loops' ``solve_log`` argument): one row per change of the constraint solve,
 # [t, kind, value, rank, entries...] with entries the column order (kind paper) or 1.0 for each

@@ -72,6 +72,7 @@ class FixedArgs(NamedTuple):
     order: Annotated[np.ndarray, IVEC]  # the partition as a column order [u_I, u_D] of J, advanced in place
     solve_log: Annotated[np.ndarray, MAT]  # records of the solve's changes (kernel.constants LOG_*)
     proj: Annotated[np.ndarray | None, PROJ]
+    near_proj: Annotated[np.ndarray | None, PROJ]  # without proj: the projection of steps near a singular position
     out_t: Annotated[np.ndarray, VEC]  # output rows
     out_x: Annotated[np.ndarray, MAT]
     out_E: Annotated[np.ndarray, VEC]
@@ -118,6 +119,7 @@ class AdaptiveArgs(NamedTuple):
     order: Annotated[np.ndarray, IVEC]  # the partition as a column order [u_I, u_D] of J, advanced in place
     solve_log: Annotated[np.ndarray, MAT]  # records of the solve's changes (kernel.constants LOG_*)
     proj: Annotated[np.ndarray | None, PROJ]
+    near_proj: Annotated[np.ndarray | None, PROJ]  # without proj: the projection of steps near a singular position
     out_t: Annotated[np.ndarray, VEC]  # output buffer (its length caps the rows of a call)
     out_x: Annotated[np.ndarray, MAT]
     out_E: Annotated[np.ndarray, VEC]
@@ -214,7 +216,7 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OFC", "N", "F_c = Q u̇ − P, the generalized constraint force, in the order [u_I, u_D]"),
     ("OLAM", "M", "λ, the multipliers: F_c = Jᵀλ"),
     # the rank-robust solve (kernels with ROBUST; docs/closed-loops.md §7)
-    ("OSV", "RB * 17", "the solve's settings and state (csrc/nmk.h: SV_*)"),
+    ("OSV", "RB * 18", "the solve's settings and state (csrc/nmk.h: SV_*)"),
     ("OORD", "NR", "the current partition: J's columns in the order [u_I, u_D]"),
     ("OORDC", "NR", "the partition of the evaluation whose forces are wanted (its J2 copy's)"),
     ("OORD2", "NR", "a partition being tried; the pivot columns of Wehage & Haug's elimination"),

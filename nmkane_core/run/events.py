@@ -1,22 +1,30 @@
-"""Events a system declares: named functions of the state and parameters that end a run
-when they reach zero (a vehicle touching the ground, a body leaving a surface).
+"""Events a system declares: named functions of the state and parameters, negative in the normal
+motion (a vehicle touching the ground, a body leaving a surface, a pendulum passing the
+vertical), and the times a run crosses them.
 
 A system declares ``System(events=fn)`` where ``fn()`` (sympy inside: called only when the
-compiled form is not cached yet) returns ``{name: expression}``; each expression is of the
-coordinates, speeds and parameters (plain symbols or ``dynamicsymbols`` named like them),
-negative during the normal motion.  The event fires at the first time its expression is
-≥ 0 (at the start, if it already is there).
+compiled form is not cached yet) returns ``{name: expression}`` of the coordinates, speeds and
+parameters (plain symbols or ``dynamicsymbols`` named like them); ``System(stop_events=...)``
+says which of them end a run (default: all, as before this option existed).  A run may ask
+otherwise: ``RunSettings.stop_at`` lists the events that end it (``[]``: none — every event is
+recorded, the run goes on).
 
-How a run stops (:func:`apply_events`, called on every finished run): the expressions are
-evaluated on the output rows after the integration, and the run is cut at the first
-crossing, the crossing time found by linear interpolation between the two rows around it,
-where an interpolated last row (state, energy and violations) is put.  The run's status is
-then ``"event"``, with ``summary["event"] = {"name", "t"}``.  A run that failed (singular,
-diverged, ...) before the first crossing keeps its failure; one that failed after it (a
-vehicle lying flat can make its contact geometry singular) ends with the event, which came
-first.  The crossing time is as fine as the output rows (``every``): a crossing and
-recrossing between two rows is not seen.  Maxima in the summary (constraint violations,
-energy drift) are recomputed over the rows kept.
+Every crossing is recorded (:func:`locate_crossings`): the sign changes of each event's value
+over the output rows, each located in time to the integrator's accuracy by the Illinois
+variant of regula falsi on the value at the state the run's own method reaches there
+(:class:`~nmkane_core.run.dense.Dense`, which steps from the row before) — not on an
+interpolation of the rows, so ``every`` does not coarsen it — and reported in
+``summary["crossings"]`` ({name, t, direction}: ``rising`` from negative to ≥ 0, the event
+firing; ``falling`` back).  A value ≥ 0 at the start is a rising crossing at t = 0.  A crossing
+and recrossing between two output rows is not seen: ask ``every`` 1 for events faster than
+the rows.
+
+A run stops at the first rising crossing of an event in its stop set: the rows are cut there
+and the located state is the last row (its energy, violations and outputs recomputed; forces
+interpolated between the rows around it); status ``"event"``, ``summary["event"] = {name, t}``.
+A run that failed (singular, diverged, ...) before that crossing keeps its failure; one that
+failed after it ends with the event, which came first.  Maxima in the summary are recomputed
+over the rows kept.
 
 The expressions are compiled once into numpy source by :mod:`nmkane_core.kernel.events`.
 """
@@ -27,12 +35,19 @@ import numpy as np
 
 from ..kernel.events import compile_events
 
-__all__ = ["apply_events", "first_crossing"]
+__all__ = ["CROSSINGS_LISTED", "first_crossing", "locate_crossings", "stop_at_event"]
+
+#: crossings listed in a summary (more are counted in ``crossings_not_listed``)
+CROSSINGS_LISTED = 1000
+#: regula falsi's iterations (each a short re-integration); it stops earlier at a time
+#: resolution of 1e-12 of the interval
+_ITERATIONS = 60
 
 
 def first_crossing(t: np.ndarray, values: dict[str, np.ndarray]) -> tuple[str, float, int] | None:
     """(event name, time, row index k ≥ 0 of the first row at or past it) of the earliest
-    crossing over rows ``t``, or None.  Non-finite values count as not crossed."""
+    crossing over rows ``t``, linearly interpolated, or None.  Non-finite values count as not
+    crossed."""
     best = None
     for name, g in values.items():
         hit = np.flatnonzero(np.nan_to_num(g, nan=-np.inf) >= 0.0)
@@ -50,60 +65,65 @@ def first_crossing(t: np.ndarray, values: dict[str, np.ndarray]) -> tuple[str, f
     return best
 
 
-def _max_point_forces(components: dict[str, np.ndarray]) -> dict[str, float]:
-    """The largest |R| of each force over the rows (components NAME.LABEL, orthonormal axes)."""
-    squares: dict[str, np.ndarray] = {}
-    for key, v in components.items():
-        name = key.split(".", 1)[0]
-        squares[name] = squares.get(name, 0.0) + np.asarray(v, float) ** 2
-    return {name: float(np.sqrt(np.max(s))) for name, s in squares.items()}
-
-
-def apply_events(run, system):
-    """Cut a finished :class:`~nmkane_core.run.result.Run` at its system's first event, in place,
-    and return it (unchanged when no event is declared or none fired).  A failed run's rows
-    end at its last good state, so an event found in them came before the failure.
-    ``system``: the run's :class:`~nmkane_core.declare.system.System`."""
+def locate_crossings(system, params: dict, state_names, t: np.ndarray, x: np.ndarray, dense) -> list[dict]:
+    """Every crossing of the system's events over the rows (t, x) in time order: {name, t,
+    direction, row} with ``row`` the first row at or past it; located with ``dense`` (a
+    :class:`~nmkane_core.run.dense.Dense` of the run)."""
     compiled = compile_events(system)
-    if compiled is None or len(run.t) == 0:
-        return run
-    params = system.resolve_params(run.settings.get("params", {}))
-    found = first_crossing(run.t, compiled.values(run.state, params))
-    if found is None:
-        return run
-    name, tc, k = found
-    if k == 0:
-        keep = {key: v[:1].copy() for key, v in run.state.items()}
-        cut = lambda a: a[:1].copy()  # noqa: E731
-    else:
-        t0, t1 = run.t[k - 1], run.t[k]
-        a = 0.0 if t1 == t0 else (tc - t0) / (t1 - t0)
+    if compiled is None or len(t) == 0:
+        return []
 
-        def cut(arr):
-            return np.append(arr[:k], (1 - a) * arr[k - 1] + a * arr[k])
+    def value(name: str, xs: np.ndarray) -> np.ndarray:
+        states = {k: xs[:, i] for i, k in enumerate(state_names)}
+        return compiled.values(states, params)[name]
 
-        keep = {key: cut(v) for key, v in run.state.items()}
-    run.t = np.append(run.t[: max(k, 1)], tc) if k else run.t[:1].copy()
-    run.state = keep
-    if run.energy is not None:
-        run.energy = cut(run.energy)
-        run.summary["max_abs_energy_drift"] = float(np.max(np.abs(run.energy - run.energy[0])))
-        run.summary["final_energy_drift"] = float(run.energy[-1] - run.energy[0])
-    run.violation = {key: cut(v) for key, v in run.violation.items()}
-    run.constraint_forces = {key: cut(v) for key, v in run.constraint_forces.items()}
-    run.multipliers = {key: cut(v) for key, v in run.multipliers.items()}
-    run.point_forces = {key: cut(v) for key, v in run.point_forces.items()}
-    run.summary["max_abs_violation"] = {key: float(np.max(np.abs(v))) for key, v in run.violation.items()}
-    if run.multipliers:
-        run.summary["max_abs_multiplier"] = {key: float(np.max(np.abs(v))) for key, v in run.multipliers.items()}
-    if run.point_forces:
-        run.summary["max_abs_point_force"] = _max_point_forces(run.point_forces)
-    run.summary["status"] = "event"
-    run.summary["event"] = {"name": name, "t": tc}
-    run.summary["t_end"] = tc
-    run.summary["message"] = (
-        f"event {name!r} at t = {tc:.6g} s"
-        + (" (already at the start)" if k == 0 else "")
-        + f": the run stopped there ({name} reached zero; found on the output rows, interpolated)"
-    )
-    return run
+    found = []
+    values = compiled.values({k: x[:, i] for i, k in enumerate(state_names)}, params)
+    for name, g in values.items():
+        on = np.nan_to_num(g, nan=-np.inf) >= 0.0
+        if on[0]:
+            found.append({"name": name, "t": float(t[0]), "direction": "rising", "row": 0})
+        for k in np.flatnonzero(on[1:] != on[:-1]) + 1:
+            if not (np.isfinite(g[k - 1]) and np.isfinite(g[k])):
+                tc = float(t[k])
+            else:
+                tc = _regula_falsi(lambda s, n=name: float(value(n, dense.state(s)[None, :])[0]), t[k - 1], t[k], g)
+            found.append({"name": name, "t": tc, "direction": "rising" if on[k] else "falling", "row": int(k)})
+    return sorted(found, key=lambda c: (c["t"], c["name"]))
+
+
+def _regula_falsi(f, t0: float, t1: float, g) -> float:
+    """The zero of f in [t0, t1] (f(t0) < 0 ≤ f(t1) or the reverse) by the Illinois method."""
+    a, b = float(t0), float(t1)
+    fa, fb = f(a), f(b)
+    if not (np.isfinite(fa) and np.isfinite(fb)) or (fa >= 0.0) == (fb >= 0.0):
+        return b
+    side = 0
+    for _ in range(_ITERATIONS):
+        c = b - fb * (b - a) / (fb - fa) if fb != fa else 0.5 * (a + b)
+        if not a < c < b:
+            c = 0.5 * (a + b)
+        fc = f(c)
+        if not np.isfinite(fc):
+            return b
+        if (fc >= 0.0) == (fb >= 0.0):  # the zero is in [a, c]
+            b, fb = c, fc
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        else:
+            a, fa = c, fc
+            if side == 1:
+                fb *= 0.5
+            side = 1
+        if b - a <= 1e-12 * max(1.0, abs(b)) or fc == 0.0:
+            break
+    return b  # the first time at or past the zero: the event has fired there
+
+
+def stop_at_event(crossings: list[dict], stop: frozenset[str]) -> dict | None:
+    """The first rising crossing of an event in ``stop`` (the run ends there), or None."""
+    for c in crossings:
+        if c["direction"] == "rising" and c["name"] in stop:
+            return c
+    return None

@@ -31,12 +31,12 @@ from ..kernel.constants import (
 )
 from ..schema import LIMITS, RunSummary
 from .endings import OVERFLOW, ending
-from .events import apply_events
 from .forces import add_point_forces
 from .partition import partition
 from .plan import Plan
 from .result import Run
 from .solvelog import inconsistency, robust_summary, solve_switches
+from .timeline import timeline
 
 __all__ = ["finish"]
 
@@ -46,17 +46,36 @@ FLOAT_MAX = sys.float_info.max
 def finish(plan: Plan, out: LoopOutput, wall: float, kernel_load_s: float = 0.0) -> Run:
     """The :class:`Run` of a driver's output (``wall``: integration wall time, s)."""
     mod = built(plan.system).module(plan.variant)
-    outputs = _outputs(plan, mod, out)
-    out, outputs, overflow = _finite_rows(plan, out, outputs)
-    notes = _finite_forces(out) + _unknown_multipliers(out)
+    out, _, overflow = _finite_rows(plan, out, _outputs(plan, mod, out))
     status, message = _ending(plan, out, overflow)
+    out, found = timeline(plan, out)  # the event that stops it, the asked output times (run.timeline)
+    outputs = _outputs(plan, mod, out)
+    notes = _finite_forces(out) + _unknown_multipliers(out)
     run = _arrays(plan, out, outputs)
     run.summary = _summary(plan, out, status, message, wall, kernel_load_s)
     run.summary["warnings"] += notes + add_point_forces(plan, run, out)
-    if plan.system.events is not None:
-        apply_events(run, plan.system)  # cut at the first declared event (nmkane_core.run.events)
+    found.into(run.summary)
+    if found.stop is not None:
+        _stopped_by_event(run, found.stop)
     run.summary = _validated(run.summary)
     return run
+
+
+def _stopped_by_event(run: Run, stop: dict) -> None:
+    """The summary of a run cut at the event that stopped it (:mod:`nmkane_core.run.events`):
+    status ``event``, its maxima over the rows kept (the loops' are over every step; the
+    multipliers' and point forces' are over the rows already)."""
+    name, tc, s = stop["name"], stop["t"], run.summary
+    if run.energy is not None:
+        s["max_abs_energy_drift"] = float(np.max(np.abs(run.energy - run.energy[0])))
+        s["final_energy_drift"] = float(run.energy[-1] - run.energy[0])
+    s["max_abs_violation"] = {key: float(np.max(np.abs(v))) for key, v in run.violation.items()}
+    s.update(status="event", event={"name": name, "t": tc}, t_end=tc)
+    s["message"] = (
+        f"event {name!r} at t = {tc:.6g} s"
+        + (" (already at the start)" if stop["row"] == 0 else "")
+        + f": the run stopped there ({name} reached zero; located to the integrator's accuracy)"
+    )
 
 
 def _outputs(plan: Plan, mod, out: LoopOutput) -> np.ndarray:

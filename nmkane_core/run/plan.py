@@ -74,6 +74,9 @@ class Plan:
     order: tuple[int, ...] = ()  # the partition to start with, as the kernel's column order
     drift_limit: float = math.inf  # |E − E0| past this ends the run "drifted" (run.bounds)
     violation_limit: float = math.inf  # a reported violation past this too
+    output_times: tuple[float, ...] | None = None  # report the state at these times only (run.timeline)
+    stop_events: frozenset[str] = frozenset()  # declared events that end the run (run.events)
+    near_projection: ProjectionOptions | None = None  # without a projection: the steps near a singular position
 
     @property
     def info(self) -> ModelInfo:
@@ -94,6 +97,7 @@ class Plan:
             method=self.integrator,
             module=b.module(self.variant),
             proj=self.projection.as_array(self.info),
+            near_proj=self.near_projection.as_array(self.info) if self.near_projection is not None else None,
             alternatives=alternatives,
             **shared,
         )
@@ -127,6 +131,9 @@ def resolve(settings: RunSettings | Mapping, max_rows: int | None = None) -> Pla
     p = b.param_vector(variant, params)
     _check_finite_start(system, variant, p, x0, full)
     drift_limit, violation_limit = run_bounds(s, b.module(variant), info, x0, p)
+    output_times = _output_times(s.output_times, t_final)
+    near = _near_projection(s, b.module(variant), method, proj, solve)
+    stop_events = _stop_events(s.stop_at, system)
     if correction:
         warnings.append(
             "the initial state was projected onto the constraint manifold: "
@@ -161,7 +168,48 @@ def resolve(settings: RunSettings | Mapping, max_rows: int | None = None) -> Pla
         order=order,
         drift_limit=drift_limit,
         violation_limit=violation_limit,
+        output_times=output_times,
+        stop_events=stop_events,
+        near_projection=near,
     )
+
+
+def _near_projection(s: RunSettings, module, method, proj: ProjectionOptions, solve: int) -> ProjectionOptions | None:
+    """The projection of the steps that come near a singular position, in a run without one
+    (``singular_projection``): the mass metric's (yoon), for the tableau methods of a model
+    whose kernel runs the rank-robust machinery (csrc/loops.c ``step_projection``)."""
+    robust = module.ROBUST and not (module.DECLARED and solve == SOLVES["paper"])
+    if not s.singular_projection or proj.name != "none" or method.kind == "scipy" or not robust:
+        return None
+    return projection_options("yoon")
+
+
+def _output_times(times: list[float] | None, t_final: float) -> tuple[float, ...] | None:
+    """The asked output times, checked: finite, increasing, within [0, t_final]."""
+    if times is None:
+        return None
+    for i, t in enumerate(times):
+        if not (math.isfinite(t) and 0.0 <= t <= t_final):
+            raise InputError(f"output_times[{i}]", t, f"0 ≤ t ≤ t_final = {t_final:g} s", "outside the run")
+        if i and not t > times[i - 1]:
+            raise InputError(
+                f"output_times[{i}]", t, f"greater than output_times[{i - 1}] = {times[i - 1]:g}", "not increasing"
+            )
+    return tuple(float(t) for t in times)
+
+
+def _stop_events(stop_at: list[str] | None, system: System) -> frozenset[str]:
+    """The events that end the run: the request's, or the system's stop_events (all)."""
+    from ..kernel.events import compile_events
+
+    compiled = compile_events(system) if system.events is not None else None
+    names = tuple(compiled.names) if compiled is not None else ()
+    chosen = stop_at if stop_at is not None else (system.stop_events if system.stop_events is not None else names)
+    for name in chosen:
+        if name not in names:
+            allowed = " | ".join(names) if names else f"none: {system.name} declares no events"
+            raise InputError("stop_at", name, allowed, "not an event of the system")
+    return frozenset(chosen)
 
 
 def _variant(system: System, s: RunSettings) -> str:

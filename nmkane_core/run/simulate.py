@@ -27,6 +27,7 @@ from ..integrate.drivers import integrate
 from ..kernel import special
 from ..kernel.built import built
 from ..schema import RunSettings
+from .accuracy import add_error_estimate, check_refined_budget
 from .catalog import catalog
 from .finish import finish
 from .plan import Plan, resolve, validate_settings
@@ -89,6 +90,9 @@ def simulate(
         energy drift, the smallest condition estimates, model switches and warnings.
         A system that declares events (:mod:`nmkane_core.run.events`) ends ``"event"`` at the
         first one that fires, with ``summary["event"] = {"name": ..., "t": ...}``.
+        A run that asks ``error_estimate`` is made a second time, refined, and
+        ``summary["error_estimate"]`` compares the two (:mod:`nmkane_core.run.accuracy`); both
+        runs count against ``time_limit``.
 
     Guarantees: every number returned is finite (a run that cannot go on stops and keeps
     what was computed up to its last good step); output is bounded by
@@ -96,6 +100,7 @@ def simulate(
     integration is a status, never an exception.
     """
     plan = settings if isinstance(settings, Plan) else resolve(settings)
+    check_refined_budget(plan)  # error_estimate's second run within the step budget too
     t_setup = time.perf_counter()
     job = plan.job()
     if evaluations(plan) > special.MIN_EVALUATIONS:  # long work: the model's own build, in the background
@@ -109,7 +114,11 @@ def simulate(
         out = integrate(job, bar, time_limit, cancel)
     finally:
         bar.close()
-    return finish(plan, out, time.perf_counter() - start, setup)
+    run = finish(plan, out, time.perf_counter() - start, setup)
+    if plan.settings.get("error_estimate"):  # a second run, refined (nmkane_core.run.accuracy)
+        left = None if time_limit is None else max(0.0, time_limit - (time.perf_counter() - start))
+        add_error_estimate(run, plan, simulate, progress=progress, time_left=left, cancel=cancel)
+    return run
 
 
 def prepare(plan: Plan):

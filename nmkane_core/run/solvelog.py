@@ -18,6 +18,7 @@ from ..kernel.constants import (
     STATS_MAX_STAB,
     STATS_MIN_PIVOT,
     STATS_MIN_RANK,
+    STATS_NEAR_PROJECTIONS,
     STATS_ROBUST_EVALS,
 )
 
@@ -102,5 +103,6 @@ def robust_summary(module, out: LoopOutput, solve: int) -> dict | None:
         "min_rank": int(stats[STATS_MIN_RANK]) if evals else None,
         "max_projection_share": float(stats[STATS_MAX_LEAVE]),
         "max_stabilization_share": float(stats[STATS_MAX_STAB]),
+        "near_singular_projections": int(stats[STATS_NEAR_PROJECTIONS]),
         "changes_not_listed": int(out.solve_log_dropped),
     }

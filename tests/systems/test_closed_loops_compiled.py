@@ -80,8 +80,12 @@ def test_a02_adaptive_steps_without_projection_stop_at_the_bifurcation(a02):
     shrink and ends at the same instant (the step size below its minimum) — with the cranks
     drifted apart by about 1e-7 rad and the energy nearly constant.  (With fused multiply-adds in
     the kernels, auto went on along the other branch until 1.78 s: which way a state off the
-    branch goes at the crossing is decided by round-off.)"""
+    branch goes at the crossing is decided by round-off.)  With only the steps near the singular
+    position projected (``singular_projection``, on unless turned off) the run goes through."""
     base = {"system": a02, "integrator": "kutta-merson-adaptive", "projection": "none", "t_final": 1.5}
+    near = simulate(base, progress=False)
+    assert near.summary["status"] == "ok" and near.summary["robust_solve"]["near_singular_projections"] > 0
+    base["singular_projection"] = False
     paper = simulate({**base, "solve": "paper"}, progress=False)
     assert paper.summary["status"] == "singular" and "J2" in paper.summary["message"]
     assert paper.t[-1] == pytest.approx(0.714, abs=2e-3)
@@ -96,12 +100,16 @@ def test_a02_adaptive_steps_without_projection_stop_at_the_bifurcation(a02):
 def test_a02_without_projection_at_small_steps_drifts_off_the_parallelogram(a02):
     """What to try, its last experiment: without the projection at Δt = 1e-4 the asymmetry grows at
     each passage — after 10 s B0 is millimetres off the exact motion and the energy has drifted by
-    about 1e-2 J — where the default projection keeps both near 1e-11."""
+    about 1e-2 J — where the default projection keeps both near 1e-11, and so does projecting only
+    the steps near the singular position (projection none, singular_projection on)."""
     base = {"system": a02, "dt": 1e-4, "t_final": 10.0, "every": 10}
-    drift = _a02_acceptance(simulate({**base, "projection": "none"}, progress=False))[1]
+    off = {"projection": "none", "singular_projection": False}
+    drift = _a02_acceptance(simulate({**base, **off}, progress=False))[1]
     kept = _a02_acceptance(simulate(base, progress=False))[1]
+    near = _a02_acceptance(simulate({**base, "projection": "none"}, progress=False))[1]
     assert 1e-3 < drift["B0_position"] < 1e-2 and 3e-3 < drift["energy_drift"] < 3e-2, drift
     assert kept["B0_position"] < 1e-10 and kept["energy_drift"] < 1e-10, kept
+    assert near["B0_position"] < 1e-9 and near["energy_drift"] < 1e-9, near
 
 
 def test_a02_declares_the_mass_metric_projection_as_its_default(a02):

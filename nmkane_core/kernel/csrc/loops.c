@@ -161,6 +161,18 @@ static i64 project_step(const nmk_model *md, double t, double *x, const double *
     return STATUS_OK;
 }
 
+/* The projection of the step just taken: the run's (proj), or, without one, near_proj where the
+ * step came near a singular position of the constraints (an evaluation saw a row of J shorter
+ * than ROBUST_NEAR_SINGULAR of the longest, or used the robust solve: SV_NEAR) — there the
+ * equations amplify any drift off the branch by 1/|J_i| (a velocity asymmetry of a four-bar
+ * chain's cranks grows as 1/t² towards the passage), and the projection in the mass metric
+ * removes it (the loops count such steps in stats[STATS_NEAR_PROJECTIONS]).  NULL: none. */
+static const i64 *step_projection(const nmk_model *md, const double *w, const i64 *proj, const i64 *near_proj) {
+    if (proj != NULL) return proj;
+    if (near_proj == NULL || !robust_in_use(md, w) || w[md->OSV + SV_NEAR] == 0.0) return NULL;
+    return near_proj;
+}
+
 /* The scratch arrays of one loop call, allocated once per call. */
 typedef struct {
     double *K, *xs, *xn, *viol, *w, *ps;
@@ -239,6 +251,7 @@ static i64 integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double 
         double t = a->t0 + (double)k * a->dt;
         double h = k < nsteps - 1 ? a->dt : a->t_final - t;
         w[md->OFLAG] = pending >= 0 ? 1.0 : 0.0;
+        if (md->ROBUST) w[md->OSV + SV_NEAR] = 0.0;
         status = stages(md, t, h, x, a->p, a->G, a->G1, a->G2, a->TA, a->TC, S, K, s.xs, w, a->rcond_min, a->stats,
                         a->order, &log);
         if (status != STATUS_OK) break;
@@ -260,8 +273,10 @@ static i64 integrate_fixed(const nmk_model *md, const nmk_fixed_args *a, double 
             break;
         }
         double tn = k < nsteps - 1 ? a->t0 + (double)(k + 1) * a->dt : a->t_final;
-        if (proj != NULL) {
-            status = project_step(md, tn, xn, a->p, w, s.ps, proj, a->stats, s.viol, md->PERM);
+        const i64 *pj = step_projection(md, w, proj, a->near_proj);
+        if (pj != NULL) {
+            if (pj != proj) a->stats[STATS_NEAR_PROJECTIONS] += 1.0;
+            status = project_step(md, tn, xn, a->p, w, s.ps, pj, a->stats, s.viol, md->PERM);
             if (status != STATUS_OK) break;
         }
         double E = record(md, tn, xn, a->p, s.viol, a->stats, md->NV);
@@ -354,6 +369,7 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
             last = 1;
         }
         w[md->OFLAG] = pending >= 0 ? 1.0 : 0.0;
+        if (md->ROBUST) w[md->OSV + SV_NEAR] = 0.0;
         i64 code = stages(md, t, h, x, a->p, a->G, a->G1, a->G2, a->TA, a->TC, S, K, s.xs, w, a->rcond_min, a->stats,
                           a->order, &log);
         if (pending >= 0 && w[md->OFLAG] == 0.0) { /* the first stage came through: the row's forces */
@@ -370,14 +386,18 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
             break;
         }
         double err = INFINITY;
+        /* near a singular position without a projection: the step is projected (step_projection),
+         * so its error is judged along the constraints, as with a projection */
+        const i64 *pj = finite ? step_projection(md, w, proj, a->near_proj) : proj;
         if (finite)  /* the stages are done with xs: it holds the error estimate */
-            err = step_error(md, t, h, x, xn, a->p, K, S, a->TB, a->TE, w, proj, a->atol, a->rtol, s.xs, &finite);
+            err = step_error(md, t, h, x, xn, a->p, K, S, a->TB, a->TE, w, pj, a->atol, a->rtol, s.xs, &finite);
         int nonfinite = !finite;
         double fac;
         if (err <= 1.0) {
             double tn = last ? t_final : t + h;
-            if (proj != NULL) {
-                code = project_step(md, tn, xn, a->p, w, s.ps, proj, a->stats, s.viol, md->PERM);
+            if (pj != NULL) {
+                if (pj != proj) a->stats[STATS_NEAR_PROJECTIONS] += 1.0;
+                code = project_step(md, tn, xn, a->p, w, s.ps, pj, a->stats, s.viol, md->PERM);
                 if (code != STATUS_OK) {
                     status = code;
                     break;

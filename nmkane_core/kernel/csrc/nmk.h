@@ -47,6 +47,7 @@ typedef double (*nmk_diag)(double t, const double *x, const double *p, double *v
 #define SV_LEAVE 14   /* kinetic-energy share of the last projection's speed correction */
 #define SV_STAB 15    /* the Baumgarte terms' share of the kinetic energy (per step: x h^2) */
 #define SV_FADE 16    /* 1.0: the Baumgarte terms of vanishing rows fade */
+#define SV_NEAR 17    /* 1.0: an evaluation since the loop reset it was near a singular position */
 
 /* Whether a work array's evaluations go through the rank-robust machinery (robust.c, the
  * robust projection): in kernels with it, unless the paper's solve is asked for on a declared,

@@ -503,7 +503,10 @@ static void rhs_robust(const nmk_model *md, double t, const double *x, const dou
         w[md->ORC] = 1.0; /* no J2 in this solve */
         robust_rhs(md, w, K, row, n, m);
     }
-    if (w[md->ORC + 1] > 0.0 && w[md->OSV + SV_STATUS] == 0.0 && near_singular(md, w, m, used))
+    int near = near_singular(md, w, m, used);
+    if (near)
+        w[md->OSV + SV_NEAR] = 1.0;
+    if (w[md->ORC + 1] > 0.0 && w[md->OSV + SV_STATUS] == 0.0 && near)
         stab_share(md, x, w, used == 0.0);
     else
         w[md->OSV + SV_STAB] = 0.0;
