@@ -1,4 +1,6 @@
-"""``nmkane matrices SYSTEM``: the derived matrices of the paper's procedure, as text or LaTeX."""
+"""``nmkane matrices SYSTEM``: the partition and why (declared, or the pivots of the elimination that
+picked it, and J2's condition estimate at the default state), then the derived matrices of the
+paper's procedure, as text or LaTeX."""
 
 from __future__ import annotations
 
@@ -37,6 +39,12 @@ def _run(args: argparse.Namespace) -> int:
             f"{system.name} has no {other}",
         )
     variant = system.check_variant(getattr(args, system.option), system.option)
+    from ..run.initial import default_state
+    from ..run.partition import explain_partition
+
+    for line in explain_partition(system, variant, default_state(system)):
+        print(line)
+    print()
     d = built(system).derivation(variant)
     names = args.matrix or ["J1", "J2", "A1", "A2", "T"]
     for name in names:
@@ -61,4 +69,9 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-COMMAND = Command("matrices", "print the derived matrices (LaTeX or text)", _add_arguments, _run)
+COMMAND = Command(
+    "matrices",
+    "print the partition and why (the pivots that picked it, J2's estimate), then the derived matrices (LaTeX or text)",
+    _add_arguments,
+    _run,
+)

@@ -22,9 +22,15 @@ import numpy as np
 from ..declare.system import System
 from ..errors import InputError
 from ..kernel.built import built
-from ..symbolic.robust import DECLARATION_RANK_TOL, partition_by_pivoting, robust_solve
+from ..symbolic.robust import (
+    DECLARATION_RANK_TOL,
+    partition_by_pivoting,
+    partition_rcond,
+    pivot_steps,
+    robust_solve,
+)
 
-__all__ = ["Partition", "check_rank", "constraint_report", "max_rank", "partition"]
+__all__ = ["Partition", "check_rank", "constraint_report", "explain_partition", "max_rank", "partition"]
 
 
 @dataclass(frozen=True)
@@ -160,3 +166,49 @@ def max_rank(system: System, variant: str | None, state: dict[str, float]) -> in
     if info.u_independent:
         return info.n - len(info.u_independent)
     return int(constraint_report(system, variant, state)["rank"])
+
+
+def explain_partition(system: System, variant: str | None, state: dict[str, float]) -> list[str]:
+    """Why the variant's partition is what it is, as lines of text: declared by the model, or
+    picked by Wehage & Haug's elimination with complete pivoting on the equilibrated J (and on
+    ∂ψ/∂q for the coordinates solved from ψ = 0) at the default state ``state`` — each pivot
+    (the speed made dependent, the constraint it is solved from, |pivot|) — and J2's condition
+    estimate there (the scale-free one ``solve="auto"`` watches)."""
+    variant = system.check_variant(variant)
+    b = built(system)
+    module, info = b.kernel(variant)
+    part = partition(system, variant)
+    if not info.m:
+        return ["no constraints: every speed is independent"]
+    x = _state_vector(info, state)
+    p = b.param_vector(variant, system.resolve_params({}))
+    J, _, _, psi_q, _ = module.state_terms(0.0, x, p)
+    J, psi_q = np.asarray(J), np.asarray(psi_q)
+    how = "declared by the model" if part.declared else "picked by pivoting at the default state"
+    lines = [f"partition: u_I = ({', '.join(part.u_independent)}), {how}"]
+    if not part.declared:
+        lines += _pivot_lines(J, info.u, info.constraint_names, "u_D", DECLARATION_RANK_TOL)
+        if info.holonomic:
+            lines += _pivot_lines(psi_q, info.q, info.holonomic, "q solved", DECLARATION_RANK_TOL)
+    elif part.q_dependent:
+        lines.append(f"  q solved from ψ = 0: {', '.join(part.q_dependent)} (declared)")
+    n_ind = len(part.u_independent)
+    if J.shape[0] == info.n - n_ind:  # a square J2: its estimate
+        rc = partition_rcond(J[:, list(part.order)], n_ind)
+        lines.append(f"  J2 estimate at the default state: {rc:.3g} (solve auto leaves the partition below 1e-6)")
+    else:
+        lines.append(
+            f"  {J.shape[0]} equations for {info.n - n_ind} dependent speeds: redundant, the rank-robust solve"
+        )
+    return lines
+
+
+def _pivot_lines(A: np.ndarray, cols, rows, what: str, tol: float) -> list[str]:
+    """One line per pivot of the elimination on A: the column made dependent, the row, |pivot|."""
+    steps = pivot_steps(A, tol)
+    out = [f"  {what}: pivots of the elimination (|pivot| of the equilibrated rows, largest first):"]
+    out += [f"    {cols[c]} from {rows[r]}: {v:.3g}" for c, r, v in steps]
+    left = [rows[i] for i in range(len(rows)) if i not in {r for _, r, _ in steps}]
+    if left:
+        out.append(f"    redundant there (no pivot above {tol:g}): {', '.join(left)}")
+    return out

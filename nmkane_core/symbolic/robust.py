@@ -240,6 +240,13 @@ def partition_by_pivoting(J: np.ndarray, tol: float = RANK_TOL) -> tuple[list[in
     """Wehage & Haug's partition: Gaussian elimination with complete pivoting on J (rows
     equilibrated).  Returns (dependent columns — u_D, in pivot order —, independent rows,
     rank); the remaining columns are u_I, the remaining rows redundant there."""
+    steps = pivot_steps(J, tol)
+    return [c for c, _, _ in steps], [r for _, r, _ in steps], len(steps)
+
+
+def pivot_steps(J: np.ndarray, tol: float = RANK_TOL) -> list[tuple[int, int, float]]:
+    """The steps of :func:`partition_by_pivoting`, each (column made dependent, row it is solved
+    from, |pivot| in the equilibrated elimination) — why the partition is what it is."""
     A = np.array(J, float, copy=True)
     m, n = A.shape
     rn = np.abs(A).max(axis=1, initial=0.0)
@@ -247,19 +254,18 @@ def partition_by_pivoting(J: np.ndarray, tol: float = RANK_TOL) -> tuple[list[in
     rows = [i for i in range(m) if rn[i] > tol * big]
     A = A[rows] / rn[rows, None] if rows else np.zeros((0, n))
     row_id, col_id = list(rows), list(range(n))
-    dep_cols, ind_rows = [], []
+    steps = []
     for _ in range(min(A.shape)):
         if A.size == 0:
             break
         i, j = np.unravel_index(int(np.argmax(np.abs(A))), A.shape)
         if abs(A[i, j]) <= tol:
             break
-        dep_cols.append(col_id[j])
-        ind_rows.append(row_id[i])
+        steps.append((col_id[j], row_id[i], float(abs(A[i, j]))))
         A = A - np.outer(A[:, j] / A[i, j], A[i])
         A = np.delete(np.delete(A, i, 0), j, 1)
         del row_id[i], col_id[j]
-    return dep_cols, ind_rows, len(dep_cols)
+    return steps
 
 
 def partition_rcond(J: np.ndarray, n_ind: int) -> float:

@@ -61,3 +61,18 @@ def test_a_picked_partition_is_reported_with_how_it_was_chosen(system, capsys):
 def test_a_declared_partition_is_reported_as_declared():
     part = simulate({"system": "appell-hamel", "t_final": 0.1}, progress=False).summary["partition"]
     assert part == {"u_independent": ["u1", "u2"], "q_dependent": ["z"], "chosen": "declared"}
+
+
+def test_nmkane_matrices_says_why_the_partition_is_what_it_is(system, capsys):
+    """The pivots of the elimination that picked it (the speed, the constraint, |pivot|) and J2's
+    estimate at the default state; a declared one is said to be declared."""
+    from nmkane_core.cli import main
+
+    assert main(["matrices", system.name, "--matrix", "J2"]) == 0
+    out = capsys.readouterr().out
+    assert "partition: u_I = (u1, u3), picked by pivoting at the default state" in out
+    assert "u2 from no_side_slip: 1" in out  # at θ = 0 the row is [0, 1, 0]: u2 is its only pivot
+    assert "J2 estimate at the default state: 1" in out
+    assert main(["matrices", "appell-hamel", "--matrix", "J2"]) == 0
+    out = capsys.readouterr().out
+    assert "partition: u_I = (u1, u2), declared by the model" in out and "q solved from ψ = 0: z (declared)" in out
