@@ -19,10 +19,15 @@ def _add_arguments(mats: argparse.ArgumentParser) -> None:
     mats.add_argument("--formulation")
     mats.add_argument("--matrix", action="append", default=[], help="J1 J2 A B A1 A2 Q P T V B_hat V_hat")
     mats.add_argument("--latex", action="store_true", help="LaTeX instead of text")
+    mats.add_argument(
+        "--width",
+        type=int,
+        default=None,
+        help="text columns: a matrix wider than this is printed entry by entry (default: the terminal's)",
+    )
 
 
 def _run(args: argparse.Namespace) -> int:
-    import sympy as sp
 
     from ..kernel.built import built
     from ..run.registry import get_system
@@ -62,11 +67,34 @@ def _run(args: argparse.Namespace) -> int:
         if args.latex:
             print(d.latex(name))
         else:
-            mat = d.matrix(name).applyfunc(budget.simplified)
-            print(f"{name} =")
-            print(sp.pretty(mat, use_unicode=True, wrap_line=False))
+            _print_text(name, d.matrix(name).applyfunc(budget.simplified), args.width)
         print()
     return 0
+
+
+def _print_text(name: str, mat, width: int | None) -> None:
+    """A matrix as text: one block where it fits ``width`` columns, else entry by entry (its
+    nonzero entries, each typeset on its own, wrapped at ``width``) — a class reads Example 1's
+    T (a 246-column block) that way."""
+    import shutil
+
+    import sympy as sp
+
+    width = max(40, width if width is not None else shutil.get_terminal_size((100, 24)).columns)
+    block = sp.pretty(mat, use_unicode=True, wrap_line=False)
+    if max((len(line) for line in block.splitlines()), default=0) <= width:
+        print(f"{name} =")
+        print(block)
+        return
+    zeros = sum(1 for e in mat if e == 0)
+    print(
+        f"{name}: {mat.rows}×{mat.cols}, wider than {width} columns as a block: entry by entry ({zeros} zeros left out)"
+    )
+    for i in range(mat.rows):
+        for j in range(mat.cols):
+            if mat[i, j] != 0:
+                print(f"{name}[{i + 1},{j + 1}] =")
+                print(sp.pretty(mat[i, j], use_unicode=True, num_columns=width))
 
 
 COMMAND = Command(

@@ -136,13 +136,33 @@ def test_matrices_command_prints_the_entries_simplified(capsys):
     from nmkane_core.kernel.built import built
     from nmkane_core.run.registry import get_system
 
-    assert main(["matrices", "appell-hamel", "--matrix", "A1"]) == 0
+    assert main(["matrices", "appell-hamel", "--matrix", "A1", "--width", "1000"]) == 0
     out = capsys.readouterr().out
     derived = built(get_system("appell-hamel")).derivation().matrix("A1")
     short = derived.applyfunc(sp.simplify)
     assert short != derived
     assert out.endswith("\n\nA1 =\n" + sp.pretty(short, use_unicode=True, wrap_line=False) + "\n\n")
     assert out.startswith("partition: u_I = (u1, u2), declared by the model\n")  # the partition first
+
+
+def test_a_matrix_wider_than_the_terminal_is_printed_entry_by_entry(capsys):
+    """Example 1's T is a 246-column block: at 100 columns each nonzero entry is printed on its
+    own (issue 43, item 4), every line of them within the width."""
+    import sympy as sp
+
+    from nmkane_core.kernel.built import built
+    from nmkane_core.run.registry import get_system
+
+    assert main(["matrices", "appell-hamel", "--matrix", "T", "--width", "100"]) == 0
+    out = capsys.readouterr().out
+    body = out.split("entry by entry", 1)[1]
+    assert "T: 5×5, wider than 100 columns" in out
+    T = built(get_system("appell-hamel")).derivation().matrix("T")
+    nonzero = [(i, j) for i in range(5) for j in range(5) if sp.simplify(T[i, j]) != 0]
+    assert [line for line in body.splitlines() if line.startswith("T[")] == [
+        f"T[{i + 1},{j + 1}] =" for i, j in nonzero
+    ]
+    assert max(len(line) for line in body.splitlines()) <= 100
 
 
 def test_bench_quick_measures_every_workload():
