@@ -43,6 +43,9 @@ FONT_SIZE = 11
 PARENT_ENV = "NMKANE_MATRICES_PARENT"  # the child stops when this process is gone
 TYPESET_OPS = 250  # an entry still longer than this (sympy count_ops) once simplified is drawn as ⋯
 SIMPLIFY_OPS = 400  # entries up to this long are simplified, within a time budget (symbolic.shorten)
+#: a matrix drawn wider than this (px, at DPI) is drawn entry by entry, one under another: the
+#: panel is about 345 px wide (Example 1's T as a grid: 1,083 px, shown at a third of its size)
+WIDE_PX = 800
 
 
 @dataclass
@@ -251,7 +254,7 @@ def _build(system: str, variant: str) -> Panel:
         return sp.latex(e, fold_func_brackets=True).replace(r"\frac", r"\dfrac")
 
     images = {
-        name: _matrix_image(
+        name: _matrix_or_entries(
             TITLES[name], [[tex(short[name][i, j]) for j in range(short[name].cols)] for i in range(short[name].rows)]
         )
         for name in shown
@@ -357,6 +360,20 @@ def _matrix_image(title: str, cells: list[list[str]], pad: int = 10, gap: int = 
             left += col_w[c] + gap
         top += row_h[r] + vgap
     return _to_rgba(np.pad(canvas, ((ICON_PAD, 0), (0, 0))))
+
+
+def _matrix_or_entries(title: str, cells: list[list[str]]) -> np.ndarray:
+    """The matrix as a grid (:func:`_matrix_image`), or, wider than :data:`WIDE_PX`, its nonzero
+    entries one under another (``T_{ij} = …``, the zeros counted on the first line): legible in
+    the narrow panel, each entry at its own size."""
+    grid = _matrix_image(title, cells)
+    if grid.shape[1] <= WIDE_PX:
+        return grid
+    entries = [(i, j, c) for i, row in enumerate(cells) for j, c in enumerate(row) if c.strip() != "0"]
+    zeros = sum(len(row) for row in cells) - len(entries)
+    head = rf"{title}:\ {len(cells)} \times {len(cells[0])},\ \mathrm{{{zeros}\ zeros\ not\ shown}}"
+    lines = [head] + [f"{{{title}}}_{{{i + 1}{j + 1}}} = {c}" for i, j, c in entries]  # {J_1}_{11}
+    return np.pad(_lines_image(lines), ((ICON_PAD, 0), (0, 0), (0, 0)), constant_values=255)
 
 
 def _lines_image(lines: list[str], pad: int = 12, vgap: int = 10) -> np.ndarray:

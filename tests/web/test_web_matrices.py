@@ -56,6 +56,21 @@ def test_the_latex_is_the_simplified_form_and_nothing_is_elided():
     assert all(r"\cdots" not in v for v in p.latex.values())
 
 
+def test_a_wide_matrix_is_drawn_entry_by_entry_narrow_enough_to_read():
+    """Example 1's T as a grid is 1,083 px wide, shown in a panel of about 345 px: wider than
+    WIDE_PX a matrix is drawn as its nonzero entries one under another (issue 43, item 4)."""
+    from web import matrices as mx
+
+    p = mx._build("appell-hamel", "nonlinear")
+    tall = {k for k, img in p.images.items() if img.shape[0] > img.shape[1]}  # entry by entry
+    assert "T" in tall
+    # a grid is never wider than WIDE_PX (how wide an entry is depends on how far the panel's time
+    # budget simplified it: 512 px for T's widest here, A1 and A2 grids of 558 and 580 px)
+    assert all(img.shape[1] <= mx.WIDE_PX for k, img in p.images.items() if k not in tall)
+    grid = mx._matrix_or_entries("B", [["1", "0"], ["0", "x"]])
+    assert grid.shape[1] < mx.WIDE_PX and grid.shape[0] < grid.shape[1]  # a small one stays a grid
+
+
 def test_a_panel_finished_as_the_browser_leaves_is_written_inside_the_leave_scope():
     """The panel's background thread checked that the browser was there, then wrote a dozen
     images: a browser leaving in between put viser's "Queued a GuiUpdateMessage on a closed
