@@ -11,7 +11,7 @@ This module is the app's public face; the parts live in:
 * :mod:`web.generic` — the one system view, :class:`~web.generic.GenericView`: controls,
   runs (with compare ghosts), plots and scene from the core system's declaration;
 * :mod:`web.declared` — the visuals a system declares (:mod:`nmkane_core.declare.visuals`) as a
-  viser scene, and the camera framing;
+  viser scene; :mod:`web.framing` — what the camera frames of it (the mechanism's parts);
 * :mod:`web.controls` — control handles built from data, and the guard that refuses
   non-finite or out-of-range slider values;
 * :mod:`web.runs` — re-simulation on a control change via :mod:`web.worker`;

@@ -1,18 +1,25 @@
 """One browser's camera: framing a system in the part of the page the panel leaves free,
 and following it.
 
-Two ways of looking, chosen by the *Camera follows* box:
+What is framed is the **mechanism**: its parts (the solids on its frames, the balls and
+line segments that move with the state — a load on its thread, a bar), not the paths their
+points trace (:meth:`web.declared.DeclaredScene.parts_at`).  Two ways of looking, chosen by
+the *Camera follows* box:
 
-* **fixed** — the whole motion of the run (every path travelled, fixed surfaces) framed
-  once (:meth:`CameraPlan.whole`); this is *Fit view*, and what the box unticked shows;
-* **following** — the system's bodies at the shown time framed, and the camera then
-  *translates* with them (never turns with a body: a spin or a heading change stays
-  visible); the viewer's own orbit and zoom are kept.
+* **fixed** — the camera stays where it was put;
+* **following** — the camera *translates* with the mechanism (never turns with a body: a
+  spin or a heading change stays visible); the viewer's own orbit and zoom are kept.
 
-A system's first view (and *Reset view*) is fixed when its whole motion is not much
-larger than the system itself, following otherwise.  Both are seen from the side the
-system declares (``Visuals.view``) and placed left of the control panel, which covers
-the right of the canvas (:data:`PANEL_PX`).
+A system's **first view** (and *Reset view*) is seen from the side the system declares
+(``Visuals.view``).  It is fixed on the whole motion of the parts
+(:attr:`CameraPlan.motion`) unless that would show the mechanism at less than
+1/:data:`FIXED_UP_TO` of the size a following camera shows it; then it follows, framing
+everything the parts do around the point it follows over the whole run
+(:meth:`~web.declared.DeclaredScene.parts_envelope`: a falling load, a heading that turns),
+so that they stay in view at every time.  **Fit view** frames the mechanism as it is at
+the shown time, from the side the viewer looks from now, and keeps following or not as the
+box says.  Every view is placed left of the control panel, which covers the right of the
+canvas (:data:`PANEL_PX`).
 
 The offset camera − target is learnt from the browser's camera reports: viser's
 server-side camera state can be overwritten by a report the browser sent before it
@@ -37,6 +44,10 @@ PANEL_PX = 420.0  # the control panel (viser's "large" width) and its margin, at
 FOV = 1.309  # viser's default vertical field of view (75°)
 DIRECTION = (0.55, -0.75, 0.5)  # seen from front-right and above unless the system says otherwise
 MARGIN = 1.15  # the framed box takes at most 1/MARGIN of the view's height and of the free width
+#: a first view is fixed on the whole motion unless that shows the mechanism at less than
+#: 1/FIXED_UP_TO of the size a following camera shows it (a vehicle that travels, a load that
+#: falls far): then it follows
+FIXED_UP_TO = 1.6
 
 
 @dataclass(frozen=True)
@@ -91,14 +102,27 @@ def frame(bounds, direction=None, viewport: Viewport | None = None) -> tuple[np.
     return look_at, look_at + d * dist
 
 
+def distance(view: tuple[np.ndarray, np.ndarray]) -> float:
+    """How far a view's camera is from what it looks at (a view from :func:`frame`)."""
+    look_at, position = view
+    return float(np.linalg.norm(np.asarray(position, float) - np.asarray(look_at, float)))
+
+
+def follows(motion: tuple[np.ndarray, np.ndarray], envelope: tuple[np.ndarray, np.ndarray]) -> bool:
+    """Whether a first view follows: the view of the whole motion (fixed) is more than
+    :data:`FIXED_UP_TO` times as far away as the following view of the envelope."""
+    return distance(motion) > FIXED_UP_TO * max(distance(envelope), 1e-9)
+
+
 @dataclass
 class CameraPlan:
     """How a view's installed run is looked at (see the module docstring)."""
 
-    whole: tuple[np.ndarray, np.ndarray]  # (look_at, position): the whole motion, fixed
+    whole: tuple[np.ndarray, np.ndarray]  # (look_at, position): every path travelled (the exported file's view)
+    motion: tuple[np.ndarray, np.ndarray]  # (look_at, position): the parts' whole motion (a fixed first view)
     offset: np.ndarray  # following: camera − target
-    shift: np.ndarray  # following: target − the bodies' centre
-    follows: bool  # the first view follows (the whole motion is much larger than the system)
+    shift: np.ndarray  # following: target − the point followed
+    follows: bool  # the first view follows (the fixed one would show the mechanism much smaller)
 
 
 class CameraRig:
@@ -137,6 +161,23 @@ class CameraRig:
         with contextlib.suppress(AssertionError, ValueError):  # no camera message from the browser yet
             cam.position = position  # (moves look_at along: set it after)
             cam.look_at = look_at
+
+    def hold(self) -> None:
+        """Stop following: the camera stays where it is."""
+        self.offset = None
+
+    def direction(self) -> np.ndarray | None:
+        """The side the browser's camera looks from now (camera − look_at, unit), or None
+        (no browser, or it has not reported its camera yet)."""
+        cam = getattr(self.client, "camera", None)
+        if cam is None:
+            return None
+        try:
+            d = np.asarray(cam.position, float) - np.asarray(cam.look_at, float)
+        except (AssertionError, AttributeError, TypeError, ValueError):
+            return None
+        n = float(np.linalg.norm(d))
+        return d / n if np.all(np.isfinite(d)) and n > 1e-9 else None
 
     def follow(self, target: np.ndarray) -> None:
         """Every frame while following: the same translation, the viewer's orbit kept."""

@@ -1,7 +1,6 @@
 """The plot data of one request's runs (the shown run first, then the compare runs): energy
-drift, log₁₀ |violation| per constraint, and a typed quantity — against time (uPlot) or
-against another quantity (a phase portrait, drawn as an image: uPlot's aligned mode needs
-increasing x).
+drift, log₁₀ |violation| per constraint, and a typed quantity — against time or against
+another quantity (a phase portrait: :func:`phase_data`), all drawn by uPlot.
 
 Every series says in its label what it is and how it is drawn: the shown run solid, each
 compare run in its colour and line style, named ("linear, dashed"), so the legend reads
@@ -72,7 +71,8 @@ def violation(runs: dict) -> pl.Curves:
 
 @dataclass
 class Phase:
-    """A phase portrait: y against x for each run (drawn as an image, see :func:`draw_phase`)."""
+    """A phase portrait: y against x for each run (values divided by the axis' readable factor,
+    named in its title; see :func:`phase_data`)."""
 
     xs: list[np.ndarray]
     ys: list[np.ndarray]
@@ -82,6 +82,23 @@ class Phase:
     y_label: str
     styles: list[dict] = field(default_factory=list)
     equal: bool = False  # the two axes share a unit: drawn to equal scale (see :func:`same_unit`)
+
+    def at(self, t_now: float) -> tuple[float, float]:
+        """The shown run's point at t_now (the last output row at or before it)."""
+        t = self.ts[0]
+        k = min(max(int(np.searchsorted(t, t_now, side="right")) - 1, 0), len(t) - 1)
+        return float(_finite(self.xs[0][k])), float(_finite(self.ys[0][k]))
+
+    def box(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """The data's x and y extents over every run (finite values)."""
+        x = pl.data_range(self.xs) or (0.0, 0.0)
+        y = pl.data_range(self.ys) or (0.0, 0.0)
+        return x, y
+
+
+def scaled_label(text: str, unit: str) -> str:
+    """An axis title: the typed text, and the factor its values were divided by (``×1e-6``)."""
+    return f"{text} [{unit}]" if unit else text
 
 
 @functools.lru_cache(maxsize=64)
@@ -128,38 +145,57 @@ def quantity(runs: dict, y_text: str, x_text: str = "t") -> pl.Curves | Phase:
     styles = [style(j, pl.RUN_COLORS[j % len(pl.RUN_COLORS)]) for j in range(len(labels))]
     names = [f"{y_text}{run_suffix(j, lab, many)}" for j, lab in enumerate(labels)]
     if x_text.strip() == "t":
-        out = pl.curves(
-            main.t, [on_main(main, r, y) for r, y in zip(runs.values(), ys, strict=True)], names, y_label=y_text
-        )
+        on_t = [on_main(main, r, y) for r, y in zip(runs.values(), ys, strict=True)]
+        factor, unit = pl.readable(on_t, "")  # tick values neither "0 0 0" nor too long for the axis
+        out = pl.curves(main.t, [y / factor for y in on_t], names, y_label=scaled_label(y_text, unit))
         out.styles = styles
         return out
     ts = [np.asarray(r.t, float) for r in runs.values()]
-    return Phase(xs, ys, ts, names, x_text, y_text, styles, equal=same_unit(main.system, x_text, y_text))
+    equal = same_unit(main.system, x_text, y_text)
+    xs = [np.asarray(x, float) * np.ones(len(t)) for x, t in zip(xs, ts, strict=True)]  # a constant made a series
+    ys = [np.asarray(y, float) * np.ones(len(t)) for y, t in zip(ys, ts, strict=True)]
+    if equal:  # one factor for both axes: a metre stays as long across as up
+        fx, ux = pl.readable(xs + ys, "")
+        fy, uy = fx, ux
+    else:
+        (fx, ux), (fy, uy) = pl.readable(xs, ""), pl.readable(ys, "")
+    return Phase(
+        [x / fx for x in xs],
+        [y / fy for y in ys],
+        ts,
+        names,
+        scaled_label(x_text, ux),
+        scaled_label(y_text, uy),
+        styles,
+        equal=equal,
+    )
 
 
-def draw_phase(phase: Phase, t_now: float, width_px: int = 460) -> np.ndarray:
-    """The phase portrait as an RGBA image, each run's point at t_now marked."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
+def _finite(v: np.ndarray) -> np.ndarray:
+    """Values a plot can take: NaN as 0, ±∞ as ±1e300 (as :func:`web.plots.curves`)."""
+    return np.nan_to_num(np.asarray(v, float), nan=0.0, posinf=1e300, neginf=-1e300)
 
-    fig = Figure(figsize=(width_px / 100, width_px / 100 * 0.72), dpi=100)
-    ax = fig.add_subplot()
-    for x, y, t, lab, st in zip(phase.xs, phase.ys, phase.ts, phase.labels, phase.styles, strict=True):
-        x, y = np.nan_to_num(x), np.nan_to_num(y)
-        keep = decimate(len(x), 4000)
-        dash = st.get("dash")
-        ax.plot(x[keep], y[keep], color=st["stroke"], lw=1.4, dashes=dash if dash else (None, None), label=lab)
-        k = min(max(int(np.searchsorted(t, t_now, side="right")) - 1, 0), len(t) - 1)
-        ax.plot([x[k]], [y[k]], "o", color=st["stroke"], ms=6)
-    ax.set_xlabel(phase.x_label)
-    ax.set_ylabel(phase.y_label)
-    ax.grid(True, alpha=0.3)
-    if phase.equal:  # a metre is as long across as up: the data's box widened to the image's shape
-        ax.set_aspect("equal", adjustable="datalim")
-    ax.set_title(f"{phase.y_label} against {phase.x_label} (● now, t = {t_now:.2f} s)", fontsize=9)
-    if len(phase.labels) > 1:
-        ax.legend(fontsize=7, loc="best")
-    fig.tight_layout()
-    canvas = FigureCanvasAgg(fig)
-    canvas.draw()
-    return np.array(canvas.buffer_rgba(), dtype=np.uint8)
+
+def phase_data(phase: Phase, budget: int) -> tuple[np.ndarray, ...]:
+    """uPlot data of a phase portrait: the runs' x values one after the other, and per run its y
+    values on its own stretch and NaN on the others' (drawn as no line: the plot's scales are
+    fixed and its series not auto-ranged, so no NaN reaches a range), each run thinned to an
+    even share of ``budget`` points.
+
+    uPlot's aligned mode draws a series point after point in the order given, so x need not
+    increase, as long as the x scale's range holds every x strictly inside (uPlot's window of
+    rows is then all of them) and there are fewer points than 4 per pixel of the plot's width
+    (above that uPlot thins a line pixel column by pixel column, which assumes increasing x):
+    the panel's budget stays below that."""
+    n = len(phase.xs)
+    share = max(2, budget // max(n, 1))
+    keeps = [decimate(len(x), share) for x in phase.xs]
+    x = np.concatenate([_finite(xr[k]) for xr, k in zip(phase.xs, keeps, strict=True)])
+    ys = []
+    start = 0
+    for yr, k in zip(phase.ys, keeps, strict=True):
+        y = np.full(len(x), np.nan)
+        y[start : start + len(k)] = _finite(yr[k])
+        ys.append(y)
+        start += len(k)
+    return (x, *ys)

@@ -8,6 +8,9 @@ for every output row (the compiled pose functions are vectorized); a frame then 
 picks a row.  A system that declares no visuals is drawn as a point at its first three
 coordinates (missing ones 0), with its trace.
 
+At install, each output row's box of the mechanism's parts and the point a following camera
+follows are computed too (:mod:`web.framing`): what the camera frames (:mod:`web.camera`).
+
 A *ghost* (``ghost=(r, g, b)``) draws another run of the same system (a compare run) under
 ``/sys/<name>/ghost<i>``: every moving shape translucent in one colour; the fixed ones
 (ground, surfaces, shapes on the world) are drawn once, by the main scene.
@@ -25,10 +28,14 @@ from nmkane_core.declare import visuals as decl
 from nmkane_core.kernel.built import built
 from nmkane_core.kernel.visuals import AXES, CompiledVisuals, Slot, axis_wxyz, compile_visuals, rotation_to_wxyz
 
+from . import framing
 from . import geometry as geo
 
 BIG = 1e6  # coordinates are clipped to ±BIG for float32 nodes
 GHOST_OPACITY = 0.35
+GROUND_OPACITY = 0.6  # the ground plane's
+#: … when a part goes below it (a load falling through a hole in the plane): seen through it
+GROUND_SEEN_THROUGH = 0.2
 LINE_PX = {"segments": 3.0, "trace": 2.5}  # default line thickness in screen pixels
 Bounds = tuple[np.ndarray, np.ndarray]
 
@@ -46,6 +53,7 @@ class Moving:
     how: str
     slot: Slot | None  # into the pose outputs (None: the fallback point, the first coordinates)
     body: bool = False  # a solid (a ball), not a line or a label: what the camera frames
+    reach: float = 0.0  # how far the drawn shape reaches from its points (a ball's radius)
 
     def place(self, pts: np.ndarray) -> None:
         """Put the node at these points (m, 3)."""
@@ -67,7 +75,14 @@ class Pen:
     traces: dict[str, tuple[Any, Slot]] = field(default_factory=dict)
     fixed_points: list[np.ndarray] = field(default_factory=list)  # vertices of fixed surfaces (for the bounds)
     extents: list[float] = field(default_factory=list)  # sizes of solid shapes (the camera's sense of scale)
-    halves: list[float] = field(default_factory=list)  # half sizes of the solids (what a body's view pads)
+    local: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # frame -> its solids' boxes
+    grounds: list[tuple[Any, float]] = field(default_factory=list)  # (node, height) of each ground plane
+
+    def solid(self, s: decl.Shape, lo, hi) -> None:
+        """A solid on a frame spans the box (lo, hi) in the frame's coordinates (what frames the
+        mechanism: :meth:`DeclaredScene.parts_at`)."""
+        if s.frame:
+            self.local.setdefault(s.frame, []).append((np.asarray(lo, float), np.asarray(hi, float)))
 
     def path(self, s: decl.Shape) -> str:
         parent = f"{self.prefix}/frames/{s.frame}" if s.frame else f"{self.prefix}/world"
@@ -91,13 +106,17 @@ class Pen:
 def _box(pen: Pen, s: decl.Box) -> None:
     size = tuple(float(abs(v)) for v in s.size)
     pen.extents += size
-    pen.halves.append(max(size) / 2)
+    off = np.asarray(s.offset, float)
+    pen.solid(s, off - np.asarray(size) / 2, off + np.asarray(size) / 2)
     pen.scene.add_box(pen.path(s), color=pen.color(s), dimensions=size, position=tuple(s.offset), **pen.style(s))
 
 
 def _cylinder(pen: Pen, s: decl.Cylinder) -> None:
     pen.extents += [abs(s.radius), abs(s.length)]
-    pen.halves.append(max(abs(s.radius), abs(s.length) / 2))
+    half = np.full(3, abs(s.radius))
+    half[np.argmax(np.abs(AXES[s.axis]))] = abs(s.length) / 2
+    off = np.asarray(s.offset, float)
+    pen.solid(s, off - half, off + half)
     pen.scene.add_cylinder(
         pen.path(s),
         radius=abs(s.radius),
@@ -112,18 +131,21 @@ def _cylinder(pen: Pen, s: decl.Cylinder) -> None:
 
 def _sphere(pen: Pen, s: decl.Sphere) -> None:
     pen.extents.append(abs(s.radius))
-    pen.halves.append(abs(s.radius))
     node = pen.scene.add_icosphere(
         pen.path(s), radius=abs(s.radius), color=pen.color(s), position=tuple(s.offset), **pen.style(s)
     )
     if s.at is not None:
-        pen.moving.append(Moving(node, "point", s.at, body=True))
+        pen.moving.append(Moving(node, "point", s.at, body=True, reach=abs(s.radius)))
+    else:
+        off = np.asarray(s.offset, float)
+        pen.solid(s, off - abs(s.radius), off + abs(s.radius))
 
 
 def _rod(pen: Pen, s: decl.Rod) -> None:
     p, q = np.asarray(s.start, float), np.asarray(s.end, float)
     length = float(np.linalg.norm(q - p))
     t = abs(s.thickness)
+    pen.solid(s, np.minimum(p, q) - t / 2, np.maximum(p, q) + t / 2)
     pen.scene.add_box(
         pen.path(s),
         color=pen.color(s),
@@ -164,7 +186,7 @@ def _label(pen: Pen, s: decl.Label) -> None:
 
 
 def _ground(pen: Pen, s: decl.Ground, width: float = 200.0, infinite: bool = True) -> None:
-    pen.scene.add_grid(
+    node = pen.scene.add_grid(
         f"{pen.prefix}/ground",
         width=width,
         height=width,
@@ -174,12 +196,13 @@ def _ground(pen: Pen, s: decl.Ground, width: float = 200.0, infinite: bool = Tru
         cell_color=(205, 208, 200),
         section_color=(150, 155, 145),
         plane_color=tuple(s.color),
-        plane_opacity=0.6,
+        plane_opacity=GROUND_OPACITY,
         shadow_opacity=0.25,
         infinite_grid=infinite,
         fade_distance=120.0,
         position=(0.0, 0.0, float(s.height)),
     )
+    pen.grounds.append((node, float(s.height)))
 
 
 RENDERERS: dict[type, Callable[[Pen, Any], None]] = {
@@ -227,8 +250,9 @@ class DeclaredScene:
         self.moves: list[bool] = []
         self.shown: int | None = None  # the output row the nodes show
         self.extent = 0.5  # a length of the system itself: its largest shape (m)
-        self.half = 0.25  # half the size of its largest solid (m)
         self.bounds_: Bounds | None = None
+        self.parts_rows: Bounds | None = None  # per output row, the box of the parts (framing.parts_rows)
+        self.centre_rows: np.ndarray = np.zeros((1, 3))  # per output row, the point a following camera follows
         self.tag_node: Any = None  # a label naming a ghost, when it rides on a moving part
         self.tag_rows: np.ndarray | None = None
 
@@ -252,7 +276,6 @@ class DeclaredScene:
             self.frames[name] = self.scene.add_frame(f"{self.prefix}/frames/{name}", show_axes=False)
         draw(self.pen, cv, cv.sizes(params))
         self.extent = max(self.pen.extents, default=0.5)
-        self.half = max(self.pen.halves, default=0.25)
 
     def _fallback(self) -> None:
         """A system without visuals: a ball at its first coordinates (with a ground and its trace)."""
@@ -260,7 +283,7 @@ class DeclaredScene:
         color = (200, 80, 40) if self.ghost is None else self.ghost
         kw = {} if self.ghost is None else {"opacity": GHOST_OPACITY}
         node = self.scene.add_icosphere(f"{pre}/world/point", radius=0.05, color=color, **kw)
-        pen.moving.append(Moving(node, "point", None, body=True))
+        pen.moving.append(Moving(node, "point", None, body=True, reach=0.05))
         if self.ghost is None:
             _ground(pen, decl.Ground(name="ground"), width=40.0, infinite=False)
             pen.traces["trace"] = (pen.lines(f"{pre}/world/trace", (214, 48, 39), 2.0), Slot(0, (3,)))
@@ -271,6 +294,7 @@ class DeclaredScene:
         self.shown = None
         self.shape(params)
         cv = self.compiled
+        frames: dict = {}
         if cv is None:
             names = list(built(self.system).coordinates)[:3]
             cols = [run.state[n] for n in names] + [np.zeros(len(run.t))] * (3 - len(names))
@@ -290,6 +314,58 @@ class DeclaredScene:
             extremes += self.pen.fixed_points
         if extremes:
             self.bounds_ = (np.min([e.min(0) for e in extremes], axis=0), np.max([e.max(0) for e in extremes], axis=0))
+        movers = [(m, rows) for m, rows, moves in zip(self.pen.moving, self.rows, self.moves, strict=True) if moves]
+        self.parts_rows = framing.parts_rows(frames, self.pen.local, movers, len(run.t))
+        self.centre_rows = framing.centre_rows(self.frame_poses, self.rows, len(run.t))
+        self._see_through_ground()
+
+    def _see_through_ground(self) -> None:
+        """A ground plane that a part of this run goes well below (a load falling through a hole,
+        more than half the system's size: not a turned wheel's box grazing it) is drawn nearly
+        clear, so that what is under it stays in view; else as declared."""
+        motion = self.parts_motion()
+        lowest = np.inf if motion is None else float(motion[0][2])
+        for node, height in self.pen.grounds:
+            below = lowest < height - 0.5 * self.extent
+            node.plane_opacity = GROUND_SEEN_THROUGH if below else GROUND_OPACITY
+
+    def parts_at(self, k: int) -> Bounds | None:
+        """(lowest, highest) corner of the mechanism's parts at output row k
+        (:func:`framing.parts_rows`)."""
+        if self.parts_rows is None:
+            return None
+        lo, hi = self.parts_rows
+        k = min(max(k, 0), len(lo) - 1)
+        return lo[k].copy(), hi[k].copy()
+
+    def centre_at(self, k: int) -> np.ndarray:
+        """The point a following camera follows at output row k (:func:`framing.centre_rows`)."""
+        return self.centre_rows[min(max(k, 0), len(self.centre_rows) - 1)].astype(float)
+
+    def parts_envelope(self) -> Bounds | None:
+        """(lowest, highest) corner of everything the parts do around the point a following
+        camera follows, over the whole run (a load falling from its pulley, a frame turning
+        about its centre): framed around that point, they are in view at every time.  A small
+        part moving over a large fixed surface is framed with some of it (:func:`framing.at_least`)."""
+        if self.parts_rows is None:
+            return None
+        lo, hi = self.parts_rows
+        c = self.centre_rows
+        return framing.at_least((lo - c).min(axis=0), (hi - c).max(axis=0), self.extent)
+
+    def mechanism_at(self, k: int) -> Bounds | None:
+        """What *Fit view* frames at output row k: the parts' box (:meth:`parts_at`), at least a
+        share of the system's own size (:func:`framing.at_least`)."""
+        box = self.parts_at(k)
+        return None if box is None else framing.at_least(*box, self.extent)
+
+    def parts_motion(self) -> Bounds | None:
+        """(lowest, highest) corner of the mechanism's parts over the whole run (not the traces
+        their points leave): a first view fixed on it shows the whole motion."""
+        if self.parts_rows is None:
+            return None
+        lo, hi = self.parts_rows
+        return lo.min(axis=0), hi.max(axis=0)
 
     def _install_moving(self, out: list[np.ndarray]) -> list[np.ndarray]:
         """Each moving node's points over the run; one that does not move is placed once
@@ -336,40 +412,27 @@ class DeclaredScene:
             self.tag_rows = self.rows[0][:, 0].astype(float) + above
             self.shown = None
 
-    def bounds_at(self, k: int) -> Bounds | None:
-        """(lowest, highest) corner of the frame origins and moving points at output row k."""
-        pts = [pos[min(k, len(pos) - 1)] for pos, _ in self.frame_poses.values()]
-        pts += [p for rows in self.rows for p in rows[min(k, len(rows) - 1)].astype(float)]
-        if not pts:
-            return None
-        return np.min(pts, axis=0), np.max(pts, axis=0)
-
-    def bodies_at(self, k: int) -> Bounds | None:
-        """(lowest, highest) corner of the system's bodies at output row k: its frames' origins
-        and the balls near them (a part hanging far away, such as a load on a long thread, is
-        left out), padded by the system's own size.  What a following camera frames."""
-        frames = [pos[min(k, len(pos) - 1)] for pos, _ in self.frame_poses.values()]
-        balls = [
-            rows[min(k, len(rows) - 1), 0].astype(float)
-            for m, rows in zip(self.pen.moving, self.rows, strict=True)
-            if m.body
-        ]
-        pts = list(frames)
-        if frames:
-            lo, hi = np.min(frames, axis=0), np.max(frames, axis=0)
-            reach = 3.0 * self.extent
-            pts += [b for b in balls if np.all(b >= lo - reach) and np.all(b <= hi + reach)]
-        else:
-            pts += balls
-        if not pts:
-            return None
-        pad = 1.6 * self.half  # the bodies around their frames' origins, and some room around them
-        return np.min(pts, axis=0) - pad, np.max(pts, axis=0) + pad
-
     def bounds(self) -> Bounds | None:
         """(lowest, highest) corner of everything that moves over the installed run (the
         paths travelled; fixed surfaces only when nothing moves)."""
         return self.bounds_
+
+    def part_names(self) -> list[str]:
+        """The scene nodes of the system's moving parts: the solids on its frames, and the balls
+        and line segments placed at points that move with the state (not the ground, traces,
+        labels or fixed shapes).  What its first view must show (the browser test projects them)."""
+        names = []
+        if self.compiled is not None:
+            solids = {"box", "cylinder", "sphere", "rod"}
+            names += [
+                f"{self.prefix}/frames/{cs.frame}/{cs.name}"
+                for cs in self.compiled.shapes
+                if cs.frame is not None and cs.kind in solids
+            ]
+        for m, moves in zip(self.pen.moving, self.moves, strict=False):
+            if moves and (m.body or m.how == "segments"):
+                names.append(m.node.name)
+        return names
 
 
 def strip_mesh(path: np.ndarray, width: float, axis: str) -> tuple[np.ndarray, np.ndarray]:

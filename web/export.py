@@ -14,7 +14,8 @@ inline SVG, with a cursor that follows the playback bar.
 declares another, e.g. a 0.03 s benchmark slowed down), at :data:`FPS` frames per second of
 playback, at most :data:`MAX_FRAMES` frames (a longer run gets fewer frames per second: the
 file stays near 1–2 MB); each frame shows the output row at or just before its time.
-The camera frames the whole motion (the page's *Fit view*), left of the plots.
+The camera frames the whole motion (every path travelled: the file's camera does not follow), left
+of the plots.
 """
 
 from __future__ import annotations

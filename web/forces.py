@@ -194,7 +194,8 @@ def force_curves(core, runs: dict, t: np.ndarray, on_t) -> pl.Curves | None:
             styles.append(style(j, pl.COLORS[names.index(name) % len(pl.COLORS)]))
     if not ys:
         return None
-    out = pl.curves(t, ys, labels, y_label="|F| [N]")
+    factor, unit = pl.readable(ys, "N")  # tick values neither "0 0 0" nor too long for the axis
+    out = pl.curves(t, [y / factor for y in ys], labels, y_label=f"|F| [{unit}]")
     out.styles = styles
     return out
 

@@ -32,14 +32,13 @@ from nmkane_core.schema import PROJECTIONS
 from . import curves as cv
 from . import geometry as geo
 from . import plots as pl
-from .camera import CameraPlan, Viewport, frame
+from .camera import CameraPlan, Viewport, follows, frame
 from .controls import GAINS, INTEGRATORS, SETTING_NUMBERS, Control, dt_control, setting_control
 from .declared import DeclaredScene
 from .forces import TITLE as FORCES_TITLE
 from .forces import ForceArrows, ForcePanel, force_curves
 
 DECADES = 2.0  # a parameter range spanning this many decades gets a log slider
-FOLLOW_BEYOND_M = 4.0  # a whole motion within this radius is seen whole, not followed
 OFF, UNSTABILIZED, ALL = "off", "Γ = 0", "all"  # compare choices besides the variants
 
 
@@ -366,33 +365,49 @@ class GenericView:
             self.force_panel.show(traj.main, t_now)
 
     def _centre(self) -> np.ndarray:
-        """The mean of the frame origins (or the first moving part) at the shown row."""
+        """The point a following camera follows at the shown row (the mean of the frame origins,
+        or the first moving part)."""
+        return self.declared.centre_at(self.k)
+
+    def _side(self, direction=None):
+        """The side a camera looks from: ``direction`` if given, else the system's declared one."""
+        if direction is not None:
+            return direction
         d = self.declared
-        if d.frame_poses:
-            return np.mean([pos[min(self.k, len(pos) - 1)] for pos, _ in d.frame_poses.values()], axis=0)
-        if d.rows:
-            return d.rows[0][min(self.k, len(d.rows[0]) - 1), 0].astype(float)
-        return np.zeros(3)
+        return None if d.compiled is None else d.compiled.view
 
     def camera_plan(self, viewport: Viewport | None = None) -> CameraPlan | None:
-        """How to look at the installed run (:mod:`web.camera`): the whole motion framed (Fit
-        view), and the bodies at the shown row framed for following; the first view follows
-        when the whole motion is much larger than the system.  Seen from the side the system
-        declares (``Visuals.view``), if it does."""
+        """How to look at the installed run (:mod:`web.camera`): every path travelled (the
+        export), the parts' whole motion (a fixed first view), and the envelope of the parts
+        around the point followed (a following first view); it follows when the fixed view
+        would show the mechanism much smaller.  Seen from the side the system declares
+        (``Visuals.view``), if it does."""
         d = self.declared
         whole = d.bounds()
         if whole is None:
             return None
-        side = None if d.compiled is None else d.compiled.view
-        radius = float(np.linalg.norm(whole[1] - whole[0])) / 2
-        bodies = d.bodies_at(self.k) or whole
-        look, pos = frame(bodies, side, viewport)
+        side = self._side()
+        motion = frame(d.parts_motion() or whole, side, viewport)
+        envelope = d.parts_envelope()
+        if envelope is None:  # nothing to frame but the paths: around the first row
+            envelope = (whole[0] - d.centre_at(0), whole[1] - d.centre_at(0))
+        look, pos = frame(envelope, side, viewport)  # around the point followed (at the origin)
         return CameraPlan(
             whole=frame(whole, side, viewport),
+            motion=motion,
             offset=pos - look,
-            shift=look - self._centre(),
-            follows=radius > max(3.0 * d.extent + 1.0, FOLLOW_BEYOND_M),
+            shift=look,
+            follows=follows(motion, (look, pos)),
         )
+
+    def fit_now(self, viewport: Viewport | None = None, direction=None) -> tuple[np.ndarray, np.ndarray] | None:
+        """(look_at, position) framing the mechanism as it is at the shown row (*Fit view*),
+        from ``direction`` (default: the declared side)."""
+        d = self.declared
+        box = d.mechanism_at(self.k) or d.bounds()
+        if box is None:
+            return None
+        return frame(box, self._side(direction), viewport)
 
     def follow_target(self) -> np.ndarray:
         """Where a following camera looks at the shown row (it translates with the bodies)."""

@@ -24,7 +24,7 @@ def add_keys(gui, session) -> dict[str, object]:
         "space": ("Play / pause", "space", lambda: session.set_playing(not session.playing)),
         "left": ("Step back", "arrowleft", lambda: step(session, -1)),
         "right": ("Step forward", "arrowright", lambda: step(session, +1)),
-        "f": ("Fit view (the whole motion)", "F", lambda: session.fit()),
+        "f": ("Fit view (the mechanism now)", "F", lambda: session.fit()),
         "r": ("Reset view", "R", lambda: session.reset_view()),
     }
     out: dict[str, object] = {}

@@ -105,7 +105,8 @@ document.addEventListener('mousemove', (e) => {
   if (!hovered) { hovered = true; report(); }
   requestAnimationFrame(() => {  // after uPlot has written the values under the cursor
     const rows = Array.from(plot.querySelectorAll('.u-legend .u-series'));
-    const text = rows.filter((r) => !r.classList.contains('u-off')).map((r) => {
+    const valued = (r) => { const v = r.querySelector('.u-value'); return !!(v && v.innerText.trim()); };
+    const text = rows.filter((r) => !r.classList.contains('u-off') && valued(r)).map((r) => {
       const l = r.querySelector('.u-label'), v = r.querySelector('.u-value');
       return (l ? l.innerText : '') + ' = ' + (v ? v.innerText : '');
     }).join('\\n');
@@ -137,12 +138,29 @@ document.addEventListener('dblclick', (e) => {
 """
 
 
+# the plots' width (px), reported when it changes (looked at every second: a window resized, the
+# panel's layout changed); the first plot drawn in the panel (an expanded copy comes later)
+_PLOT_WIDTH = """
+if (window.__nmkPlotWidth) return;
+window.__nmkPlotWidth = true;
+let width = 0;
+const look = () => {
+  const plot = Array.from(document.querySelectorAll('.uplot')).find((p) => p.offsetWidth > 0);
+  const w = plot ? plot.offsetWidth : 0;
+  if (w > 0 && Math.abs(w - width) >= 1) { width = w; send({kind: 'plot width', width: w}); }
+};
+look();
+setInterval(look, 1000);
+"""
+
+
 class PageBridge:
     """Scripts for one browser's page, answered through a hidden text box.
 
     ``on_answer(dict)`` gets each answer: ``{"kind": "address", "search": "?…"}``,
     ``{"kind": "written", "search": …}``, ``{"kind": "copied", "href": …, "ok": bool}``,
-    ``{"kind": "plots", "busy": bool}``, ``{"kind": "renderer", "name": …}``."""
+    ``{"kind": "plots", "busy": bool}``, ``{"kind": "renderer", "name": …}``,
+    ``{"kind": "plot width", "width": px}``."""
 
     def __init__(self, gui, client, on_answer: Callable[[dict], None]):
         self.client = client
@@ -154,6 +172,9 @@ class PageBridge:
         # was answered, replaced that answer (the page never opened on its link)
         self.renderer_inbox = gui.add_text("page renderer", "", visible=False)
         self.renderer_inbox.on_update(lambda _: self._received(self.renderer_inbox))
+        # and one for the plots' width, so that it never takes the place of a "plots" answer
+        self.plot_inbox = gui.add_text("page plots", "", visible=False)
+        self.plot_inbox.on_update(lambda _: self._received(self.plot_inbox))
         self.active = compat.queue(client) is not None
 
     def _received(self, box) -> None:
@@ -196,6 +217,7 @@ class PageBridge:
         return self.client is not None and compat.run_javascript(self.client, compat.whole_frames_source())
 
     def help_plots(self) -> bool:
-        """Values under the cursor at the cursor (read from uPlot's live legend), and the
-        viewer's pointing and zooming reported: ``{"kind": "plots", "busy": bool}``."""
-        return self.run(_PLOTS)
+        """Values under the cursor at the cursor (read from uPlot's live legend), the viewer's
+        pointing and zooming reported: ``{"kind": "plots", "busy": bool}``, and the plots' width:
+        ``{"kind": "plot width", "width": px}`` (a phase portrait's equal scales are computed for it)."""
+        return self.run(_PLOTS) and self.run(_PLOT_WIDTH, inbox=self.plot_inbox)

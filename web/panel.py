@@ -3,10 +3,15 @@ derived-matrices panel.
 
 Plot handles are keyed ``(view kind, plot key)``; a trajectory's curves are sent once
 (:meth:`PlotPanel.write`), then only the current-time marker moves (:meth:`PlotPanel.mark`).
+A phase portrait (y against another quantity than t) is a uPlot of its own per view, its
+current point marked by two crossing grid lines; its axes have equal scales when the two
+quantities share a unit, computed for the plot's pixel box (the page reports the plots'
+width: :meth:`PlotPanel.set_width`).
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -21,7 +26,10 @@ from . import plots as pl
 
 LONG_S = 60.0  # a run longer than this shows its plotted quantity in pages …
 WINDOW_S = 30.0  # … of this many seconds, following the time
-PHASE_REDRAW_S = 1.0  # a phase portrait's current point moves at most this often
+#: a phase portrait's points per pixel of the plot's width, at most (uPlot thins a line with 4 or
+#: more per pixel column by column, which assumes increasing x: see :func:`web.curves.phase_data`)
+PHASE_POINTS_PER_PX = 3.5
+PHASE_TITLE = "Plotted quantity (phase portrait)"
 PLOT_HELP = (
     "Point at a plot for the values under the cursor; drag across it to zoom, double-click to zoom "
     "out. *Plot y* and *against x* take any expression of the run's quantities (t, the coordinates "
@@ -47,13 +55,17 @@ class PlotPanel:
         self.views = views
         self.gui = gui
         self.busy = False
+        self.width = pl.PLOT_WIDTH_PX  # a plot's width in the page (px), as the page last reported it
         self.pages: dict[tuple[str, str], int] = {}  # (kind, key) -> the window shown
         gui.add_markdown(PLOT_HELP)
         self.summary = gui.add_markdown("")
         self.handles: dict = {}
-        self.phases: dict = {}  # kind -> image handle of the phase portrait
+        self.phases: dict = {}  # kind -> the uPlot of its phase portrait
         self.phase_on: dict[str, bool] = {}  # kind -> its plotted quantity is a phase portrait
-        self._phase_t = (0.0, 0.0)  # (when, at which t) the portrait was last drawn
+        self._phase_now: dict[str, tuple[tuple[float, float], float]] = {}  # kind -> (the point its marker shows, at t)
+        self._phase_layout: dict[str, tuple] = {}  # kind -> (y axis px, padding) it was sent with
+        self._shown = None  # the trajectory last written
+        self._y_axes: dict[tuple[str, str], int] = {}  # (kind, key) -> its y axis' width (px), for its values
         for i, view in enumerate(views.values()):
             self._add_view_plots(gui, view, visible=i == 0)
 
@@ -67,8 +79,20 @@ class PlotPanel:
         for i, (key, title) in enumerate(view.plots):
             at = None if order is None else order + 1e-3 * i
             self.handles[(view.kind, key)] = self._add_plot(gui, title, x_scale, visible=visible, order=at)
-        blank = np.full((2, 2, 4), 255, np.uint8)
-        self.phases[view.kind] = gui.add_image(blank, format="png", visible=False, order=order)
+        z = np.zeros(2)
+        self.phases[view.kind] = gui.add_uplot(
+            order=order,
+            data=(np.array([-1.0, 1.0]), z),
+            series=(uplot.Series(label="x"), uplot.Series(label="—", stroke=pl.COLORS[0], width=2, auto=False)),
+            title=PHASE_TITLE,
+            scales={"x": uplot.Scale(time=False, auto=False, range=(-2.0, 2.0))},
+            axes=pl.phase_axes(0.0, 0.0, "x", "y"),
+            cursor=uplot.Cursor(show=False),  # values under a cursor need increasing x
+            legend=uplot.Legend(live=False),
+            aspect=pl.ASPECT,
+            padding=pl.PADDING,
+            visible=False,
+        )
 
     @staticmethod
     def _add_plot(gui, title: str, x_scale: dict, visible: bool = True, order: float | None = None):
@@ -80,7 +104,7 @@ class PlotPanel:
             title=title,
             scales=x_scale,
             axes=pl.marker_axes(0.0),
-            aspect=1.6,
+            aspect=pl.ASPECT,
             padding=pl.PADDING,
             visible=visible,
         )
@@ -98,7 +122,7 @@ class PlotPanel:
         """A new trajectory's curves (series styles from its view), x range and marker."""
         view = self.views[traj.kind]
         phase = traj.plots.get("phase")
-        img = self.phases.get(traj.kind)
+        self._shown = traj
         self.phase_on[traj.kind] = phase is not None
         for key, curves in traj.plots.items():
             if key == "phase":
@@ -116,10 +140,63 @@ class PlotPanel:
             self.pages.pop((traj.kind, key), None)
             self._send(h, traj, key, curves, t_now, force=True)
         self.show_kind(traj.kind)
-        if phase is not None and img is not None:
-            img.image = cv.draw_phase(phase, t_now)
-            self._phase_t = (time.monotonic(), t_now)
+        if phase is not None:
+            self._send_phase(traj.kind, phase, t_now)
         self.summary.content = summary_table(traj)
+
+    def set_width(self, width: float) -> None:
+        """The page reports how wide its plots are (px): a shown phase portrait of two lengths is
+        drawn again, its equal scales computed for its new pixel box."""
+        width = float(width)
+        if not (math.isfinite(width) and 100.0 <= width <= 4000.0) or abs(width - self.width) < 0.5:
+            return
+        self.width = width
+        traj = self._shown
+        if traj is not None and traj.plots.get("phase") is not None:
+            self._send_phase(traj.kind, traj.plots["phase"], self._phase_t(traj.kind))
+
+    def _phase_t(self, kind: str) -> float:
+        return self._phase_now.get(kind, ((0.0, 0.0), 0.0))[1]
+
+    def phase_layout(self, phase) -> tuple[tuple[float, float], tuple[float, float], int, tuple[int, int, int, int]]:
+        """A phase portrait's x and y ranges, y axis width and padding for the plot's pixel box:
+        equal scales when its axes share a unit (:func:`web.plots.equal_ranges`), else each axis
+        its own (:func:`web.plots.padded`); the axis and the padding wide enough for the values."""
+        (x_lo, x_hi), (y_lo, y_hi) = phase.box()
+        y_axis, padding = pl.Y_AXIS_PX, pl.PADDING
+        xr, yr = pl.padded(x_lo, x_hi), pl.padded(y_lo, y_hi)
+        for _ in range(2):  # the ranges set the values' widths, which set the box: once more settles it
+            box = pl.plot_box(self.width, y_axis, padding)
+            if phase.equal:
+                xr, yr = pl.equal_ranges((x_lo, x_hi), (y_lo, y_hi), box)
+            y_axis = pl.y_axis_px(*yr, box[1])
+            padding = pl.x_padding(xr, box[0])
+        return xr, yr, y_axis, padding
+
+    def _send_phase(self, kind: str, phase, t_now: float) -> None:
+        """A phase portrait's series, ranges, layout and data (then only its marker moves)."""
+        h = self.phases[kind]
+        xr, yr, y_axis, padding = self.phase_layout(phase)
+        box = pl.plot_box(self.width, y_axis, padding)
+        styles = phase.styles
+        series = (
+            uplot.Series(label=phase.x_label),
+            *(  # auto=False: the NaN of the other runs' stretches never reach a range
+                uplot.Series(label=lab, width=2, auto=False, **(styles[i] if i < len(styles) else {}))
+                for i, lab in enumerate(phase.labels)
+            ),
+        )
+        if tuple(h.series) != series:
+            h.series = series
+        h.scales = {
+            "x": uplot.Scale(time=False, auto=False, range=xr),
+            "y": uplot.Scale(auto=False, range=yr),
+        }
+        h.padding = padding
+        h.data = cv.phase_data(phase, max(200, int(PHASE_POINTS_PER_PX * box[0])))
+        self._phase_layout[kind] = (y_axis, padding)
+        self._phase_now.pop(kind, None)
+        self._mark_phase(kind, phase, t_now)
 
     def _range(self, traj, key: str, t_now: float) -> tuple[float, float, int]:
         """The x range shown (the whole run, or the page of a long run that holds t_now)."""
@@ -141,7 +218,12 @@ class PlotPanel:
             if h.scales != scales:
                 h.scales = scales
             h.data = data
-        h.axes = pl.marker_axes(t_now, curves.x_label, curves.y_label)
+            span = y_range
+            if span is None and (found := pl.data_range(data[1:])) is not None:
+                span = pl.auto_range(*found)  # about what uPlot's own y range will be
+            self._y_axes[(traj.kind, key)] = pl.y_axis_px(*span) if span is not None else pl.Y_AXIS_PX
+        y_axis = self._y_axes.get((traj.kind, key), pl.Y_AXIS_PX)
+        h.axes = pl.marker_axes(t_now, curves.x_label, curves.y_label, y_axis)
 
     def mark(self, traj, t_now: float) -> None:
         """The current-time marker (and a long run's page); it waits while the viewer is busy with a plot."""
@@ -149,22 +231,18 @@ class PlotPanel:
             return
         for key, curves in traj.plots.items():
             if key == "phase":
-                self._mark_phase(traj, curves, t_now)
+                self._mark_phase(traj.kind, curves, t_now)
                 continue
             self._send(self.handles[(traj.kind, key)], traj, key, curves, t_now)
 
-    def phase_lags(self, traj, t_now: float) -> bool:
-        """The shown run's portrait still draws its point at another time than ``t_now`` (its
-        redraw was held back by the once-a-second limit): a paused page must draw it again."""
-        return "phase" in traj.plots and self._phase_t[1] != t_now
-
-    def _mark_phase(self, traj, phase, t_now: float) -> None:
-        """The portrait's current points, drawn again at most once a second (matplotlib)."""
-        when, at = self._phase_t
-        if t_now == at or time.monotonic() - when < PHASE_REDRAW_S:
+    def _mark_phase(self, kind: str, phase, t_now: float) -> None:
+        """The portrait's current point: two grid lines crossing there (sent when it moved)."""
+        x, y = phase.at(t_now)
+        if self._phase_now.get(kind, (None, None))[0] == (x, y):
             return
-        self._phase_t = (time.monotonic(), t_now)
-        self.phases[traj.kind].image = cv.draw_phase(phase, t_now)
+        self._phase_now[kind] = ((x, y), t_now)
+        y_axis = self._phase_layout.get(kind, (pl.Y_AXIS_PX, pl.PADDING))[0]
+        self.phases[kind].axes = pl.phase_axes(x, y, phase.x_label, phase.y_label, y_axis)
 
 
 def summary_rows(traj) -> list[list[str]]:

@@ -49,7 +49,7 @@ class Playback:
         c.on_change(self.time, self.on_time)
         view_reset.on_click(lambda _: self.reset_view())
         fit_view.on_click(lambda _: self.fit())
-        c.on_change(self.follow, lambda: self.look(follow=bool(self.follow.value)))
+        c.on_change(self.follow, self.on_follow)
 
     # ---------------------------------------------------------------- actions
     def set_playing(self, playing: bool) -> None:
@@ -57,25 +57,55 @@ class Playback:
         self.play.label = "❚❚ Pause" if self.playing else "▶ Play"
 
     def fit(self) -> None:
-        """Frame the whole motion of the run (every path travelled) in the part of the view the
-        panel leaves free, and stop following (else the camera would leave that view)."""
-        with self.session.lock:
-            self.look(follow=False)
+        """Frame the mechanism as it is at the shown time (not the paths it traced), from the side
+        the viewer looks from now, in the part of the view the panel leaves free; a following
+        camera goes on following it from there."""
+        s = self.session
+        with s.lock:
+            view = s.system_view
+            traj = s.traj
+            if traj is None or traj.kind != view.kind:
+                return
+            vp = s.camera.viewport()
+            plan = view.plan = view.camera_plan(vp)
+            now = view.fit_now(vp, s.camera.direction())
+            if plan is None or now is None:
+                return
+            look_at, position = now
+            following = bool(self.follow.value)
+            if following:  # follow from this view
+                plan.shift = look_at - view._centre()
+                plan.offset = position - look_at
+            s.camera.place(look_at, position, following=following)
 
     def reset_view(self) -> None:
-        """The system's first view: its bodies followed, or its whole motion when that is small."""
+        """The system's first view: fixed on its parts' whole motion, or following them when
+        that would show them much smaller (:mod:`web.camera`)."""
         with self.session.lock:
             self.look(follow=None)
 
+    def on_follow(self) -> None:
+        """The *Camera follows* box: ticked, the camera follows the mechanism (from the view the
+        plan keeps); unticked, it stays where it is."""
+        s = self.session
+        with s.lock:
+            if bool(self.follow.value):
+                self.look(follow=True)
+            else:
+                s.camera.hold()
+
     def look(self, follow: bool | None) -> None:
-        """Frame the shown system, following it (True), fixed on its whole motion (False), or
-        as its first view does (None); the *Camera follows* box says which."""
+        """Frame the shown system as its first view does (None: fixed on its parts' whole
+        motion or following them, as :class:`web.camera.CameraPlan` decides) or following it
+        (True); the *Camera follows* box says which."""
         s = self.session
         view = s.system_view
         traj = s.traj
         if traj is None or traj.kind != view.kind:
             return
-        plan = view.plan = view.camera_plan(s.camera.viewport())
+        if follow is None or view.plan is None:
+            view.plan = view.camera_plan(s.camera.viewport())
+        plan = view.plan
         if plan is None:
             return
         follow = plan.follows if follow is None else follow
@@ -85,7 +115,7 @@ class Playback:
             target = view.follow_target()
             s.camera.place(target, target + plan.offset, following=True)
         else:
-            s.camera.place(*plan.whole, following=False)
+            s.camera.place(*plan.motion, following=False)
 
     def seek(self, t: float) -> None:
         """Show time t (the scrubber, the keys, or a test): one whole frame."""
@@ -132,8 +162,8 @@ class Playback:
         traj = s.traj
         if traj is None:
             return
-        if not force and self.shown_t == self.t_now and not s.plots.phase_lags(traj, self.t_now):
-            return  # nothing moved (a portrait throttled at a seek is drawn once its second has passed)
+        if not force and self.shown_t == self.t_now:
+            return  # nothing moved
         self.shown_t = self.t_now
         s.plots.mark(traj, self.t_now)
         self.time.display(round(min(self.t_now, self.time.max), 2))

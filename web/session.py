@@ -285,6 +285,13 @@ class MechanismApp:
                 self.plots.busy = busy
                 if not busy and self.traj is not None:
                     self.plots.mark(self.traj, self.t_now)
+        elif answer.get("kind") == "plot width":
+            try:
+                width = float(answer.get("width", 0.0))
+            except (TypeError, ValueError):
+                return
+            with self.lock:
+                self.plots.set_width(width)
         elif answer.get("kind") == "renderer":
             self._on_renderer(str(answer.get("name", "")))
         else:

@@ -109,7 +109,8 @@ def _visuals():
     return Visuals(
         shapes=(
             strip("bowl", path, 1.0, "y"),
-            sphere("particle", 0.09, at=(x, 0, -y), color=(31, 119, 180)),
+            # 0.4 m across: large enough to see in the first view, which frames its whole ±1 m motion
+            sphere("particle", 0.2, at=(x, 0, -y), color=(31, 119, 180)),
         ),
         view=(0.0, -1.0, 0.3),
     )

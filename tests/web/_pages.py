@@ -18,6 +18,55 @@ HIDE_TOASTS = ".mantine-Notification-root, .mantine-Notifications-root { visibil
 DRAWN = "async () => { await window.__nmkaneFrameNow(); await window.__nmkaneFrameNow(); }"
 
 
+#: ``page.evaluate(PARTS, names)``: the screen box (CSS pixels, canvas corner at 0, 0) of the
+#: named nodes' geometry projected with the page's camera, how many points were projected and
+#: behind the camera, which names the page lacks, the canvas' size and the left edge of the
+#: control panel (its box holding the "Copy link" button)
+PARTS = """(names) => {
+  const m = window.__viserMutable, cam = m.camera, canvas = m.canvas;
+  const V = cam.position.constructor;
+  const rect = canvas.getBoundingClientRect();
+  cam.updateMatrixWorld();
+  const lo = [Infinity, Infinity], hi = [-Infinity, -Infinity];
+  let points = 0, behind = 0;
+  const missing = [];
+  const add = (p) => {
+    const q = p.clone().project(cam);
+    if (q.z > 1) behind++;
+    const px = [(q.x + 1) / 2 * rect.width, (1 - q.y) / 2 * rect.height];
+    for (let k = 0; k < 2; k++) { lo[k] = Math.min(lo[k], px[k]); hi[k] = Math.max(hi[k], px[k]); }
+    points++;
+  };
+  for (const name of names) {
+    const node = m.nodeRefFromName[name];
+    if (!node) { missing.push(name); continue; }
+    node.updateWorldMatrix(true, true);
+    node.traverse((o) => {
+      const g = o.geometry;
+      if (!g || !o.visible) return;
+      const a = g.attributes;
+      if (a.instanceStart) {  // line segments: their end points
+        for (const s of [a.instanceStart, a.instanceEnd])
+          for (let i = 0; i < s.count; i++) add(new V(s.getX(i), s.getY(i), s.getZ(i)).applyMatrix4(o.matrixWorld));
+      } else if (a.position) {  // a mesh: the corners of its box
+        if (!g.boundingBox) g.computeBoundingBox();
+        const b = g.boundingBox;
+        for (const x of [b.min.x, b.max.x]) for (const y of [b.min.y, b.max.y]) for (const z of [b.min.z, b.max.z])
+          add(new V(x, y, z).applyMatrix4(o.matrixWorld));
+      }
+    });
+  }
+  let el = Array.from(document.querySelectorAll('button')).find((b) => b.textContent.includes('Copy link'));
+  let panel = rect.right;
+  while (el && el.parentElement) {
+    const r = el.getBoundingClientRect();
+    if (r.height > 0.6 * window.innerHeight && r.width < 0.6 * window.innerWidth) panel = r.left;
+    el = el.parentElement;
+  }
+  return {lo, hi, points, behind, missing, canvas: [rect.width, rect.height], free: panel - rect.left};
+}"""
+
+
 def png(data: bytes) -> np.ndarray:
     """A screenshot as an RGB array of floats in [0, 1]."""
     from matplotlib.image import imread

@@ -396,25 +396,22 @@ def test_the_web_apps_warm_up_ends_with_the_system_under_way_once_the_app_stops(
     assert ran and set(ran) == {ran[0]} and panels == [], (ran, panels)
 
 
-def test_a_paused_phase_portrait_catches_up_with_a_seek_once_its_redraw_limit_has_passed(app, monkeypatch):
-    """The portrait is redrawn at most once a second; a seek within that second left its point
-    at the old time for as long as the page stayed paused (nothing called for a redraw again)."""
-    from web import panel
-
-    clock = [1000.0]
-    monkeypatch.setattr(panel.time, "monotonic", lambda: clock[0])
+def test_a_paused_phase_portraits_current_point_follows_a_seek(app):
+    """The portrait's current point (two grid lines crossing there) moves with every seek, also
+    while paused, and only its axes are sent again (not its data)."""
     app.control("option.plot").value = "y"
     app.control("option.plot_x").value = "x"
     app.set_playing(False)
-    image = lambda: np.asarray(app.plots.phases[AH].image).copy()  # noqa: E731
-    clock[0] += 5.0
+    chart = app.plots.phases[AH]
+    data = chart.data
     app.seek(2.0)
-    at_2 = image()
-    app.seek(5.0)  # within the same second: held back
-    assert np.array_equal(image(), at_2)
-    clock[0] += 2.0
-    app.tick(0.0, refresh=True)  # the animation thread's next slow-rate frame, still paused
-    assert not np.array_equal(image(), at_2)
+    run = app.traj.main
+    k = int(np.searchsorted(run.t, 2.0, side="right")) - 1
+    assert chart.axes[2]["splits"] == (pytest.approx(run.state["x"][k]),)
+    assert chart.axes[3]["splits"] == (pytest.approx(run.state["y"][k]),)
+    app.seek(5.0)
+    k = int(np.searchsorted(run.t, 5.0, side="right")) - 1
+    assert chart.axes[2]["splits"] == (pytest.approx(run.state["x"][k]),) and chart.data is data
 
 
 def test_the_status_says_which_speeds_the_run_took_independent(app):

@@ -1,7 +1,9 @@
-"""The camera shows the motion (the teacher's item 4), without a browser: framing puts a box
-whole in the part of the canvas the panel leaves free; Fit view frames every path of the
-run and stops following; the first view follows only a motion much larger than the system,
-and following translates without turning; the keys step, fit and reset."""
+"""The camera shows the motion (the teacher's item 4; issue 43 item 2), without a browser:
+framing puts a box whole in the part of the canvas the panel leaves free; every system's first
+view shows its whole mechanism, large, at every time of its run (fixed on the parts' whole
+motion, or following them when that would show them much smaller); Fit view frames the
+mechanism at the shown time, not the paths it traced; following translates without turning;
+the keys step, fit and reset (tests/web/test_first_view_browser.py measures the drawn page)."""
 
 import math
 
@@ -9,6 +11,7 @@ import numpy as np
 import pytest
 import viser
 
+from nmkane_core import system_names
 from web.camera import PANEL_PX, Viewport, frame
 from web.keys import STEP_FRAMES_S, step
 from web.session import MechanismApp
@@ -60,21 +63,87 @@ def choose(app, name):
     app.scene_choice.value = next(t for t, n in app.choices.items() if n == name)
 
 
-@pytest.mark.parametrize("name,follows", [("knife-edge", False), ("chaplygin-sleigh", True), ("appell-hamel", True)])
-def test_the_first_view_follows_only_a_large_motion_and_fit_view_shows_it_whole(app, name, follows):
+def _corners(box):
+    lo, hi = box
+    return [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
+
+
+def _shown(app, vp: Viewport, box) -> tuple[bool, float]:
+    """Whether the box is whole in the part of the canvas the panel leaves free, seen by the
+    camera as the app last placed it (following: where it follows to now), and how much of the
+    free part's smaller side it spans."""
+    view = app.system_view
+    look, pos = app.camera.placed
+    if app.follow.value:
+        look = view.follow_target()
+        pos = look + view.plan.offset
+    px = _project(look, pos, _corners(box), vp)
+    free = vp.width - PANEL_PX
+    inside = (
+        px[:, 0].min() >= -1 and px[:, 0].max() <= free + 1 and px[:, 1].min() >= -1 and px[:, 1].max() <= vp.height + 1
+    )
+    return bool(inside), float(max(np.ptp(px[:, 0]), np.ptp(px[:, 1])) / min(free, vp.height))
+
+
+#: the least share of the free part's smaller side a first view's parts span (the browser test's)
+LARGE = 0.12
+
+
+@pytest.mark.parametrize("name", system_names())
+def test_every_first_view_shows_the_whole_mechanism_large_at_every_time(app, name):
+    """Before: Appell–Hamel's first view followed its wheel close up (the frame's legs and the
+    pulleys off screen), the knife edge's blade was 11 % of the view at the edge of its circle."""
+    choose(app, name)
+    vp = Viewport()
+    view = app.system_view
+    app.reset_view()
+    inside, span = _shown(app, vp, view.declared.parts_at(0))
+    assert inside and span >= LARGE, f"{name} at t = 0: inside {inside}, spans {span:.0%}"
+    for f in (0.25, 0.5, 0.75, 1.0):  # and it stays in view, fixed or following
+        app.seek(f * app.traj.t_end)
+        inside, span = _shown(app, vp, view.declared.parts_at(view.k))
+        assert inside, f"{name} at t = {app.t_now:g}: the mechanism left the view (spans {span:.0%})"
+
+
+@pytest.mark.parametrize(
+    "name,follows",
+    [
+        ("knife-edge", True),
+        ("chaplygin-sleigh", True),
+        ("appell-hamel", True),
+        ("odometer-puck", False),
+        ("iftomm-a01", False),
+        ("sliding-particle", False),
+    ],
+)
+def test_the_first_view_follows_only_when_a_fixed_one_shows_the_mechanism_much_smaller(app, name, follows):
     choose(app, name)
     view = app.system_view
     assert view.plan.follows is follows and bool(app.follow.value) is follows
+    app.seek(0.6 * app.traj.t_end)
     app.fit()
-    assert not app.follow.value  # fixed: else the camera would leave the whole-motion view
-    lo, hi = view.declared.bounds()  # every path travelled …
-    corners = [[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
-    vp = Viewport()
-    px = _project(*view.plan.whole, corners, vp)  # … inside the part of the canvas the panel leaves free
-    assert px[:, 0].min() >= -1 and px[:, 0].max() <= vp.width - PANEL_PX + 1
-    assert px[:, 1].min() >= -1 and px[:, 1].max() <= vp.height + 1
+    assert bool(app.follow.value) is follows  # Fit view keeps following (or not)
+    inside, span = _shown(app, Viewport(), view.declared.parts_at(view.k))
+    assert inside, f"Fit view: the mechanism is not whole in view (spans {span:.0%})"
+    framed = _shown(app, Viewport(), view.declared.mechanism_at(view.k))[1]  # (a particle: with its surface)
+    assert framed > 0.5, f"Fit view frames the mechanism at {framed:.0%} of the view"
     app.reset_view()
     assert bool(app.follow.value) is follows
+
+
+def test_fit_view_frames_the_mechanism_not_the_path_it_traced(app):
+    """Before, Fit view framed every path of the run: the chaplygin sleigh's 24 m track made the
+    1.5 m sleigh a few pixels; now it frames the sleigh where it is, from the side the viewer
+    looks from."""
+    choose(app, "chaplygin-sleigh")
+    view = app.system_view
+    app.seek(15.0)
+    app.follow.value = False  # held: the camera stays where it is
+    app.fit()
+    vp = Viewport()
+    inside, span = _shown(app, vp, view.declared.parts_at(view.k))
+    assert inside and span > 0.5
+    assert not _shown(app, vp, view.declared.bounds())[0] or _shown(app, vp, view.declared.bounds())[1] < 0.9
 
 
 def test_following_translates_with_the_bodies_and_never_turns(app):
@@ -99,7 +168,8 @@ def test_the_keys_step_pause_fit_and_reset(app):
     assert set(cmds) == {"space", "left", "right", "f", "r"}
     cmds["space"]._impl.trigger_cb[0](None)
     assert app.playing
+    app.follow.value = False
     cmds["f"]._impl.trigger_cb[0](None)
-    assert not app.follow.value
+    assert not app.follow.value  # Fit view leaves the box as it is
     cmds["r"]._impl.trigger_cb[0](None)
-    assert app.follow.value  # the Appell–Hamel first view follows the wheel
+    assert app.follow.value  # the Appell–Hamel first view follows the mechanism

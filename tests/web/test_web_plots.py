@@ -89,11 +89,16 @@ def test_against_another_quantity_the_plot_is_a_phase_portrait(app):
     app.control("option.plot").text.value = "u1"
     app.control("option.plot_x").text.value = "theta"
     assert "phase" in app.traj.plots and "coord" not in app.traj.plots
-    img = app.plots.phases["appell-hamel"]
-    assert img.visible and not app.plot_handles[("appell-hamel", "coord")].visible
-    assert img.image.shape[2] == 4 and img.image.shape[0] > 100
+    chart = app.plots.phases["appell-hamel"]  # a uPlot of its own
+    assert chart.visible and not app.plot_handles[("appell-hamel", "coord")].visible
+    run = app.traj.main
+    x, y = chart.data[0], chart.data[1]
+    assert x.min() == pytest.approx(run.state["theta"].min()) and y.max() == pytest.approx(run.state["u1"].max())
+    xr, yr = chart.scales["x"]["range"], chart.scales["y"]["range"]
+    assert xr[0] < x.min() and x.max() < xr[1] and yr[0] < y.min() and y.max() < yr[1]  # every point inside
+    assert chart.axes[0]["label"] == "theta" and chart.axes[1]["label"] == "u1"
     app.control("option.plot_x").text.value = "t"
-    assert not img.visible and app.plot_handles[("appell-hamel", "coord")].visible
+    assert not chart.visible and app.plot_handles[("appell-hamel", "coord")].visible
 
 
 def test_ghost_runs_are_named_with_their_line_style_in_the_legend(app):

@@ -220,8 +220,10 @@ def test_keys_play_step_and_fit_and_the_plots_show_values_and_keep_a_zoom(app, b
         page.keyboard.press("ArrowRight")
         until(lambda: session.t_now > t, 10, "→ to step")
         assert session.follow.value
+        placed = session.camera.placed
         page.keyboard.press("f")
-        until(lambda: not session.follow.value, 10, "f to fit the whole motion (not following)")
+        until(lambda: session.camera.placed is not placed, 10, "f to fit the mechanism as it is now")
+        assert session.follow.value  # and the camera goes on following it
         assert "space play/pause" in page.inner_text("body")
 
         plot = page.locator(".uplot").filter(has_text="Energy drift").first
