@@ -52,10 +52,10 @@ class NotDefined(NmkaneError):
 
 
 class SingularMatrix(ArithmeticError):
-    """J2 or T is singular or ill-conditioned at a state (``matrix``, ``rcond``, ``t``)."""
+    """J2, T or the kinematics' C is singular or ill-conditioned at a state (``matrix``, ``rcond``, ``t``)."""
 
     def __init__(self, matrix: str, rcond: float, t: float):
         self.matrix, self.rcond, self.t = matrix, rcond, t
         super().__init__(
-            f"{matrix} is singular or ill-conditioned at t = {t:.6g} s (pivot-ratio reciprocal condition {rcond:.3g})"
+            f"{matrix} is singular or ill-conditioned at t = {t:.6g} s (reciprocal condition estimate {rcond:.3g})"
         )

@@ -196,7 +196,8 @@ class RunSettings(BaseModel):
         1e-10,
         ge=0,
         le=0.1,
-        description="J2 or T with a pivot-ratio reciprocal condition below this stops the run with status 'singular'",
+        description="J2 or T with a pivot-ratio reciprocal condition, or a varying kinematics' C with an estimate, "
+        "below this stops the run with status 'singular'",
     )
     max_energy_drift: float | None = Field(
         None,
@@ -387,7 +388,9 @@ class RunSummary(BaseModel):
         "rows (empty: none declared, or not asked for)",
     )
     min_rcond: dict[str, float] = Field(
-        default_factory=dict, description="smallest reciprocal condition estimate of J2 and T"
+        default_factory=dict,
+        description="smallest reciprocal condition estimate of J2 and T, and of the kinematics' C where it varies "
+        "(key C: the volume of its rows scaled to unit length; absent where C is constant)",
     )
     warnings: list[str] = Field(default_factory=list)
     initial_correction: dict[str, float] = Field(

@@ -18,6 +18,7 @@ from ..kernel.constants import (
     STATS_E0,
     STATS_MIN_PIVOT,
     STATS_MIN_RANK,
+    STATS_RCOND_C,
     STATS_RCOND_J2,
     STATS_RCOND_T,
     STATS_SOLVE_LOG,
@@ -256,7 +257,7 @@ def initial_stats(job: Job, module: CompiledModel, p: np.ndarray) -> tuple[np.nd
     module.diagnostics_rows(np.zeros(1), job.x0[None, :], p, E0, V0)
     stats = np.zeros(STATS_VIOL + nv)
     stats[STATS_E0] = E0[0]
-    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = stats[STATS_RCOND_C] = 1.0
     stats[STATS_MIN_PIVOT], stats[STATS_MIN_RANK] = 1.0, module.M
     stats[STATS_VIOL:] = np.abs(V0[0])
     return stats, float(E0[0]), V0[0]
@@ -264,7 +265,7 @@ def initial_stats(job: Job, module: CompiledModel, p: np.ndarray) -> tuple[np.nd
 
 def _trial_stats(module: CompiledModel) -> np.ndarray:
     stats = np.zeros(STATS_VIOL + module.NV)
-    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = stats[STATS_MIN_PIVOT] = 1.0
+    stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = stats[STATS_RCOND_C] = stats[STATS_MIN_PIVOT] = 1.0
     stats[STATS_MIN_RANK] = module.M
     return stats
 

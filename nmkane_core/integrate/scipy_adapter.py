@@ -1,9 +1,10 @@
 """scipy's solvers (``rk45``, ``dop853``, ``radau``) stepped one step at a time on the compiled
 right-hand side, keeping every accepted state up to the last good one.
 
-The right-hand side raises on a singular J2 or T and on a non-finite value, which ends the
-run with the matching status; the driver checks the time limit and cancellation every
-:data:`STEPS_PER_CHECK` steps.
+The right-hand side raises on a singular J2, T or kinematics' C (estimates at rcond_min) and on a
+non-finite value, which ends the run with the matching status (scipy's own error control shrinks
+the steps near a singular chart: the loops' step check of the kinematics is not made here); the
+driver checks the time limit and cancellation every :data:`STEPS_PER_CHECK` steps.
 """
 
 from __future__ import annotations
@@ -17,9 +18,11 @@ from ..kernel.constants import (
     STATS_E0,
     STATS_FINAL_DRIFT,
     STATS_MAX_DRIFT,
+    STATS_RCOND_C,
     STATS_RCOND_J2,
     STATS_RCOND_T,
     STATS_VIOL,
+    STATUS_C_SINGULAR,
     STATUS_DIVERGED,
     STATUS_DRIFTED,
     STATUS_FAILED,
@@ -58,7 +61,7 @@ class _RightHandSide:
         self.job, self.mod = job, job.module
         self.w = self.mod.make_workspace()
         self.K = np.empty((1, job.x0.size))
-        self.rcmin = [1.0, 1.0]
+        self.rcmin = [1.0, 1.0, 1.0]  # J2, T, the kinematics' C
         self.stats = stats
         self.solve = SolveState(job, job.module)
         if self.mod.ROBUST:
@@ -76,18 +79,17 @@ class _RightHandSide:
             self.solve.collect(self.stats)
             if code != STATUS_OK:
                 raise _NonFinite(t) if code == STATUS_DIVERGED else _Stopped(code)
-        rc0, rc1 = w[mod.ORC], w[mod.ORC + 1]
+        rc0, rc1, rc2 = w[mod.ORC], w[mod.ORC + 1], w[mod.ORC + 2]
         if not (np.all(np.isfinite(w[: mod.ORC])) and np.all(np.isfinite(self.K[0]))):
             # the model's expressions are not defined here (√ of a negative number, a zero denominator):
             # the run ends "diverged" at the last accepted step.  (Returning NaN would let an explicit
             # solver reject and shrink the step, but it can then creep on along the edge of the domain
             # with ever smaller steps, off the constraint; radau's LU would raise.)
             raise _NonFinite(t)
-        self.rcmin[0], self.rcmin[1] = min(self.rcmin[0], rc0), min(self.rcmin[1], rc1)
-        if rc0 <= job.rcond_min:
-            raise SingularMatrix("J2", rc0, t)
-        if rc1 <= job.rcond_min:
-            raise SingularMatrix("T", rc1, t)
+        self.rcmin = [min(self.rcmin[0], rc0), min(self.rcmin[1], rc1), min(self.rcmin[2], rc2)]
+        for name, rc in (("J2", rc0), ("T", rc1), ("C", rc2)):
+            if rc <= job.rcond_min:
+                raise SingularMatrix(name, rc, t)
         return self.K[0].copy()
 
 
@@ -122,7 +124,7 @@ class ScipyDriver(Driver):
                 )  # fmt: skip
             self.status, self.stop, self.fail_msg = self._steps(self.solver)
         except SingularMatrix as e:
-            self.status = STATUS_J2_SINGULAR if e.matrix == "J2" else STATUS_T_SINGULAR
+            self.status = {"J2": STATUS_J2_SINGULAR, "T": STATUS_T_SINGULAR, "C": STATUS_C_SINGULAR}[e.matrix]
         except _NonFinite:
             self.status = STATUS_DIVERGED
         except _Stopped as e:
@@ -167,7 +169,7 @@ class ScipyDriver(Driver):
 
     def output(self) -> LoopOutput:
         job, stats = self.job, self.stats
-        stats[STATS_RCOND_J2], stats[STATS_RCOND_T] = self.fun.rcmin
+        stats[STATS_RCOND_J2], stats[STATS_RCOND_T], stats[STATS_RCOND_C] = self.fun.rcmin
         t_arr, x_arr = np.array(self.ts), np.array(self.xs)
         E_arr, V_arr = np.empty(len(self.ts)), np.empty((len(self.ts), job.module.NV))
         job.module.diagnostics_rows(t_arr, x_arr, job.p, E_arr, V_arr)

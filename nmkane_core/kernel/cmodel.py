@@ -108,6 +108,7 @@ class CModel:
     MAX_RANK_DEFAULT: int
     ROBUST: bool
     DECLARED: bool
+    KN: int
     OQ: int
     PERM: np.ndarray
 

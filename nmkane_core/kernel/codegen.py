@@ -9,7 +9,8 @@ For a model, :func:`generate_source` writes one JSON text (the kernel cache keep
    sparsity of Q and J, the rank-robust solve's switch and defaults;
 2. the model's straight-line functions as C, after common-subexpression elimination — ``terms``
    (J = [J1 J2], B1u + B2, φ, ψ̇, ψ, Q, P, C u + D), ``constraint_terms``, ``positions``,
-   ``diagnostics`` (energy, constraint values) and ``outputs`` — which
+   ``diagnostics`` (energy, constraint values), ``outputs`` and ``kinematics`` (C, where it
+   varies: the kinematics' estimate) — which
    :mod:`nmkane_core.kernel.native` compiles into the model's library.
 
 No loop is generated per model: the loops, solves and projections are compiled once
@@ -105,14 +106,43 @@ def declared_partition(derivation) -> bool:
     return bool(d.m) and d.p > 0 and d.model.n - d.p == d.m
 
 
+def kinematic_block(derivation) -> tuple[list[int], list[int]]:
+    """The rows and columns of the kinematics' C (q̇ = C u + D) whose estimate the kernel computes
+    (csrc/kinematics.c): none where C is constant — the identity of most mechanisms, whose runs
+    compute nothing more — else the rows with an entry that depends on the coordinates, the speeds
+    or the time (such a C may degenerate: Euler angles at gimbal lock) and the columns of their
+    nonzero entries.  The other rows must then each hold one constant entry, in a column of its
+    own (a body's position q̇ = v beside its angles): their normalized block is a signed
+    permutation, of estimate 1, and the block's estimate is C's.  Otherwise every row and column."""
+    md = derivation.model
+    C = derivation.C
+    moving = {*md.q, *md.u, md.t}
+    rows = [i for i in range(C.rows) if any(C[i, j].free_symbols & moving for j in range(C.cols))]
+    if not rows:
+        return [], []
+    cols = sorted({j for i in rows for j in range(C.cols) if C[i, j] != 0})
+    rest = [[j for j in range(C.cols) if C[i, j] != 0] for i in range(C.rows) if i not in rows]
+    single = [r[0] for r in rest if len(r) == 1]
+    if (
+        len(cols) == len(rows)
+        and len(single) == len(rest)
+        and len(set(single)) == len(single)
+        and not set(single) & set(cols)
+    ):
+        return rows, cols
+    return list(range(C.rows)), list(range(C.cols))
+
+
 def kernel_dims(kt, robust: bool) -> dict[str, int]:
     """The dimensions the work-array tables and the generic source use: the model's (N, M, MNH,
-    MH, NV, NO), PI = N − M the paper's solve's independent speeds, and NR, MR, RB — N, M and 1
-    in kernels with the rank-robust solve, else 0."""
+    MH, NV, NO), PI = N − M the paper's solve's independent speeds, NR, MR, RB — N, M and 1
+    in kernels with the rank-robust solve, else 0 — and KN, the size of the kinematics' block whose
+    estimate is computed (0 where C is constant: :func:`kinematic_block`)."""
     d = dict(kt.dims)
     if robust:
         d["PI"] = max(d["N"] - d["M"], 0)
     d.update(NR=d["N"] if robust else 0, MR=d["M"] if robust else 0, RB=1 if robust else 0)
+    d["KN"] = len(kinematic_block(kt.derivation)[0])
     return d
 
 
@@ -144,6 +174,7 @@ MODEL_FUNCTIONS = (
     ("positions", ("t", "x", "p"), "w", None),
     ("diagnostics", ("t", "x", "p"), "viol", "_E"),
     ("outputs", ("t", "x", "p"), "out", None),
+    ("kinematics", ("t", "x", "p"), "w", None),
 )
 
 
@@ -161,6 +192,7 @@ def generate_source(derivation) -> str:
         "positions": _position_assignments(kt, off),
         "diagnostics": [(f"viol[{i}]", e) for i, e in enumerate(kt.viol)] + [("_E", kt.energy)],
         "outputs": [(f"out[{i}]", e) for i, e in enumerate(kt.outputs)],
+        "kinematics": _kinematics_assignments(kt, off),
     }
     functions = []
     for name, args, out, returns in MODEL_FUNCTIONS:
@@ -266,6 +298,16 @@ def _constraint_assignments(kt, off: dict[str, int]) -> list[tuple]:
     """The velocity-level constraint quantities alone (J, φ, ψ̇), for completing and checking
     initial states (``state_terms``): without Q and P, which for a large model are most of ``terms``."""
     return [a for a in _terms_assignments(kt, off) if a[2].startswith(("J[", "phi[", "psidot["))]
+
+
+def _kinematics_assignments(kt, off: dict[str, int]) -> list[tuple]:
+    """What ``kinematics`` writes: the block of C whose estimate the kernel computes
+    (:func:`kinematic_block`, KN × KN) into w[OCK], row by row; nothing where C is constant."""
+    rows, cols = kinematic_block(kt.derivation)
+    C, k = kt.derivation.C, len(rows)
+    return [
+        (f"w[{off['OCK'] + a * k + b}]", C[i, j], f"C[{i},{j}]") for a, i in enumerate(rows) for b, j in enumerate(cols)
+    ]
 
 
 def _position_assignments(kt, off: dict[str, int]) -> list[tuple]:

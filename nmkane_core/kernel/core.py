@@ -41,7 +41,7 @@ FLAGS = ("-O2", "-fPIC", "-shared", "-fno-math-errno", "-ffp-contract=off", "-st
 #: the model record's integer fields besides the offsets
 MODEL_INTS = (
     "N", "M", "MNH", "MH", "PI", "NV", "NO", "NR", "MR", "RB",
-    "ROBUST", "DECLARED", "C_IS_I", "SCALE_ROWS", "NORM_ROWS", "MAX_RANK_DEFAULT",
+    "ROBUST", "DECLARED", "C_IS_I", "KN", "SCALE_ROWS", "NORM_ROWS", "MAX_RANK_DEFAULT",
 )  # fmt: skip
 MODEL_FLOATS = ("RANK_TOL_DEFAULT", "CONSISTENCY_TOL_DEFAULT", "RCOND_ROBUST_DEFAULT", "BAUMGARTE_FADE")
 #: int64 arrays of the model: [u_I, u_D] → model order; Q's and J's structural nonzeros (CSR); J's row degrees
@@ -53,6 +53,7 @@ MODEL_FUNCTIONS = (
     ("positions", "nmk_fill"),
     ("diagnostics", "nmk_diag"),
     ("outputs", "nmk_fill"),
+    ("kinematics", "nmk_fill"),
 )
 
 

@@ -140,8 +140,9 @@ class CompiledModel(Protocol):
     violations, ``NO`` outputs, ``PERM`` the speeds' order [u_I, u_D] in model order; ``ROBUST``:
     the rank-robust solve is compiled in (every model with constraints), ``MAX_RANK_DEFAULT`` its
     rank cap; ``DECLARED``: J's columns are a declared, non-redundant partition, whose paper's
-    solve is the paper's own path; ``ORC``, ``OQ``: the work array's offsets of the condition
-    estimates and of Q.  The loops take their records (:class:`FixedArgs`,
+    solve is the paper's own path; ``KN``: the size of the block of the kinematics' C whose
+    estimate is computed (0: C is constant); ``ORC``, ``OQ``: the work array's offsets of the
+    condition estimates and of Q.  The loops take their records (:class:`FixedArgs`,
     :class:`AdaptiveArgs`) as positional arguments; the rest are the right-hand side and the
     diagnostics at given states."""
 
@@ -156,6 +157,7 @@ class CompiledModel(Protocol):
     PERM: np.ndarray
     ROBUST: bool
     DECLARED: bool
+    KN: int
     MAX_RANK_DEFAULT: int
     ORC: int
     OQ: int
@@ -187,7 +189,7 @@ LOOPS: dict[str, Any] = {"integrate_fixed": FixedArgs, "integrate_adaptive": Ada
 # Each table lists named blocks in order with their sizes as expressions in the model's
 # dimensions: N speeds, M constraints (MNH nonholonomic, MH holonomic), PI independent speeds of
 # the paper's solve (N − M); NR, MR = N, M in kernels with the rank-robust solve (else 0), RB = 1
-# there (else 0).
+# there (else 0); KN the size of the block of the kinematics' C that varies along the motion (0: none).
 # A block's name is the offset of its first entry; the generator writes every offset (and the
 # total, WSIZE / PS_SIZE) into the kernel as a constant.
 
@@ -206,9 +208,10 @@ WORKSPACE: tuple[tuple[str, str, str], ...] = (
     ("OMR", "PI * PI", "A2 Q A2ᵀ"),
     ("OY", "N * (1 + RB)", "P − Q_{·D} B̂ (with ROBUST: and −Q_{·D} J2⁻¹s, by rows)"),
     ("OUI", "PI * (1 + RB)", "A2 (P − Q_{·D} B̂) → u̇_I (with ROBUST: and the Baumgarte terms' part, by rows)"),
-    ("ORC", "2", "(rcond J2, rcond T)"),
+    ("ORC", "3", "(rcond J2, rcond T, the kinematics' estimate: 1 where C is constant)"),
     ("OPSQ", "MH * N", "∂ψ/∂q (positions)"),
     ("OC", "N * N", "C (positions)"),
+    ("OCK", "KN * KN", "C's varying block, its rows normalized, and its LU (the kinematics' estimate)"),
     ("OFLAG", "1", "1.0: this evaluation's constraint forces are wanted (J2, Q, P are kept for them)"),
     ("OJ2C", "M * M", "a copy of J2 made before its LU, for the multipliers"),
     ("OQC", "N * N", "a copy of Q of that evaluation (the step's later stages overwrite OQ)"),

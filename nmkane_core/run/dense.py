@@ -22,7 +22,7 @@ import numpy as np
 from ..integrate.calls import SolveState, fixed_args, rows_for
 from ..integrate.job import Job, LoopOutput
 from ..integrate.methods import KUTTA_MERSON, Tableau
-from ..kernel.constants import STATS_RCOND_J2, STATS_RCOND_T, STATS_VIOL, STATUS_OK
+from ..kernel.constants import STATS_RCOND_C, STATS_RCOND_J2, STATS_RCOND_T, STATS_VIOL, STATUS_OK
 
 __all__ = ["Dense"]
 
@@ -66,7 +66,7 @@ class Dense:
         y = x0.copy()
         rows = rows_for(job, job.module, 2)
         stats = np.zeros(STATS_VIOL + job.module.NV)
-        stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+        stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = stats[STATS_RCOND_C] = 1.0
         args = fixed_args(
             replace(job, every=n), job.p, y, rows, stats, k0=0, k1=n, row=0, rcond_min=job.rcond_min,
             t0=t0, steps=(h, t, n), solve=SolveState(job, job.module), bounded=False,

@@ -11,7 +11,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from ..kernel.constants import (
+    KIN_STEP_CHANGE,
     ROBUST_LEAVE_KE,
+    STATUS_C_SINGULAR,
+    STATUS_C_UNRESOLVED,
     STATUS_DIVERGED,
     STATUS_DRIFTED,
     STATUS_FAILED,
@@ -32,10 +35,14 @@ _UNDEFINED = (
 )
 
 
+#: the cure of a singular kinematics, said once
+_REGULAR = "coordinates regular there do not have it: a unit quaternion for a rotation, docs/your-own-system.md"
+
+
 @dataclass(frozen=True)
 class Ending:
     """A run's status and the message that says why (a ``str.format`` template of the facts:
-    steps, method, t_final, t_end, matrix, rcond, rcond_min, projection, max_steps, max_rows)."""
+    steps, method, t_final, t_end, matrix, rcond, rcond_c, rcond_min, projection, max_steps, max_rows)."""
 
     status: str
     message: str
@@ -57,6 +64,21 @@ ENDINGS: dict[tuple[int, str | None], Ending] = {
     ),
     (STATUS_J2_SINGULAR, None): _SINGULAR,
     (STATUS_T_SINGULAR, None): _SINGULAR,
+    (STATUS_C_SINGULAR, None): Ending(
+        "singular",
+        "the kinematics q̇ = C(q) u + D became singular after t = {t_end:.6g} s (C's estimate {rcond_c:.3g} ≤ "
+        "rcond_min = {rcond_min:g}): the coordinates degenerate there, as Euler angles do at gimbal lock; the run "
+        "stopped there and keeps the last good state (" + _REGULAR + ")",
+    ),
+    (STATUS_C_UNRESOLVED, None): Ending(
+        "singular",
+        "the kinematics q̇ = C(q) u + D came near a singular configuration after t = {t_end:.6g} s (C's estimate "
+        "{rcond_c:.3g}), faster than the step follows: within one step the estimate changed by more than "
+        + f"{KIN_STEP_CHANGE:g}"
+        + " of itself — the coordinates swing there (Euler angles near gimbal lock), and a step that misses the "
+        "swing goes on with a wrong configuration; the run stopped and keeps the last good state (a smaller dt or an "
+        "adaptive method follows the swing; " + _REGULAR + ")",
+    ),
     (STATUS_DIVERGED, None): Ending(
         "diverged",
         "the state or its derivative stopped being finite after t = {t_end:.6g} s; the run stopped and keeps "

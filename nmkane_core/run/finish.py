@@ -23,6 +23,7 @@ from ..kernel.constants import (
     STATS_MAX_DRIFT,
     STATS_MAX_LEAVE,
     STATS_MAX_STAB,
+    STATS_RCOND_C,
     STATS_RCOND_J2,
     STATS_RCOND_T,
     STATS_VIOL,
@@ -152,6 +153,7 @@ def _finite_stats(out: LoopOutput) -> None:
 def _ending(plan: Plan, out: LoopOutput, overflow: bool) -> tuple[str, str]:
     j2 = out.status == STATUS_J2_SINGULAR
     facts = {
+        "rcond_c": out.stats[STATS_RCOND_C],
         "steps": out.steps,
         "method": plan.integrator.name,
         "t_final": plan.t_final,
@@ -242,7 +244,11 @@ def _summary(plan: Plan, out: LoopOutput, status: str, message: str, wall: float
         "max_abs_violation": {k: float(stats[STATS_VIOL + i]) for i, k in enumerate(md.viol_names)},
         "max_abs_energy_drift": float(stats[STATS_MAX_DRIFT]) if E is not None else None,
         "final_energy_drift": float(E[-1] - E[0]) if E is not None else None,
-        "min_rcond": {"J2": float(stats[STATS_RCOND_J2]), "T": float(stats[STATS_RCOND_T])},
+        "min_rcond": {
+            "J2": float(stats[STATS_RCOND_J2]),
+            "T": float(stats[STATS_RCOND_T]),
+            **({"C": float(stats[STATS_RCOND_C])} if mod.KN else {}),
+        },
         "max_abs_multiplier": (
             {k: float(np.abs(out.L[:, i]).max(initial=0.0)) for i, k in enumerate(md.constraint_names)}
             if out.F.shape[1]

@@ -20,7 +20,7 @@ import numpy as np
 from ..integrate.calls import SolveState, adaptive_args, rows_for
 from ..integrate.methods import KUTTA_MERSON_ADAPTIVE, Tableau
 from ..kernel.built import built
-from ..kernel.constants import STATS_RCOND_J2, STATS_RCOND_T, STATS_VIOL, STATUS_OK
+from ..kernel.constants import STATS_RCOND_C, STATS_RCOND_J2, STATS_RCOND_T, STATS_VIOL, STATUS_OK
 from .plan import Plan
 from .result import Run
 
@@ -91,7 +91,7 @@ class _Stepper:
         job = self.job
         x = x0.copy()
         stats = np.zeros(STATS_VIOL + job.module.NV)
-        stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = 1.0
+        stats[STATS_RCOND_J2] = stats[STATS_RCOND_T] = stats[STATS_RCOND_C] = 1.0
         args = adaptive_args(
             job, job.p, x, self.rows, stats, t=t0, h=t - t0, max_steps=MAX_ATTEMPTS, accepted=0,
             rcond_min=job.rcond_min, t_final=t, solve=SolveState(job, job.module), bounded=False,

@@ -371,6 +371,7 @@ class MechanicalModel:
         monitors: Mapping[str, sp.Expr] | None = None,
         singular_positions: bool = False,
         description: str = "",
+        rotations: Iterable = (),
     ) -> MechanicalModel:
         """Build a model from sympy.physics.mechanics bodies, particles and loads.
 
@@ -397,6 +398,13 @@ class MechanicalModel:
             The parameter symbols.
         nonholonomic, holonomic, u_independent, energy, outputs, q_dependent, monitors, singular_positions, description
             As for the model (see the class's parameters).
+        rotations : sequence, optional
+            Frames oriented by a unit quaternion (``nmkane_core.declare.rotation.quaternion_frame``
+            returns one with its frame): the rotation's kinematical equations and norm constraint
+            are given as ``kd_eqs`` and ``holonomic`` like any others; here its norm rate s, which
+            moves no mass (a zero row and column of Q), gets a fictitious inertia — the mean of Q's
+            diagonal over the rotation's body rates — which keeps Q positive definite and does not
+            change the motion (the norm constraint alone fixes s).
 
         Returns
         -------
@@ -429,6 +437,9 @@ class MechanicalModel:
 
         Q = kane.mass_matrix.applyfunc(plain)
         P = kane.forcing.applyfunc(plain)
+        for rot in rotations:  # the quaternion's norm rate: a fictitious inertia (see above)
+            s, rates = u.index(rot.norm_rate), [u.index(w) for w in rot.rates]
+            Q[s, s] = sum((Q[i, i] for i in rates), sp.S.Zero) / len(rates)
         uind = [plain(s) for s in u_independent]
         qdep = [plain(s) for s in q_dependent]
         return cls(

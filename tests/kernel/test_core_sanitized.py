@@ -16,7 +16,8 @@ pytestmark = pytest.mark.slow
 
 #: runs that reach every entry point of csrc/api.c: both loops, the paper's and the rank-robust
 #: solve, both projections, constraint forces, the scipy adapter (rhs_ws, forces_rows, the robust
-#: bookkeeping), state completion (state_terms), the initial projection (project_state)
+#: bookkeeping), state completion (state_terms), the initial projection (project_state), the
+#: kinematics' estimate of a model whose C varies (rattleback: its ZXY angles)
 PROBE = """
 from nmkane_core import simulate
 cases = [
@@ -30,6 +31,8 @@ cases = [
     {"system": "iftomm-a02", "t_final": 0.2, "integrator": "rk45", "solve": "auto"},
     {"system": "whipple-bicycle", "t_final": 0.2, "dt": 0.001, "project_initial": True},
     {"system": "rolling-disk", "t_final": 0.2, "dt": 0.001, "projection": "blajer"},
+    {"system": "rattleback", "t_final": 0.2, "dt": 0.001},
+    {"system": "rattleback", "t_final": 0.2, "integrator": "rk45"},
 ]
 for c in cases:
     r = simulate(c, progress=False)
@@ -57,4 +60,4 @@ def test_every_entry_point_of_the_core_runs_clean_under_address_sanitizer():
     out = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=env, timeout=900)
     assert out.returncode == 0 and "ERROR: AddressSanitizer" not in out.stderr, out.stderr[-4000:]
     statuses = dict(line.split() for line in out.stdout.splitlines())
-    assert len(statuses) == 5 and all(s in ("ok", "singular") for s in statuses.values()), out.stdout
+    assert len(statuses) == 6 and all(s in ("ok", "singular") for s in statuses.values()), out.stdout

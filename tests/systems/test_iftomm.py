@@ -380,8 +380,9 @@ def test_a04s_matrices_say_what_is_not_defined_instead_of_a_traceback(capsys, mo
     assert d.matrix("J2").shape == (5, 4) and d.matrix("Q").shape == (5, 5)
     with pytest.raises(NotDefined, match="J2 is 5 × 4"):
         d.matrix("T")
-    assert main(["matrices", "iftomm-a04", "--matrix", "J2"]) == 0
-    assert main(["matrices", "iftomm-a04"]) == 0
+    wide = ["--width", "100000"]  # each matrix as one block (narrower: entry by entry)
+    assert main(["matrices", "iftomm-a04", "--matrix", "J2", *wide]) == 0
+    assert main(["matrices", "iftomm-a04", *wide]) == 0
     out = capsys.readouterr().out
     assert out.count("J2 =") == 2 and "A1: not defined. A = −J2⁻¹J1" in out and "T =" not in out
     assert main(["matrices", "iftomm-a04", "--matrix", "T"]) == 2

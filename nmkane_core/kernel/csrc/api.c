@@ -29,10 +29,12 @@ NMK_EXPORT i64 nmk_integrate_adaptive(const nmk_model *md, const nmk_adaptive_ar
 /* A fresh work array (WSIZE entries) for rhs_ws. */
 NMK_EXPORT void nmk_make_workspace(const nmk_model *md, double *w) { init_workspace(MODEL(md), w); }
 
+/* x' into K[row] at one state, the estimates at w[ORC ...] (the kinematics' too, where C varies). */
 NMK_EXPORT void nmk_rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                            const double *G1, const double *G2, double *K, i64 row, double *w) {
     md = MODEL(md);
     rhs_ws(md, t, x, p, G, G1, G2, K, row, w);
+    if (md->KN) w[md->ORC + 2] = kinematic_estimate(md, t, x, p, w);
 }
 
 NMK_EXPORT double nmk_diagnostics(const nmk_model *md, double t, const double *x, const double *p, double *viol) {

@@ -4,6 +4,7 @@
 #include "nmk.h"
 
 #include "paper.c"
+#include "kinematics.c"
 #include "loops.c"
 #include "projection.c"
 #include "robust.c"

@@ -12,11 +12,13 @@ static void init_workspace(const nmk_model *md, double *w) {
     memset(w, 0, (size_t)md->WSIZE * sizeof(double));
     w[md->ORC] = 1.0;
     w[md->ORC + 1] = 1.0;
+    w[md->ORC + 2] = 1.0;
     if (md->ROBUST) solve_defaults(md, w);
 }
 
-/* x' = [C u + D; T^-1 V^] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T.  With
- * w[OFLAG] set, what forces() needs is kept (keep_for_forces). */
+/* x' = [C u + D; T^-1 V^] into K[row]; w[ORC], w[ORC + 1] receive the rcond of J2, T (the
+ * kinematics' estimate, w[ORC + 2], is the caller's: stages(), nmk_rhs_ws).  With w[OFLAG] set,
+ * what forces() needs is kept (keep_for_forces). */
 static NMK_HOT void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
                    const double *G1, const double *G2, double *K, i64 row, double *w) {
     if (robust_in_use(md, w))
@@ -73,11 +75,17 @@ static i64 robust_outcome(const nmk_model *md, double t, double h, double *w, do
     return code;
 }
 
-/* Fill the stage derivatives K[i] of one explicit RK step (S stages); return a status code. */
+/* Fill the stage derivatives K[i] of one explicit RK step (S stages); return a status code: the
+ * first of J2, T and the kinematics' C whose estimate falls to rcond_min, or, near a singular
+ * chart (C's estimate below KIN_NEAR), a step whose stages see that estimate change by more than
+ * KIN_STEP_CHANGE of its smallest value (STATUS_C_UNRESOLVED: the step misses the coordinates'
+ * swing there; the adaptive loop shrinks it, a fixed step ends the run).  Where C varies (KN > 0)
+ * its estimate is made at the step's start, and at its other stages while it is below KIN_WATCH. */
 static i64 stages(const nmk_model *md, double t, double h, const double *x, const double *p, const double *G,
                   const double *G1, const double *G2, const double *TA, const double *TC, i64 S, double *K,
                   double *xs, double *w, double rcond_min, double *stats, i64 *order, nmk_log *solve_log) {
     const i64 n2 = 2 * md->N;
+    double klo = INFINITY, khi = 0.0; /* the kinematics' estimate over the stages */
     for (i64 i = 0; i < S; ++i) {
         for (i64 j = 0; j < n2; ++j) xs[j] = x[j];
         for (i64 l = 0; l < i; ++l) {
@@ -89,19 +97,26 @@ static i64 stages(const nmk_model *md, double t, double h, const double *x, cons
         for (i64 j = 0; j < n2; ++j) total += fabs(xs[j]);
         if (!isfinite(total)) return STATUS_DIVERGED; /* a stage left the finite numbers: divergence */
         rhs_ws(md, t + TC[i] * h, xs, p, G, G1, G2, K, i, w);
+        const int kin = md->KN && (i == 0 || klo < KIN_WATCH);
+        if (kin) w[md->ORC + 2] = kinematic_estimate(md, t + TC[i] * h, xs, p, w);
         if (md->ROBUST) {
             i64 code = robust_outcome(md, t + TC[i] * h, h, w, stats, order, solve_log, i == 0);
             if (code != STATUS_OK) return code;
         }
-        double rc0 = w[md->ORC], rc1 = w[md->ORC + 1];
-        if (rc0 <= rcond_min || rc1 <= rcond_min)
+        double rc0 = w[md->ORC], rc1 = w[md->ORC + 1], rc2 = kin ? w[md->ORC + 2] : 1.0;
+        if (rc0 <= rcond_min || rc1 <= rcond_min || rc2 <= rcond_min)
             if (!finite_work(md, w)) return STATUS_DIVERGED; /* not singular: the expressions are not defined here */
         if (rc0 < stats[STATS_RCOND_J2]) stats[STATS_RCOND_J2] = rc0;
         if (rc1 < stats[STATS_RCOND_T]) stats[STATS_RCOND_T] = rc1;
+        if (rc2 < stats[STATS_RCOND_C]) stats[STATS_RCOND_C] = rc2;
         if (rc0 <= rcond_min) return STATUS_J2_SINGULAR;
         if (rc1 <= rcond_min) return STATUS_T_SINGULAR;
+        if (rc2 <= rcond_min) return STATUS_C_SINGULAR;
+        if (kin && rc2 < klo) klo = rc2;
+        if (kin && rc2 > khi) khi = rc2;
         if (i == 0) w[md->OFLAG] = 0.0; /* the first stage has kept what the forces need */
     }
+    if (md->KN && klo < KIN_NEAR && khi - klo > KIN_STEP_CHANGE * klo) return STATUS_C_UNRESOLVED;
     return STATUS_OK;
 }
 
@@ -378,10 +393,12 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
             pending = -1;
         }
         /* a stage that left the finite numbers (a trial step past a point where the model's
-         * expressions are not defined) is rejected like an infinite error: the step shrinks, and
-         * the run fails only below hmin */
+         * expressions are not defined), or a step too long for the kinematics near a singular
+         * chart, is rejected like an infinite error: the step shrinks, and the run fails only
+         * below hmin */
         int finite = code == STATUS_OK;
-        if (code != STATUS_OK && code != STATUS_DIVERGED) {
+        int unresolved = code == STATUS_C_UNRESOLVED;
+        if (code != STATUS_OK && code != STATUS_DIVERGED && !unresolved) {
             status = code;
             break;
         }
@@ -391,7 +408,7 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
         const i64 *pj = finite ? step_projection(md, w, proj, a->near_proj) : proj;
         if (finite)  /* the stages are done with xs: it holds the error estimate */
             err = step_error(md, t, h, x, xn, a->p, K, S, a->TB, a->TE, w, pj, a->atol, a->rtol, s.xs, &finite);
-        int nonfinite = !finite;
+        int nonfinite = !finite && !unresolved;
         double fac;
         if (err <= 1.0) {
             double tn = last ? t_final : t + h;
@@ -429,7 +446,7 @@ static i64 integrate_adaptive(const nmk_model *md, const nmk_adaptive_args *a, d
         }
         h = nmk_min(h * fac, a->hmax);
         if (h < a->hmin && t < t_final) { /* non-finite trial steps down to hmin: the state cannot go on finite */
-            status = nonfinite ? STATUS_DIVERGED : STATUS_FAILED;
+            status = unresolved ? STATUS_C_UNRESOLVED : nonfinite ? STATUS_DIVERGED : STATUS_FAILED;
             break;
         }
     }

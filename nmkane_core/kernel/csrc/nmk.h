@@ -87,6 +87,9 @@ static NMK_HOT void rhs_paper(const nmk_model *md, double t, const double *x, co
 static NMK_HOT void reduced_solve(const nmk_model *md, double *w, double *K, i64 row);
 static void forces_paper(const nmk_model *md, double *w, const double *K, i64 krow);
 
+/* ---- kinematics.c: the kinematics' conditioning (models whose C varies) */
+static double kinematic_estimate(const nmk_model *md, double t, const double *x, const double *p, double *w);
+
 /* ---- loops.c: the right-hand side and the integrator loops */
 static void init_workspace(const nmk_model *md, double *w);
 static NMK_HOT void rhs_ws(const nmk_model *md, double t, const double *x, const double *p, const double *G,
