@@ -31,7 +31,6 @@ the memory not back within 50 MiB of where it started, an acknowledged run or sw
 from __future__ import annotations
 
 import argparse
-import asyncio
 import hashlib
 import json
 import os
@@ -55,58 +54,28 @@ if HERE not in sys.path:  # imported (tests/backend/test_attack_script.py): its 
 from _attack_requests import GRID_10M, SMALL, burst, flood, hostile_requests  # noqa: E402
 from _server import ROOT, rss_mib  # noqa: E402
 
+if str(ROOT) not in sys.path:  # the tests' server process and coroutine runner (tests/_helpers.py)
+    sys.path.append(str(ROOT))
+from tests._helpers import REST_URL, ServerProcess, held_connections, non_reader, run_coroutine, until  # noqa: E402
+
 RUN = {"system": "appell-hamel", "dt": 0.005, "t_final": 20}  # 4001 rows, the kill test's run
 LIVE: list[subprocess.Popen] = []  # services started here, killed if the script fails
 
 
-class Service:
-    """``nmkane serve --no-web`` on a free loopback port; its output read line by line in a thread."""
+class Service(ServerProcess):
+    """``nmkane serve --no-web`` on a free loopback port; its output read line by line in a thread
+    (tests/_helpers.ServerProcess)."""
 
     def __init__(self, db: Path, cache: Path, extra_env: dict | None = None):
         env = {**os.environ, "NMKANE_DB": str(db), "NMKANE_CACHE_DIR": str(cache), "PYTHONUNBUFFERED": "1"}
         env = {**env, "PYTHONPATH": str(ROOT), **(extra_env or {})}
         cmd = [sys.executable, "-m", "nmkane_core.cli", "serve", "--no-web", "--api-port", "0"]
-        self.proc = subprocess.Popen(
-            cmd,
-            cwd=ROOT,
-            env=env,
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
+        super().__init__(cmd, env=env, cwd=ROOT)
         LIVE.append(self.proc)
-        self.lines: list[str] = []
-        self._changed = threading.Condition()
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            with self._changed:
-                self.lines.append(line)
-                self._changed.notify_all()
-        with self._changed:
-            self._changed.notify_all()
-
-    def wait_for(self, pattern: str, timeout: float) -> re.Match:
-        """The first output line matching ``pattern`` (the service's exit or the deadline: SystemExit)."""
-        rx, deadline, seen = re.compile(pattern), time.monotonic() + timeout, 0
-        with self._changed:
-            while True:
-                for line in self.lines[seen:]:
-                    if m := rx.search(line):
-                        return m
-                seen = len(self.lines)
-                if not self._reader.is_alive() or time.monotonic() > deadline:
-                    self.proc.kill()
-                    raise SystemExit(f"attack: no line matching {pattern!r} from the service:\n{''.join(self.lines)}")
-                self._changed.wait(min(1.0, max(0.0, deadline - time.monotonic())))
 
     def ready(self, timeout: float = 600.0) -> str:
         """The REST base URL once the service serves (a cold kernel cache compiles first)."""
-        port = self.wait_for(r"REST API\s+http://[^/\s]+:(\d+)/api", timeout).group(1)
+        port = self.port(REST_URL, timeout)
         self.wait_for("Ctrl-C", 60)
         return f"http://127.0.0.1:{port}"
 
@@ -124,23 +93,13 @@ class Service:
         return code, seconds
 
 
-def until(condition, timeout: float, every: float = 0.1) -> bool:
-    """Poll ``condition()`` until it holds or ``timeout`` s pass; whether it held."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if condition():
-            return True
-        time.sleep(every)
-    return bool(condition())
-
-
 # ------------------------------------------------------------------ 1. SIGTERM during warm-up
 def sigterm_during_warmup(db: Path, empty_cache: Path) -> dict:
     print("attack: SIGTERM during the warm-up of a service on an empty kernel cache", flush=True)
     svc = Service(db, empty_cache)
     svc.wait_for(r"nmkane: kernels \[1/", 600)  # the warm-up under way: its first step done
     code, seconds = svc.end(signal.SIGTERM)
-    out = "".join(svc.lines)
+    out = svc.output
     stopped = re.search(r"kernels stopped with the service after (\d+) of (\d+)", out)
     return {
         "code": code,
@@ -173,15 +132,6 @@ def _idle(url: str) -> bool:
     return r.status_code == 200 and r.json()["runs_in_flight"] == 0
 
 
-def _in_own_loop(coroutine):
-    """Run a coroutine to its end in a thread of its own: the caller's thread may already run an
-    event loop (a test process beside Playwright's sync API), where asyncio.run refuses."""
-    from concurrent.futures import ThreadPoolExecutor
-
-    with ThreadPoolExecutor(1) as pool:
-        return pool.submit(asyncio.run, coroutine).result()
-
-
 def hostile(url: str, pid: int, rounds: int, flood_n: int, floods: int) -> dict:
     port = int(url.rsplit(":", 1)[1])
     integrators = httpx.get(f"{url}/api/systems", timeout=60).json()["integrators"]
@@ -194,9 +144,9 @@ def hostile(url: str, pid: int, rounds: int, flood_n: int, floods: int) -> dict:
     )
     rss0, flooded = rss_mib(pid), Counter()
     t0 = time.perf_counter()
-    seen = _in_own_loop(burst(port, each * rounds + once, concurrency=32))
+    seen = run_coroutine(burst(port, each * rounds + once, concurrency=32))
     for i in range(floods):
-        flooded += _in_own_loop(flood(port, flood_n))
+        flooded += run_coroutine(flood(port, flood_n))
         print(f"attack:   flood {i + 1}/{floods} of {flood_n} connections: {dict(flooded)}", flush=True)
     wall = time.perf_counter() - t0
     until(lambda: _idle(url), 120, 0.5)  # the runs the burst started have ended
@@ -219,27 +169,6 @@ def hostile(url: str, pid: int, rounds: int, flood_n: int, floods: int) -> dict:
 
 # ------------------------------------------------------------------ 4. slow readers
 BIG_RUN = {"system": "sliding-particle", "dt": 0.001, "t_final": 99.99, "every": 1}  # 100,000 rows, 20 MB
-
-
-def _socket_get(port: int, path: str) -> socket.socket:
-    """A connection that sent ``GET path`` (a 4 kB receive buffer)."""
-    sock = socket.socket()
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.connect(("127.0.0.1", port))
-    sock.sendall(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
-    return sock
-
-
-def held(port: int, clients: set[int]) -> int:
-    """How many of the connections from the local ports ``clients`` the service still holds on
-    ``port`` (Linux /proc/net/tcp: a socket the process has closed, its unsent bytes still
-    queued by the kernel, has no inode)."""
-    n = 0
-    for line in Path("/proc/net/tcp").read_text().splitlines()[1:]:
-        f = line.split()
-        local, remote = (int(x.split(":")[1], 16) for x in (f[1], f[2]))
-        n += local == port and remote in clients and f[9] != "0"
-    return n
 
 
 def _trickle(sock: socket.socket, stop: threading.Event, got: list[int]) -> None:
@@ -286,7 +215,7 @@ def slow_readers(url: str, pid: int, clients: tuple[int, int, int], deadline: fl
         assert httpx.get(f"{url}{path}", timeout=120).status_code == 200
     rss0 = rss_mib(pid)
     paths = [f"/api/runs/{run_id}"] * silent + [f"/api/runs/{run_id}.csv"] * csv + [f"/api/runs/{run_id}"] * trickle
-    socks = [_socket_get(port, p) for p in paths]
+    socks = [non_reader(port, p) for p in paths]
     t_open, ports = time.monotonic(), {s.getsockname()[1] for s in socks}
     stop, got, probes = threading.Event(), [[] for _ in range(trickle)], []
     threads = [
@@ -295,11 +224,12 @@ def slow_readers(url: str, pid: int, clients: tuple[int, int, int], deadline: fl
     threads.append(threading.Thread(target=_probe, args=(url, stop, probes)))
     for th in threads:
         th.start()
-    peak = rss0  # until the service has dropped every slow connection (or a deadline well past its own)
-    while held(port, ports) and time.monotonic() < t_open + deadline + 30:
+    peak = rss0  # until the service has dropped every slow connection (or a deadline well past its own),
+    until(lambda: held_connections(port, ports) == len(socks), deadline)  # once it has taken them all
+    while held_connections(port, ports) and time.monotonic() < t_open + deadline + 30:
         peak = max(peak, rss_mib(pid))
         time.sleep(0.05)
-    last_drop, left = time.monotonic() - t_open, held(port, ports)
+    last_drop, left = time.monotonic() - t_open, held_connections(port, ports)
     stop.set()
     for th in threads:
         th.join(60)

@@ -6,10 +6,13 @@ import asyncio
 import concurrent.futures
 import re
 import signal
+import socket
 import subprocess
 import threading
 import time
+from pathlib import Path
 
+SCRIPTS = Path(__file__).resolve().parents[1] / "scripts"  # the load and measurement scripts
 REST_URL = re.compile(r"nmkane REST API\s+http://[^/\s]+:(\d+)/api")
 WEB_URL = re.compile(r"nmkane 3D web app\s+http://[^/\s]+:(\d+)/")
 
@@ -90,6 +93,45 @@ class ServerProcess:
             self.proc.kill()
         self.proc.wait(10)
         self._reader.join(10)
+
+
+def until(condition, timeout: float, every: float = 0.1) -> bool:
+    """Poll ``condition()`` until it holds or ``timeout`` s pass; whether it held (a wait on an
+    event, never a fixed sleep standing for one)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if condition():
+            return True
+        time.sleep(every)
+    return bool(condition())
+
+
+def non_reader(port: int, path: str) -> socket.socket:
+    """A client that sent ``GET path`` to the service on ``port`` and reads nothing (a 4 kB
+    receive buffer)."""
+    sock = socket.socket()
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    sock.connect(("127.0.0.1", port))
+    sock.sendall(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
+    return sock
+
+
+def held_connections(port: int, clients: set[int]) -> int:
+    """How many connections from the local ports ``clients`` the service on ``port`` still holds
+    (Linux /proc/net/tcp: a socket the process has closed, its unsent bytes still queued by the
+    kernel, has no inode)."""
+    n = 0
+    for line in Path("/proc/net/tcp").read_text().splitlines()[1:]:
+        f = line.split()
+        local, remote = (int(x.split(":")[1], 16) for x in (f[1], f[2]))
+        n += local == port and remote in clients and f[9] != "0"
+    return n
+
+
+def rss_mib(pid: int) -> float:
+    """The resident memory of process ``pid``, MiB (Linux /proc)."""
+    with open(f"/proc/{pid}/status") as f:
+        return int(f.read().split("VmRSS:")[1].split()[0]) / 1024
 
 
 def run_coroutine(coro):

@@ -27,7 +27,7 @@ from nmkane_core.kernel.built import built
 from nmkane_core.run.initial import default_state
 from nmkane_core.run.plan import default_projection
 from nmkane_core.run.registry import get_system
-from nmkane_core.schema import PROJECTIONS
+from nmkane_core.schema import PROJECTIONS, RunSettings
 
 from . import curves as cv
 from . import geometry as geo
@@ -87,6 +87,25 @@ def initial_control(name: str, default: float, prefix: str, declared=None) -> Co
     span = max(3.0 * abs(default), 2.0)
     lo, hi, label = declared or (default - span, default + span, f"{name}(0)")
     return Control(f"{prefix}i_{name}", label, f"initial.{name}", default, min=lo, max=hi, step=_step(lo, hi))
+
+
+#: the run settings the page offers as checkboxes: (field, label, hint, only for a model with constraints)
+CHECKBOXES = (
+    (
+        "error_estimate",
+        "Estimate the error",
+        "run the same settings again at half the step (or a tenth of the tolerance) and show the difference: "
+        "the estimated global error (a second run: about twice the time)",
+        False,
+    ),
+    (
+        "singular_projection",
+        "Project near singular positions",
+        "with Projection none, still project the steps that come near a singular position of the constraints, "
+        "where the equations amplify any drift off the branch",
+        True,
+    ),
+)
 
 
 def compare_choices(core) -> tuple[str, ...]:
@@ -160,29 +179,11 @@ def _choosers(core, prefix: str, show: dict) -> list[Control]:
     proj = show.get("projection", default_projection(core, core.default_variant))  # the system's own
     proj = proj if proj in PROJECTIONS else "none"
     out.append(Control(f"{prefix}projection", "Projection", "projection", proj, kind="dropdown", options=PROJECTIONS))
-    out.append(
-        Control(
-            f"{prefix}error_estimate",
-            "Estimate the error",
-            "error_estimate",
-            bool(show.get("error_estimate", False)),
-            kind="checkbox",
-            hint="run the same settings again at half the step (or a tenth of the tolerance) and show the "
-            "difference: the estimated global error (a second run: about twice the time)",
-        )
-    )
-    if built(core).info(core.default_variant).m:  # constraints: the steps near a singular position
-        out.append(
-            Control(
-                f"{prefix}singular_projection",
-                "Project near singular positions",
-                "singular_projection",
-                bool(show.get("singular_projection", True)),
-                kind="checkbox",
-                hint="with Projection none, still project the steps that come near a singular position of the "
-                "constraints, where the equations amplify any drift off the branch",
-            )
-        )
+    constrained = built(core).info(core.default_variant).m > 0
+    for field, label, hint, needs_constraints in CHECKBOXES:
+        if constrained or not needs_constraints:
+            default = bool(show.get(field, RunSettings.model_fields[field].default))  # the schema's default
+            out.append(Control(f"{prefix}{field}", label, field, default, kind="checkbox", hint=hint))
     return out
 
 

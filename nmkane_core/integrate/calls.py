@@ -276,33 +276,7 @@ def conditioning(
     """The smallest reciprocal-condition estimate of J2 and T over one trial step of size ``h``
     from (t, x) with ``module``'s loop (on copies: nothing of the run changes).  The switcher
     asks this of a model before it switches to it or back (no other compiled function needed)."""
-    rows = Rows(2, x.size, module.NV)
-    stats = _trial_stats(module)
-    y = x.copy()
-    trial = solve_state(job, module, solve).trial()
-    if job.method.kind == "adaptive":
-        module.integrate_adaptive(
-            *adaptive_args(
-                job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, solve=trial, bounded=False
-            )
-        )
-    else:
-        args = fixed_args(
-            job,
-            p,
-            y,
-            rows,
-            stats,
-            k0=0,
-            k1=1,
-            row=0,
-            rcond_min=0.0,
-            t0=t,
-            steps=(h, t + h, 1),
-            solve=trial,
-            bounded=False,
-        )
-        module.integrate_fixed(*args)
+    stats = _trial_step(job, module, p, t, x, h, Rows(2, x.size, module.NV), solve, pending=-1)
     return float(min(stats[STATS_RCOND_J2], stats[STATS_RCOND_T]))
 
 
@@ -320,44 +294,39 @@ def forces_at(
     stage of a trial step of ``module``'s loop (on copies: nothing of the run changes; no other
     compiled function needed).  For a row no step of the run started from: its last."""
     out = rows_for(job, module, 2)
+    _trial_step(job, module, p, t, x, job.dt, out, solve, pending=0)
+    rows.F[row], rows.L[row] = out.F[0], out.L[0]
+
+
+def _trial_step(
+    job: Job,
+    module: CompiledModel,
+    p: np.ndarray,
+    t: float,
+    x: np.ndarray,
+    h: float,
+    rows: Rows,
+    solve: SolveState | None,
+    pending: int,
+) -> np.ndarray:
+    """One step of size ``h`` from (t, x) with ``module``'s loop, on copies (a trial solve state,
+    fresh statistics, no drift bounds): its statistics.  ``pending=0``: the forces of the first
+    stage into ``rows``' row 0; the step's own row goes to row 1 (fixed steps) or 0 (adaptive)."""
     stats = _trial_stats(module)
     y = x.copy()
-    h = job.dt
     trial = solve_state(job, module, solve).trial()
     if job.method.kind == "adaptive":
-        adaptive = adaptive_args(
-            job,
-            p,
-            y,
-            out,
-            stats,
-            t=t,
-            h=h,
-            max_steps=1,
-            accepted=0,
-            rcond_min=0.0,
-            pending=0,
-            t_final=t + h,
-            solve=trial,
-            bounded=False,
-        )
-        module.integrate_adaptive(*adaptive)
+        module.integrate_adaptive(
+            *adaptive_args(
+                job, p, y, rows, stats, t=t, h=h, max_steps=1, accepted=0, rcond_min=0.0, pending=pending,
+                t_final=t + h, solve=trial, bounded=False,
+            )
+        )  # fmt: skip
     else:
-        fixed = fixed_args(
-            job,
-            p,
-            y,
-            out,
-            stats,
-            k0=0,
-            k1=1,
-            row=1,
-            rcond_min=0.0,
-            pending=0,
-            t0=t,
-            steps=(h, t + h, 1),
-            solve=trial,
-            bounded=False,
-        )
-        module.integrate_fixed(*fixed)
-    rows.F[row], rows.L[row] = out.F[0], out.L[0]
+        module.integrate_fixed(
+            *fixed_args(
+                job, p, y, rows, stats, k0=0, k1=1, row=1, rcond_min=0.0, pending=pending, t0=t,
+                steps=(h, t + h, 1), solve=trial, bounded=False,
+            )
+        )  # fmt: skip
+    return stats

@@ -35,34 +35,13 @@ import numpy as np
 
 from ..kernel.events import compile_events
 
-__all__ = ["CROSSINGS_LISTED", "first_crossing", "locate_crossings", "stop_at_event"]
+__all__ = ["CROSSINGS_LISTED", "locate_crossings", "stop_at_event"]
 
 #: crossings listed in a summary (more are counted in ``crossings_not_listed``)
 CROSSINGS_LISTED = 1000
 #: regula falsi's iterations (each a short re-integration); it stops earlier at a time
 #: resolution of 1e-12 of the interval
 _ITERATIONS = 60
-
-
-def first_crossing(t: np.ndarray, values: dict[str, np.ndarray]) -> tuple[str, float, int] | None:
-    """(event name, time, row index k ≥ 0 of the first row at or past it) of the earliest
-    crossing over rows ``t``, linearly interpolated, or None.  Non-finite values count as not
-    crossed."""
-    best = None
-    for name, g in values.items():
-        hit = np.flatnonzero(np.nan_to_num(g, nan=-np.inf) >= 0.0)
-        if hit.size == 0:
-            continue
-        k = int(hit[0])
-        if k == 0:
-            tc = float(t[0])
-        else:
-            g0, g1 = float(g[k - 1]), float(g[k])
-            frac = g0 / (g0 - g1) if g1 != g0 else 1.0
-            tc = float(t[k - 1] + min(1.0, max(0.0, frac)) * (t[k] - t[k - 1]))
-        if best is None or tc < best[1]:
-            best = (name, tc, k)
-    return best
 
 
 def locate_crossings(system, params: dict, state_names, t: np.ndarray, x: np.ndarray, dense) -> list[dict]:
@@ -87,12 +66,12 @@ def locate_crossings(system, params: dict, state_names, t: np.ndarray, x: np.nda
             if not (np.isfinite(g[k - 1]) and np.isfinite(g[k])):
                 tc = float(t[k])
             else:
-                tc = _regula_falsi(lambda s, n=name: float(value(n, dense.state(s)[None, :])[0]), t[k - 1], t[k], g)
+                tc = _regula_falsi(lambda s, n=name: float(value(n, dense.state(s)[None, :])[0]), t[k - 1], t[k])
             found.append({"name": name, "t": tc, "direction": "rising" if on[k] else "falling", "row": int(k)})
     return sorted(found, key=lambda c: (c["t"], c["name"]))
 
 
-def _regula_falsi(f, t0: float, t1: float, g) -> float:
+def _regula_falsi(f, t0: float, t1: float) -> float:
     """The zero of f in [t0, t1] (f(t0) < 0 ≤ f(t1) or the reverse) by the Illinois method."""
     a, b = float(t0), float(t1)
     fa, fb = f(a), f(b)

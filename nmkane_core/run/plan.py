@@ -29,6 +29,7 @@ from .initial import default_state, initial_state
 from .partition import max_rank, partition
 from .registry import get_system, system_names
 from .settings import raise_all, shown, validate_settings
+from .solvelog import robust_in_use
 
 __all__ = [
     "Plan",
@@ -178,8 +179,7 @@ def _near_projection(s: RunSettings, module, method, proj: ProjectionOptions, so
     """The projection of the steps that come near a singular position, in a run without one
     (``singular_projection``): the mass metric's (yoon), for the tableau methods of a model
     whose kernel runs the rank-robust machinery (csrc/loops.c ``step_projection``)."""
-    robust = module.ROBUST and not (module.DECLARED and solve == SOLVES["paper"])
-    if not s.singular_projection or proj.name != "none" or method.kind == "scipy" or not robust:
+    if not s.singular_projection or proj.name != "none" or method.kind == "scipy" or not robust_in_use(module, solve):
         return None
     return projection_options("yoon")
 

@@ -411,37 +411,18 @@ class MechanicalModel:
         MechanicalModel
             The model, in plain symbols.
         """
-        from sympy.physics.mechanics import KanesMethod, dynamicsymbols
+        from sympy.physics.mechanics import KanesMethod
 
-        q = list(q)
-        u = list(u)
+        q, u = list(q), list(u)
         kane = KanesMethod(frame, q_ind=q, u_ind=u, kd_eqs=list(kd_eqs))
         kane.kanes_equations(list(bodies), list(loads))
-        t = dynamicsymbols._t
-        qd = [qi.diff(t) for qi in q]
-        # (1): solve the kinematical equations for q̇ = C u + D
-        sol = sp.solve(list(kd_eqs), qd, dict=True)[0]
-        qdot = sp.Matrix([sol[v] for v in qd])
-        C = qdot.jacobian(u)
-        D = sp.expand(qdot - C * sp.Matrix(u))
-        qs = plain_symbols([str(s).replace("(t)", "") for s in q])
-        us = plain_symbols([str(s).replace("(t)", "") for s in u])
-        ts = sp.Symbol("t", real=True)
-        # xreplace, not subs: an exact swap of nodes, linear in the size of the expression
-        # (subs took minutes on the mass matrix of a model with 8 coordinates)
-        to_qdot = dict(zip(qd, qdot, strict=True))
-        to_plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), t: ts}
-
-        def plain(e):
-            return sp.sympify(e).xreplace(to_qdot).xreplace(to_plain)
-
+        C, D, plain, (qs, us, ts) = _kinematics_in_plain_symbols(q, u, list(kd_eqs))
         Q = kane.mass_matrix.applyfunc(plain)
-        P = kane.forcing.applyfunc(plain)
-        for rot in rotations:  # the quaternion's norm rate: a fictitious inertia (see above)
-            s, rates = u.index(rot.norm_rate), [u.index(w) for w in rot.rates]
-            Q[s, s] = sum((Q[i, i] for i in rates), sp.S.Zero) / len(rates)
-        uind = [plain(s) for s in u_independent]
-        qdep = [plain(s) for s in q_dependent]
+        _norm_rate_inertia(Q, u, rotations)
+
+        def named(mapping):
+            return {k: plain(v) for k, v in dict(mapping or {}).items()}
+
         return cls(
             name=name,
             q=qs,
@@ -450,15 +431,49 @@ class MechanicalModel:
             C=C.applyfunc(plain),
             D=D.applyfunc(plain),
             Q=Q,
-            P=P,
-            nonholonomic={k: plain(v) for k, v in dict(nonholonomic or {}).items()},
-            holonomic={k: plain(v) for k, v in dict(holonomic or {}).items()},
-            u_independent=tuple(uind),
+            P=kane.forcing.applyfunc(plain),
+            nonholonomic=named(nonholonomic),
+            holonomic=named(holonomic),
+            u_independent=tuple(plain(s) for s in u_independent),
             energy=None if energy is None else plain(energy),
-            outputs={k: plain(v) for k, v in dict(outputs or {}).items()},
-            q_dependent=tuple(qdep),
-            monitors={k: plain(v) for k, v in dict(monitors or {}).items()},
+            outputs=named(outputs),
+            q_dependent=tuple(plain(s) for s in q_dependent),
+            monitors=named(monitors),
             singular_positions=singular_positions,
             t=ts,
             description=description,
         )
+
+
+def _kinematics_in_plain_symbols(q, u, kd_eqs):
+    """(C, D of q̇ = C u + D (1) solved from the kinematical equations, a converter of
+    expressions in dynamicsymbols to plain symbols — q̇ replaced by C u + D —, and the plain
+    (q, u, t)) for :meth:`MechanicalModel.from_mechanics`."""
+    from sympy.physics.mechanics import dynamicsymbols
+
+    t = dynamicsymbols._t
+    qd = [qi.diff(t) for qi in q]
+    sol = sp.solve(kd_eqs, qd, dict=True)[0]
+    qdot = sp.Matrix([sol[v] for v in qd])
+    C = qdot.jacobian(u)
+    D = sp.expand(qdot - C * sp.Matrix(u))
+    qs = plain_symbols([str(s).replace("(t)", "") for s in q])
+    us = plain_symbols([str(s).replace("(t)", "") for s in u])
+    ts = sp.Symbol("t", real=True)
+    # xreplace, not subs: an exact swap of nodes, linear in the size of the expression
+    # (subs took minutes on the mass matrix of a model with 8 coordinates)
+    to_qdot = dict(zip(qd, qdot, strict=True))
+    to_plain = {**dict(zip(q, qs, strict=True)), **dict(zip(u, us, strict=True)), t: ts}
+
+    def plain(e):
+        return sp.sympify(e).xreplace(to_qdot).xreplace(to_plain)
+
+    return C, D, plain, (qs, us, ts)
+
+
+def _norm_rate_inertia(Q: sp.Matrix, u: list, rotations) -> None:
+    """A quaternion's norm rate moves no mass: give it, in place, the mean of Q's diagonal over
+    the rotation's body rates (see ``rotations`` of :meth:`MechanicalModel.from_mechanics`)."""
+    for rot in rotations:
+        s, rates = u.index(rot.norm_rate), [u.index(w) for w in rot.rates]
+        Q[s, s] = sum((Q[i, i] for i in rates), sp.S.Zero) / len(rates)

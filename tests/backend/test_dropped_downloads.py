@@ -19,16 +19,14 @@ from __future__ import annotations
 import asyncio
 import gc
 import importlib
-import socket
 import time
-from pathlib import Path
 
 import httpx
 import pytest
 from fastapi.testclient import TestClient
 
 from backend import Settings, create_app
-from tests._helpers import run_coroutine, start_backend
+from tests._helpers import held_connections, non_reader, rss_mib, run_coroutine, start_backend, until
 
 ROUTES = importlib.import_module("backend.routes.runs")  # the module (backend.routes.runs is its router)
 LONG = {"system": "sliding-particle", "dt": 0.001, "t_final": 20}  # 20,001 rows: five CSV chunks
@@ -101,30 +99,6 @@ DEADLINE_S = 3.0
 BIG_RUN = {"system": "sliding-particle", "dt": 0.001, "t_final": 99.99, "every": 1}  # 100,000 rows, 21 MB
 
 
-def _rss_mib(pid: int) -> float:
-    with open(f"/proc/{pid}/status") as f:
-        return int(f.read().split("VmRSS:")[1].split()[0]) / 1024
-
-
-def _non_reader(port: int, path: str) -> socket.socket:
-    sock = socket.socket()
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.connect(("127.0.0.1", port))
-    sock.sendall(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
-    return sock
-
-
-def _held(port: int, clients: set[int]) -> int:
-    """The connections from the local ports ``clients`` the service on ``port`` still holds (Linux
-    /proc/net/tcp: one the process has closed, its unsent bytes still queued, has no inode)."""
-    n = 0
-    for line in Path("/proc/net/tcp").read_text().splitlines()[1:]:
-        f = line.split()
-        local, remote = (int(x.split(":")[1], 16) for x in (f[1], f[2]))
-        n += local == port and remote in clients and f[9] != "0"
-    return n
-
-
 @pytest.mark.heavy  # a service process, a 21 MB run and ten CSV clients that read nothing
 def test_ten_clients_that_read_nothing_of_a_csv_leave_the_memory_where_it_was(tmp_path):
     server, port = start_backend(
@@ -134,19 +108,22 @@ def test_ten_clients_that_read_nothing_of_a_csv_leave_the_memory_where_it_was(tm
         url, pid = f"http://127.0.0.1:{port}", server.proc.pid
         run_id = httpx.post(f"{url}/api/runs", json=BIG_RUN, timeout=300).json()["id"]
         assert httpx.get(f"{url}/api/runs/{run_id}.csv", timeout=120).status_code == 200  # one-time costs first
-        start = _rss_mib(pid)
-        socks = [_non_reader(port, f"/api/runs/{run_id}.csv") for _ in range(10)]
+        start = rss_mib(pid)
+        socks = [non_reader(port, f"/api/runs/{run_id}.csv") for _ in range(10)]
         ports = {s.getsockname()[1] for s in socks}
+        # the service has taken them all (a connection still in the accept queue has no inode: it
+        # counted as not held, and the wait below ended at once, now and then), then drops them
+        assert until(lambda: held_connections(port, ports) == len(socks), DEADLINE_S), "not all accepted"
         end = time.monotonic() + DEADLINE_S + 30  # the read deadline drops them
-        while _held(port, ports) and time.monotonic() < end:
+        while held_connections(port, ports) and time.monotonic() < end:
             time.sleep(0.2)
-        assert _held(port, ports) == 0, "the service still holds clients that read nothing"
+        assert held_connections(port, ports) == 0, "the service still holds clients that read nothing"
         for s in socks:
             s.close()
         end = time.monotonic() + 20  # the memory of the dropped downloads returns (an event loop's cleanup)
-        while _rss_mib(pid) - start >= 50 and time.monotonic() < end:
+        while rss_mib(pid) - start >= 50 and time.monotonic() < end:
             time.sleep(0.5)
-        after = _rss_mib(pid)
+        after = rss_mib(pid)
         assert after - start < 50, f"10 CSV clients that read nothing: {start:.0f} -> {after:.0f} MiB after they left"
         assert httpx.get(f"{url}/api/health", timeout=10).status_code == 200
     finally:

@@ -12,13 +12,12 @@ with a small receive buffer that send the GET and never read.
 
 from __future__ import annotations
 
-import socket
 import time
 
 import httpx
 import pytest
 
-from tests._helpers import start_backend
+from tests._helpers import non_reader, rss_mib, start_backend, until
 
 DEADLINE_S = 3.0  # NMKANE_READ_TIMEOUT_S of the service under test
 CLIENTS = 40
@@ -39,29 +38,6 @@ def service(tmp_path_factory):
         server.stop(timeout=60)
 
 
-def _rss_mib(pid: int) -> float:
-    with open(f"/proc/{pid}/status") as f:
-        return int(f.read().split("VmRSS:")[1].split()[0]) / 1024
-
-
-def _until(condition, timeout: float, every: float = 0.2) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if condition():
-            return True
-        time.sleep(every)
-    return condition()
-
-
-def _non_reader(port: int, path: str) -> socket.socket:
-    """A client that sends ``GET path`` and then reads nothing (a 4 kB receive buffer)."""
-    sock = socket.socket()
-    sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
-    sock.connect(("127.0.0.1", port))
-    sock.sendall(f"GET {path} HTTP/1.1\r\nHost: 127.0.0.1\r\n\r\n".encode())
-    return sock
-
-
 def _download(port: int, run_id: str) -> bytes:
     r = httpx.get(f"http://127.0.0.1:{port}/api/runs/{run_id}", timeout=60)
     assert r.status_code == 200, r.text
@@ -76,21 +52,21 @@ def test_forty_clients_that_read_nothing_hold_no_document_and_the_memory_returns
     server, port, run_id, _ = service
     pid = server.proc.pid
     _download(port, run_id)  # the first download's one-time costs (code paths, allocator) first
-    start = _rss_mib(pid)
-    socks = [_non_reader(port, f"/api/runs/{run_id}") for _ in range(CLIENTS)]
+    start = rss_mib(pid)
+    socks = [non_reader(port, f"/api/runs/{run_id}") for _ in range(CLIENTS)]
     try:
         # the answers start within a second or two; sample the service's memory while the
         # clients hold their connections (the read deadline drops them after DEADLINE_S)
         peak, end = start, time.monotonic() + DEADLINE_S - 0.5
         while time.monotonic() < end:
-            peak = max(peak, _rss_mib(pid))
+            peak = max(peak, rss_mib(pid))
             time.sleep(0.05)
     finally:
         for s in socks:
             s.close()
     assert peak - start < 100, f"{CLIENTS} clients that read nothing grew the service {start:.0f} -> {peak:.0f} MiB"
     # the memory of the closed connections returns (a bounded wait: an event loop's cleanup)
-    assert _until(lambda: _rss_mib(pid) - start < 50, 15), f"{start:.0f} -> {peak:.0f} -> {_rss_mib(pid):.0f} MiB"
+    assert until(lambda: rss_mib(pid) - start < 50, 15), f"{start:.0f} -> {peak:.0f} -> {rss_mib(pid):.0f} MiB"
     # and the service still answers whole documents
     assert len(_download(port, run_id)) > 15e6
 
@@ -112,7 +88,7 @@ def test_a_client_that_stops_reading_is_dropped_at_the_read_deadline(service):
     """A client that reads nothing for the read deadline finds the connection closed with the
     document cut short (before: the whole document waited for it, for ever)."""
     _, port, run_id, posted = service
-    sock = _non_reader(port, f"/api/runs/{run_id}")
+    sock = non_reader(port, f"/api/runs/{run_id}")
     try:
         time.sleep(DEADLINE_S + 2)  # the claim is about time itself: nothing read for longer than the deadline
         sock.settimeout(10)

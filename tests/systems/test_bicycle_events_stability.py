@@ -8,7 +8,7 @@ import pytest
 
 from nmkane_core import simulate
 from nmkane_core.analysis.eigensweep import crossings, sweep
-from nmkane_core.run.events import first_crossing
+from nmkane_core.run.events import _regula_falsi, stop_at_event
 from nmkane_core.schema import RunResult
 from nmkane_core.systems.whipple_bicycle import CAPSIZE_SPEED, WEAVE_SPEED
 
@@ -20,12 +20,21 @@ def _bike(speed, t_final=10.0, **initial):
     )
 
 
-def test_first_crossing_interpolates_and_picks_the_earliest():
-    t = np.array([0.0, 1.0, 2.0, 3.0])
-    found = first_crossing(t, {"a": np.array([-3.0, -1.0, 1.0, 2.0]), "b": np.array([-1.0, -0.5, -0.1, 0.5])})
-    assert found == ("a", pytest.approx(1.5), 2)
-    assert first_crossing(t, {"a": np.array([-1.0, np.nan, -1.0, -2.0])}) is None
-    assert first_crossing(t, {"a": np.array([0.0, -1.0, -1.0, -1.0])}) == ("a", 0.0, 0)
+def test_a_crossing_is_located_to_round_off_and_the_stop_is_the_first_rising_one_asked():
+    """The root finder of the event crossings (the Illinois method) and the choice of the stop:
+    the earliest rising crossing of an event in the run's stop set; falling crossings and events
+    outside it are recorded only."""
+    root = _regula_falsi(lambda x: x * x - 2.0, 1.0, 2.0)
+    assert root == pytest.approx(np.sqrt(2.0), abs=1e-12) and root * root - 2.0 >= 0.0  # at or past the zero
+    assert _regula_falsi(lambda x: np.nan if x > 1.2 else x - 1.5, 1.0, 2.0) == 2.0  # not finite: the row's
+    found = [
+        {"name": "a", "t": 0.5, "direction": "falling", "row": 1},
+        {"name": "b", "t": 1.0, "direction": "rising", "row": 2},
+        {"name": "a", "t": 1.5, "direction": "rising", "row": 2},
+    ]
+    assert stop_at_event(found, frozenset({"a"}))["t"] == 1.5
+    assert stop_at_event(found, frozenset({"a", "b"}))["name"] == "b"
+    assert stop_at_event(found, frozenset()) is None
 
 
 def test_bicycle_at_3_m_per_s_falls_and_the_run_stops_with_the_event():

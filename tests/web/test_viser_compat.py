@@ -6,9 +6,10 @@ no other module of web/ touches viser's private API."""
 
 import ast
 import contextlib
+import functools
 import socket
+import sys
 import threading
-import time
 import tomllib
 import warnings
 from pathlib import Path
@@ -23,36 +24,26 @@ from packaging.specifiers import SpecifierSet
 from websockets.exceptions import ConnectionClosed
 from websockets.sync.client import connect
 
+from tests._helpers import SCRIPTS, until
 from web import viser_compat as compat
+
+if str(SCRIPTS) not in sys.path:  # the load scripts' headless viser client
+    sys.path.insert(0, str(SCRIPTS))
+import viser_client
 
 ROOT = Path(__file__).resolve().parents[2]
 VISER = Path(viser.__file__).resolve().parent
-CAMERA = {
-    "type": "ViewerCameraMessage",
-    "wxyz": (1.0, 0.0, 0.0, 0.0),
-    "position": (3.0, -3.0, 2.0),
-    "fov": 1.309,
-    "near": 0.01,
-    "far": 1000.0,
-    "image_height": 900,
-    "image_width": 1400,
-    "look_at": (0.0, 0.0, 0.5),
-    "up_direction": (0.0, 0.0, 1.0),
-}
+#: the camera the raw client reports (the load scripts' client's, looking a little above the origin)
+CAMERA = {**viser_client.CAMERA, "look_at": (0.0, 0.0, 0.5)}
+
+
+#: a wait on what a connection delivers (20 s at the most, polled every 20 ms)
+soon = functools.partial(until, timeout=20.0, every=0.02)
 
 
 def must(ok: bool, function: str, what: str) -> None:
     """An assertion naming the compat function that no longer works with this viser."""
     assert ok, f"web.viser_compat.{function} with viser {viser.__version__}: {what}"
-
-
-def until(cond, timeout: float = 20.0) -> bool:
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if cond():
-            return True
-        time.sleep(0.02)
-    return bool(cond())
 
 
 class RawClient:
@@ -74,10 +65,7 @@ class RawClient:
     def _read(self) -> None:
         with contextlib.suppress(ConnectionClosed, OSError):
             while True:
-                data = self.ws.recv()
-                size, csize = int.from_bytes(data[:8], "little"), int.from_bytes(data[8:16], "little")
-                inner = self._dctx.decompress(data[16 : 16 + csize], max_output_size=size)
-                self.windows.append(msgspec.msgpack.decode(inner)["messages"])
+                self.windows.append(viser_client.decode_window(self.ws.recv(), self._dctx))
 
     def messages(self, kind: str) -> list[dict]:
         return [m for w in list(self.windows) for m in w if m.get("type") == kind]
@@ -100,7 +88,7 @@ def server():
 def connected(server):
     """(the raw client, viser's ClientHandle of it)."""
     raw = RawClient(server.get_port())
-    assert until(lambda: len(server.get_clients()) == 1), "no client connected"
+    assert soon(lambda: len(server.get_clients()) == 1), "no client connected"
     yield raw, next(iter(server.get_clients().values()))
     raw.close()
 
@@ -123,7 +111,7 @@ def test_connection_queue_and_run_javascript(connected):
     must(callable(compat.queue(client)), "queue", "no message queue")
     must(compat.run_javascript(client, "window.__nmkaneProbe = 1;"), "run_javascript", "refused a connected client")
     sent = lambda: [m["source"] for m in raw.messages("RunJavascriptMessage")]  # noqa: E731
-    must(until(lambda: "window.__nmkaneProbe = 1;" in sent()), "run_javascript", "the script did not arrive")
+    must(soon(lambda: "window.__nmkaneProbe = 1;" in sent()), "run_javascript", "the script did not arrive")
     assert compat.connection(None) is None and compat.queue(None) is None
     assert compat.run_javascript(None, "1;") is False  # a test's shared server: no page
 
@@ -132,7 +120,7 @@ def test_gui_uuid_is_what_the_page_names_in_an_update(server, connected):
     raw, _ = connected
     box = server.gui.add_text("box", "")
     raw.send({"type": "GuiUpdateMessage", "uuid": compat.gui_uuid(box), "updates": {"value": "typed"}})
-    must(until(lambda: box.value == "typed"), "gui_uuid", "an update naming it did not reach the box")
+    must(soon(lambda: box.value == "typed"), "gui_uuid", "an update naming it did not reach the box")
 
 
 def test_whole_windows_sends_a_big_batch_as_one_websocket_message(connected):
@@ -146,7 +134,7 @@ def test_whole_windows_sends_a_big_batch_as_one_websocket_message(connected):
     def windows() -> list[int]:
         return [sum(m["type"] == "FrameMessage" and m["name"].startswith("/batch/") for m in w) for w in raw.windows[:]]
 
-    must(until(lambda: sum(windows()) >= n), "whole_windows", "the batch did not arrive")
+    must(soon(lambda: sum(windows()) >= n), "whole_windows", "the batch did not arrive")
     must(max(windows()) == n, "whole_windows", f"a batch of {n} arrived split: {[k for k in windows() if k]}")
     assert compat.whole_windows(None) is False
 
@@ -156,7 +144,7 @@ def test_backlog_and_writes_racing_a_leave(server, connected):
     left = compat.backlog(client)
     must(isinstance(left, int) and left >= 0, "backlog", f"{left!r} for a connected client")
     raw.close()
-    must(until(lambda: not server.get_clients()), "backlog", "the client did not leave")
+    must(soon(lambda: not server.get_clients()), "backlog", "the client did not leave")
     must(compat.backlog(client) == -1, "backlog", "a closed connection not reported as −1")
     scope = compat.dead_writes_allowed(client)
     must(not isinstance(scope, contextlib.nullcontext), "dead_writes_allowed", "no scope on the message buffer")
@@ -182,7 +170,7 @@ def test_camera_pose_and_send_camera(connected):
     must(np.allclose(pose[1], CAMERA["look_at"]), "camera_pose", f"look_at {pose[1]} not the reported one")
     must(compat.send_camera(client.camera, (1.0, 2.0, 3.0), (0.0, 0.0, 1.0)), "send_camera", "refused")
     must(
-        until(lambda: raw.messages("SetCameraPositionMessage") and raw.messages("SetCameraLookAtMessage")),
+        soon(lambda: raw.messages("SetCameraPositionMessage") and raw.messages("SetCameraLookAtMessage")),
         "send_camera",
         "the camera's messages did not arrive",
     )
@@ -229,10 +217,10 @@ def test_on_handshake_and_handshake(server):
     compat.on_handshake(server, connect_, disconnect)
     raw = RawClient(server.get_port())
     host = f"127.0.0.1:{server.get_port()}"
-    must(until(lambda: bool(seen)), "on_handshake", "the connect callback did not run")
+    must(soon(lambda: bool(seen)), "on_handshake", "the connect callback did not run")
     must(seen == [host], "handshake", f"the connection's Host read {seen}, not {host!r}")
     raw.close()
-    must(until(lambda: bool(gone)), "on_handshake", "the disconnect callback did not run")
+    must(soon(lambda: bool(gone)), "on_handshake", "the disconnect callback did not run")
 
 
 def _get(port: int, host: str) -> tuple[int, bytes]:
