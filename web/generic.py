@@ -287,10 +287,11 @@ class GenericView:
         out = {main: settings}
         compare = options.get("compare", OFF)
         picks = [*core.variants, UNSTABILIZED] if compare == ALL else [compare]
+        shown = built(core).info(main)
         for pick in picks:
-            if pick == UNSTABILIZED:
+            if pick == UNSTABILIZED:  # the shown run without its gains (none: it is the shown run again)
                 s = {**settings, **{g: 0.0 for g in GAINS if g in settings}}
-                if s != settings:
+                if s != settings and (shown.nonholonomic or shown.holonomic):
                     out[f"{main}, Γ = 0"] = s
             elif pick in core.variants and pick != main:
                 info = built(core).info(pick)
