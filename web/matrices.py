@@ -1,4 +1,4 @@
-"""The derived matrices (A1, A2, T of (22), (40), (44)) drawn for the teaching panel.
+"""The derived matrices (A1, A2, T and V of (22), (40), (44)) drawn for the teaching panel.
 
 viser 1.1's markdown does not typeset LaTeX (tested: ``$...$`` shows as source), so the
 matrices are drawn as images with matplotlib's mathtext, entry by entry (mathtext has no
@@ -32,11 +32,10 @@ import numpy as np
 
 from nmkane_core.symbolic.shorten import Budget, within
 
-MATRICES = ("A1", "A2", "T")
+MATRICES = ("A1", "A2", "T", "V")
 #: what a model without A = −J2⁻¹J1 shows instead (redundant constraints: no square J2)
-FALLBACK = ("J1", "J2", "Q")
-TITLES = {"A1": "A_1", "A2": "A_2", "T": "T", "J1": "J_1", "J2": "J_2", "Q": "Q"}
-EQUATION = {"A1": "(22)", "A2": "(40)", "T": "(44)"}
+FALLBACK = ("J1", "J2", "Q", "P")
+TITLES = {"A1": "A_1", "A2": "A_2", "T": "T", "V": "V", "J1": "J_1", "J2": "J_2", "Q": "Q", "P": "P"}
 DPI = 200  # sharp in viser's enlarged view (the image's expand icon)
 ICON_PAD = 30  # px of white above a matrix: viser's expand icon sits in the image's top-right corner
 FONT_SIZE = 11
@@ -272,11 +271,13 @@ def _build(system: str, variant: str) -> Panel:
         latex["where"] = r"\text{where } " + r",\quad ".join(where)
     intro = (
         f"**{system}, {variant}** — nonminimal equations T u̇ = V̂ (44), with "
-        f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40) and T = [A1; A2 Q] (44); speeds ordered "
+        f"A1 = [−A  I] (22), A2 = [I  Aᵀ] (40), T = [A1; A2 Q] and V = [B; A2 P] (44), where "
+        f"u̇_D = A u̇_I + B is the constraints' acceleration form (20) and P = F − L (43) "
+        f"(a run adds the Baumgarte terms to B: V̂ of (110)); speeds ordered "
         f"[u_I, u_D] = ({', '.join(str(s) for s in d.u_perm)}){speed_names(built(get_system(system)).model(variant))}."
     )
     if missing:
-        intro += f" Shown instead: J1, J2 and Q. {missing[0].upper()}{missing[1:]}."
+        intro += f" Shown instead: J1, J2, Q and P (43). {missing[0].upper()}{missing[1:]}."
     if longest > TYPESET_OPS:
         intro += (
             f" Entries drawn as ⋯ are too long to typeset (the longest has {longest:,} operations); "

@@ -40,8 +40,8 @@ def test_a_model_without_a_square_j2_shows_j1_j2_and_q_and_says_why():
     from web import matrices as mx
 
     p = mx.panel("iftomm-a04", "default")
-    assert list(p.images) == ["J1", "J2", "Q"] and set(p.latex) >= {"J1", "J2", "Q"}
-    assert "Shown instead: J1, J2 and Q" in p.intro and "J2 is 5 × 4" in p.intro
+    assert list(p.images) == ["J1", "J2", "Q", "P"] and set(p.latex) >= {"J1", "J2", "Q", "P"}
+    assert "Shown instead: J1, J2, Q and P (43)" in p.intro and "J2 is 5 × 4" in p.intro
 
 
 def test_the_latex_is_the_simplified_form_and_nothing_is_elided():
@@ -50,7 +50,7 @@ def test_the_latex_is_the_simplified_form_and_nothing_is_elided():
     from web import matrices as mx
 
     p = mx._build("appell-hamel", "nonlinear")
-    assert "too long" not in p.intro and set(p.images) == {"A1", "A2", "T"}
+    assert "too long" not in p.intro and set(p.images) == {"A1", "A2", "T", "V"}
     assert len(p.latex["A1"]) < 1000, len(p.latex["A1"])
     assert "n_{1}" in p.latex["A1"] and p.latex["where"].startswith(r"\text{where } n_{1} =")
     assert all(r"\cdots" not in v for v in p.latex.values())
@@ -63,7 +63,7 @@ def test_a_wide_matrix_is_drawn_entry_by_entry_narrow_enough_to_read():
 
     p = mx._build("appell-hamel", "nonlinear")
     tall = {k for k, img in p.images.items() if img.shape[0] > img.shape[1]}  # entry by entry
-    assert "T" in tall
+    assert "T" in tall and "V" in p.images  # all four of item 4: A1, A2, T, V
     # a grid is never wider than WIDE_PX (how wide an entry is depends on how far the panel's time
     # budget simplified it: 512 px for T's widest here, A1 and A2 grids of 558 and 580 px)
     assert all(img.shape[1] <= mx.WIDE_PX for k, img in p.images.items() if k not in tall)
