@@ -38,6 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .fastpath import follow_camera
+from .labels import View
 
 CATCH_UP_S = 15.0  # how long reports that do not show our preset are taken as stale (a slow browser)
 PANEL_PX = 420.0  # the control panel (viser's "large" width) and its margin, at the right of the canvas
@@ -148,6 +149,26 @@ class CameraRig:
         if not (w > 0 and h > 0 and 0 < fov < math.pi):
             return Viewport()
         return Viewport(w, h, fov)
+
+    def view(self) -> View | None:
+        """Where the browser's camera is and what it sees (for :mod:`web.labels`), or None before
+        it has reported its camera."""
+        cam = getattr(self.client, "camera", None)
+        if cam is None or not self.alive():
+            return None
+        try:
+            v = View(
+                np.asarray(cam.position, float),
+                np.asarray(cam.look_at, float),
+                np.asarray(cam.up_direction, float),
+                float(cam.fov),
+                float(cam.image_width),
+                float(cam.image_height),
+            )
+        except (AttributeError, AssertionError, TypeError, ValueError):  # not reported yet
+            return None
+        ok = v.width > 0 and v.height > 0 and 0 < v.fov < math.pi
+        return v if ok and np.all(np.isfinite(v.position)) and np.all(np.isfinite(v.look_at)) else None
 
     def place(self, look_at: np.ndarray, position: np.ndarray, following: bool) -> None:
         """Put the camera at ``position`` looking at ``look_at`` (a reset: later reports are

@@ -77,6 +77,8 @@ class Pen:
     extents: list[float] = field(default_factory=list)  # sizes of solid shapes (the camera's sense of scale)
     local: dict[str, list[tuple[np.ndarray, np.ndarray]]] = field(default_factory=dict)  # frame -> its solids' boxes
     grounds: list[tuple[Any, float]] = field(default_factory=list)  # (node, height) of each ground plane
+    #: the labels: (node, frame or None, offset on it; or None, None, the index of its Moving)
+    labels: list[tuple[Any, str | None, Any]] = field(default_factory=list)
 
     def solid(self, s: decl.Shape, lo, hi) -> None:
         """A solid on a frame spans the box (lo, hi) in the frame's coordinates (what frames the
@@ -117,6 +119,10 @@ def _cylinder(pen: Pen, s: decl.Cylinder) -> None:
     half[np.argmax(np.abs(AXES[s.axis]))] = abs(s.length) / 2
     off = np.asarray(s.offset, float)
     pen.solid(s, off - half, off + half)
+    if abs(s.length) <= geo.DISK * abs(s.radius):  # a coin, a wheel: a round rim (geometry.disk_mesh)
+        verts, faces = geo.disk_mesh(abs(s.radius), abs(s.length), AXES[s.axis])
+        pen.scene.add_mesh_simple(pen.path(s), verts + off, faces, color=pen.color(s), **pen.style(s))
+        return
     pen.scene.add_cylinder(
         pen.path(s),
         radius=abs(s.radius),
@@ -180,9 +186,11 @@ def _label(pen: Pen, s: decl.Label) -> None:
         return  # one name per part is enough
     if s.at is not None:
         node = pen.scene.add_label(pen.path(s), s.text, anchor="bottom-left")
+        pen.labels.append((node, None, len(pen.moving)))
         pen.moving.append(Moving(node, "point", s.at))
-    else:  # on a frame: moves with it
-        pen.scene.add_label(pen.path(s), s.text, position=tuple(s.offset), anchor="bottom-left")
+    else:  # on a frame (moves with it) or in the world
+        node = pen.scene.add_label(pen.path(s), s.text, position=tuple(s.offset), anchor="bottom-left")
+        pen.labels.append((node, s.frame, np.asarray(s.offset, float)))
 
 
 def _ground(pen: Pen, s: decl.Ground, width: float = 200.0, infinite: bool = True) -> None:
@@ -328,6 +336,23 @@ class DeclaredScene:
         for node, height in self.pen.grounds:
             below = lowest < height - 0.5 * self.extent
             node.plane_opacity = GROUND_SEEN_THROUGH if below else GROUND_OPACITY
+
+    def label_points(self, k: int) -> list[tuple[Any, np.ndarray]]:
+        """The labels at output row k with their world points (:mod:`web.labels` keeps them
+        apart on the screen)."""
+        out = []
+        for node, frame, where in self.pen.labels:
+            if frame is None and isinstance(where, int):  # at a moving point
+                if where < len(self.rows):
+                    rows = self.rows[where]
+                    out.append((node, rows[min(k, len(rows) - 1), 0].astype(float)))
+            elif frame is None:
+                out.append((node, where))
+            elif frame in self.frame_poses:
+                pos, q = self.frame_poses[frame]
+                i = min(k, len(pos) - 1)
+                out.append((node, pos[i] + geo.rotate(q[i], where)))
+        return out
 
     def parts_at(self, k: int) -> Bounds | None:
         """(lowest, highest) corner of the mechanism's parts at output row k

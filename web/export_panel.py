@@ -138,6 +138,8 @@ def panel_html(view, traj, shots, title: str | None = None) -> str:
         for label, r in traj.runs.items()
     )
     legend = html.escape(view.legend(traj).replace("**", ""))
+    forces = getattr(view, "forces", None)  # the arrows' scale (the scene's labels name the forces)
+    scale = forces.scale_text if forces is not None and forces.visible else ""
     heading = html.escape(title or view.title)
     speed = f"{shots.speed:g}× (the bar's time is playback time)" if shots.speed != 1 else "1× (real time)"
     return (
@@ -146,6 +148,7 @@ def panel_html(view, traj, shots, title: str | None = None) -> str:
         f"<summary>{heading} — t = <span id='nmk-time'>0.00</span> s</summary>"
         f"<div>{html.escape(settings_line(view, main))}</div>{messages}"
         f"{f'<div>{legend}</div>' if legend else ''}"
+        f"{f'<div>Force {html.escape(scale)}</div>' if scale else ''}"
         f"{_table(summary_rows(traj))}{''.join(plots)}"
         f"<div class='nmk-note'>Exported by nmkane: {len(shots.times)} frames, played at {speed}. "
         "Play, pause and scrub with the bar below; drag the scene to orbit. Works offline.</div>"

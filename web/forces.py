@@ -5,7 +5,9 @@ the scene, a plot of their magnitudes over time, and a readout at the time curso
 tail at the point where the force acts, along the force, ``scale`` metres per newton (the
 declaration's ``Forces.scale``, else one chosen per run so that the largest force is about
 the size of the system, rounded to 1, 2 or 5 × 10^k), with a label at its tip naming the
-force and its magnitude, and a scale label ("arrows: 1 m = 20 N").  The points and world
+force and its magnitude (:mod:`web.labels` picks the corner of its text that covers no other
+label); the scale ("arrows: 1 m = 20 N") is in the readout below the checkbox, not in the scene,
+where it covered the labels at the contact point.  The points and world
 vectors are computed once per run for every output row (the compiled geometry is
 vectorized, the components are the run's ``point_forces``); a frame then only picks a row.
 Each arrow is one unit arrow along its node's z, posed (position, wxyz) and stretched (z
@@ -89,7 +91,6 @@ class ForceArrows:
         self.root = scene.add_frame(self.prefix, show_axes=False, visible=self.default_visible)
         self.arrows: dict = {}
         self.labels: dict = {}
-        self.scale_label = None
         self.tails: dict[str, np.ndarray] = {}  # force name → (n, 3) points
         self.vectors: dict[str, np.ndarray] = {}  # force name → (n, 3) world force vectors, N
         self.scale = 1.0  # m per N
@@ -120,9 +121,6 @@ class ForceArrows:
             self._nodes()
         for name, node in self.arrows.items():
             node.visible = self.labels[name].visible = name in self.tails
-        if self.scale_label is not None:
-            self.scale_label.visible = bool(self.tails)
-            self.scale_label.text = f"force arrows: 1 m = {1 / self.scale:g} N"
 
     @property
     def scale_text(self) -> str:
@@ -145,24 +143,28 @@ class ForceArrows:
                 head_length=HEAD,
             )
             self.labels[name] = sc.add_label(f"{self.prefix}/{name}_label", name, anchor="bottom-left")
-        if self.scale_label is None:
-            self.scale_label = sc.add_label(f"{self.prefix}/scale", "", anchor="top-left")
 
     def pose(self, k: int) -> None:
         """The arrows at output row k (nothing is sent when row k is shown already)."""
         if k == self.shown or not self.tails:
             return
         self.shown = k
-        low = None
         for name, tail in self.tails.items():
             i = min(k, len(tail) - 1)
             p, v = tail[i], self.vectors[name][i]
             tip = p + self.scale * v
             _place(self.arrows[name], p, self.scale * v)
             self.labels[name].position = tuple(float(c) for c in tip)
-            low = p if low is None else np.minimum(low, p)
-        if low is not None and self.scale_label is not None:
-            self.scale_label.position = tuple(float(c) for c in low - np.array([0.0, 0.0, 4 * self.width]))
+
+    def label_points(self, k: int) -> list:
+        """The force labels shown at output row k, with their points (the arrows' tips)."""
+        if not self.visible or not self.tails:
+            return []
+        out = []
+        for name, tail in self.tails.items():
+            i = min(k, len(tail) - 1)
+            out.append((self.labels[name], tail[i] + self.scale * self.vectors[name][i]))
+        return out
 
     def readout(self, k: int) -> None:
         """The labels' magnitudes at output row k (slow rate)."""
@@ -225,7 +227,7 @@ class ForcePanel:
         self.box = gui.add_checkbox(
             "Show forces",
             initial_value=arrows.default_visible,
-            hint="the declared constraint forces as arrows at their points (scale in the scene and below)",
+            hint="the declared constraint forces as arrows at their points (their scale below)",
         )
         self.text = gui.add_markdown("")
         self.box.on_update(lambda _: self.toggle())

@@ -108,6 +108,24 @@ CHECKBOXES = (
 )
 
 
+#: a folder's label longer than this wraps in viser's panel and covers the folder's first line
+FOLDER_CHARS = 46
+
+
+def folder_label(title: str, prefix: str = "Simulation: ") -> str:
+    """The label of a system's folder: ``prefix`` + ``title``, within :data:`FOLDER_CHARS` (the
+    scene menu shows the whole title): a long title loses its parenthesis, then its last words."""
+    label = prefix + title
+    if len(label) > FOLDER_CHARS and title.endswith(")") and " (" in title:
+        label = prefix + title[: title.rindex(" (")]
+    if len(label) <= FOLDER_CHARS:
+        return label
+    words = label[len(prefix) :].split(" ")
+    while len(words) > 1 and len(prefix + " ".join(words)) + 1 > FOLDER_CHARS:
+        words.pop()
+    return (prefix + " ".join(words).rstrip(",:;"))[: FOLDER_CHARS - 1] + "…"
+
+
 def compare_choices(core) -> tuple[str, ...]:
     """The compare dropdown of a system: off, each variant, Γ = 0 (when it has constraints
     to stabilize), and all of them (when that is more than one run)."""
@@ -238,7 +256,7 @@ class GenericView:
         core = get_system(name)
         self.kind = name
         self.title = core.title or name
-        self.folder = f"Simulation: {self.title}"
+        self.folder = folder_label(self.title)
         prefix = f"g_{''.join(c if c.isalnum() else '_' for c in name)}_"
         self.params_attr = f"{prefix}params"
         self.speed = float(getattr(core, "showcase", {}).get("speed", 1.0))
@@ -359,6 +377,11 @@ class GenericView:
         for g, lab in zip(self.ghosts, labels[1:], strict=False):
             g.pose(geo.index_at(traj.runs[lab].t, t_now))
         return traj.row(labels[0], t_now)
+
+    def label_points(self) -> list:
+        """The labels shown at the shown row with their world points: the parts' names first
+        (they keep their places), then the forces'."""
+        return [*self.declared.label_points(self.k), *self.forces.label_points(self.k)]
 
     def readouts(self, traj, t_now: float) -> None:
         """Slow-rate labels: the forces' magnitudes at their arrows and the readout in the panel."""

@@ -17,6 +17,7 @@ scrubber and readouts — is written in one ``atomic()`` block of viser
 from __future__ import annotations
 
 from . import viser_compat as compat
+from .labels import LabelLayout
 
 
 class Playback:
@@ -29,6 +30,7 @@ class Playback:
         self.playing = True
         self.t_now = 0.0
         self.shown_t: float | None = None  # the time the slow-rate parts last showed
+        self.labels = LabelLayout()  # which corner each 3D label holds (web.labels)
 
     # ---------------------------------------------------------------- the folder
     def add_controls(self, gui, controls) -> None:
@@ -153,8 +155,11 @@ class Playback:
             return
         view = s.views[traj.kind]
         view.pose(traj, t_now)
-        if self.follow.value and traj.kind == s.kind:
+        if traj.kind != s.kind:
+            return
+        if self.follow.value:
             s.camera.follow(view.follow_target())
+        self.labels.apply(view.label_points(), s.camera.view())  # labels that do not cover each other
 
     def refresh(self, force: bool = False) -> None:
         """The slow-rate part of a frame: plot markers, scrubber, readouts."""

@@ -92,6 +92,7 @@ def test_the_page_shows_energy_drift_and_violation_plots_and_the_summary(page, r
     for name in run.violation:  # each constraint in the legend and the summary
         assert f"max |φ| {name}" in page and f">{name}<" in page
     assert "kutta-merson · Δt = 0.01 s · t = 0 … 2 s" in page
+    assert re.search(r"<div>Force arrows: 1 m = [0-9.e+]+ N</div>", page)  # the scale: in the panel, not the scene
 
 
 def test_export_writes_the_whole_file_or_nothing(tmp_path, run):

@@ -4,7 +4,7 @@ moving line segments: ``DeclaredScene.part_names``), their geometry projected wi
 own three.js camera, lie whole in the part of the canvas the control panel leaves free and span
 at least :data:`LARGE` of its smaller side; *Fit view*, half-way through the run, frames the
 mechanism as it is then (inside, and larger than the first view when that one shows the whole
-motion).
+motion); in both, the 3D labels do not cover each other.
 
 Before: the Appell–Hamel mechanism's first view followed its wheel close up — the frame's legs
 and the pulleys ran off the canvas (its parts' box reached from −36,717 to 17,731 px across,
@@ -62,6 +62,38 @@ def measure(page, session) -> dict:
     return box
 
 
+#: ``page.evaluate(PROJECT, [root, points])``: world points in the page's canvas pixels, by its own
+#: camera (``root``: a node at the world's origin, whose matrix turns z-up into three.js' y-up)
+PROJECT = """([root, points]) => {
+  const m = window.__viserMutable, cam = m.camera, rect = m.canvas.getBoundingClientRect();
+  const V = cam.position.constructor;
+  const world = m.nodeRefFromName[root];
+  cam.updateMatrixWorld();
+  world.updateWorldMatrix(true, false);
+  return points.map(([x, y, z]) => {
+    const q = new V(x, y, z).applyMatrix4(world.matrixWorld).project(cam);
+    return [(q.x + 1) / 2 * rect.width, (1 - q.y) / 2 * rect.height, q.z <= 1];
+  });
+}"""
+
+
+def labels_apart(page, session, what: str) -> int:
+    """The 3D labels' text boxes (web.labels' size of a label, at the anchor each holds) do not
+    cover each other in the page's picture (issue 43, item 6); returns how many were shown."""
+    from web.labels import box, overlap
+
+    with session.lock:  # the layout of the camera the page shows (the next frame would do it too)
+        session.playback.labels.apply(session.system_view.label_points(), session.camera.view())
+        items = [(n.text, n.anchor, p) for n, p in session.system_view.label_points()]
+    root = session.system_view.declared.prefix  # the system's node: at the world's origin
+    drawn = page.evaluate(PROJECT, [root, [[float(c) for c in p] for _, _, p in items]])
+    boxes = [(t, box(xy[:2], t, a)) for (t, a, _), xy in zip(items, drawn, strict=True) if xy[2]]
+    for i, (ta, a) in enumerate(boxes):
+        for tb, b in boxes[i + 1 :]:
+            assert overlap(a, b) == 0.0, f"{what}: label {ta!r} covers {tb!r} ({a} and {b})"
+    return len(boxes)
+
+
 def check(box: dict, what: str, least: float) -> float:
     """The box whole in the free part of the canvas and spanning at least ``least`` of its
     smaller side; returns the share it spans."""
@@ -88,9 +120,11 @@ def test_the_first_view_shows_the_whole_mechanism_large_and_fit_view_frames_it_l
     session.seek(0.0)
     session.reset_view()  # the first view, as at first sight (a scene already shown: not again by itself)
     first = check(measure(page, session), f"{name}, first view", LARGE)
+    labels_apart(page, session, f"{name}, first view")
     session.seek(0.5 * session.traj.t_end)
     session.fit()
     fitted = check(measure(page, session), f"{name}, Fit view at t = {session.t_now:g} s", LARGE)
+    labels_apart(page, session, f"{name}, Fit view")
     if not session.system_view.plan.follows:  # the first view showed the whole motion: Fit comes closer
         assert fitted >= 0.9 * first, f"{name}: Fit view {fitted:.0%}, first view {first:.0%}"
     print(f"{name}: first view {first:.0%}, Fit view {fitted:.0%}")

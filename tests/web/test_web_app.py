@@ -115,7 +115,8 @@ def test_physical_parameters_reach_the_run_and_reshape_the_scene(app):
     run = app.traj.main
     th, x, y = (float(run.state[n][0]) for n in ("theta", "x", "y"))
     np.testing.assert_allclose(node(app, "frames/wheel").position, wheel_centre(p, th, x, y), atol=1e-6)
-    assert node(app, "frames/wheel/disk").radius == pytest.approx(1.5)
+    disk = node(app, "frames/wheel/disk").vertices  # a round rim's mesh (web.geometry.disk_mesh)
+    assert np.linalg.norm(disk, axis=1).max() == pytest.approx(1.5, rel=1e-6)
 
 
 def test_initial_speed_sliders_complete_the_dependent_speeds(app):
@@ -343,7 +344,7 @@ def test_envelope_decimation_keeps_extremes():
 
 def test_matrices_panel_draws_the_derived_matrices():
     panel = mx.panel("sliding-particle", "nonminimal")
-    assert set(panel.images) == {"A1", "A2", "T"}
+    assert set(panel.images) == {"A1", "A2", "T", "V"}
     for img in panel.images.values():
         assert img.dtype == np.uint8 and img.shape[2] == 4 and img[..., :3].min() < 100  # ink on white
     assert "x" in panel.latex["T"] and "l_{0}" in panel.latex["T"]

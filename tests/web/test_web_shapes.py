@@ -127,7 +127,9 @@ def test_every_kind_is_drawn_where_its_declaration_puts_it(systems, server):
     np.testing.assert_allclose(node("frames/skate").position, (x, y, 0), atol=1e-5)
     np.testing.assert_allclose(geo.rotate(node("frames/skate").wxyz, (1, 0, 0)), (np.cos(th), np.sin(th), 0), atol=1e-5)
     assert tuple(node("frames/skate/blade").dimensions) == pytest.approx((0.8, 0.03, 0.1))
-    assert node("frames/skate/wheel").radius == pytest.approx(0.2)
+    wheel = node("frames/skate/wheel").vertices - np.array([0.2, 0, 0.1])  # a disk: a round rim's mesh
+    assert np.hypot(wheel[:, 0], wheel[:, 2]).max() == pytest.approx(0.2)
+    assert np.abs(wheel[:, 1]).max() == pytest.approx(0.01)
     assert tuple(node("frames/skate/mast").position) == pytest.approx((0, 0, 1.0))  # the rod's middle
     np.testing.assert_allclose(node("world/ball").position, (x, y, 1), atol=1e-5)
     np.testing.assert_allclose(node("world/name").position, (x, y, 1.2), atol=1e-5)
@@ -159,3 +161,22 @@ def test_a_system_without_visuals_is_drawn_as_a_point_at_its_coordinates(systems
     point = server.scene.get_handle_by_name(f"/sys/{BARE}/world/point")
     np.testing.assert_allclose(point.position, [run.state[n][k] for n in ("x", "y", "theta")], atol=1e-5)
     assert server.scene.get_handle_by_name(f"/sys/{BARE}/world/trace").points.shape[0] > 10
+
+
+@pytest.mark.parametrize("lean_deg", [0.0, 10.0, 30.0, 60.0])
+def test_a_leaning_disk_stays_on_the_ground(lean_deg):
+    """A coin modelled as a thin disk touches the ground with its mid-plane's rim: drawn with a
+    flat rim (a cylinder) its edge sank by length/2 · sin(lean) into the floor (issue 43, item 6);
+    the round rim sinks at most length/2 · (1 − cos(lean)) and reaches the ground within that."""
+    r, w = 1.0, 0.08
+    verts, faces = geo.disk_mesh(r, w, (0.0, 1.0, 0.0))
+    lean = np.radians(lean_deg)
+    # the disk's axis y turned by the lean about x, its centre at the thin disk's height r cos(lean)
+    R = np.array([[1, 0, 0], [0, np.cos(lean), -np.sin(lean)], [0, np.sin(lean), np.cos(lean)]])
+    z = (verts @ R.T)[:, 2] + r * np.cos(lean)
+    sink = -z.min()
+    assert sink <= w / 2 * (1 - np.cos(lean)) + 1e-6
+    assert sink >= -1e-3 * r  # and touches it (within the mesh's facets)
+    assert sink <= np.tan(lean / 2) * w / 2 * np.sin(lean) + 1e-6  # the flat rim's: w/2 · sin(lean)
+    tri = verts[faces]
+    assert np.all(np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1) > 0)
