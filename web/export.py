@@ -128,6 +128,7 @@ def record(traj: Trajectory, shots: Frames | None = None, viewport=None) -> tupl
     """The recorded animation as viser's standalone HTML; returns (html, the view, the frames)."""
     from .camera import Viewport
     from .generic import GenericView
+    from .labels import LabelLayout, View
 
     with _private_server() as server:
         recording = server.get_scene_serializer()
@@ -135,15 +136,27 @@ def record(traj: Trajectory, shots: Frames | None = None, viewport=None) -> tupl
         view.install(traj)
         view.root.visible = True
         shots = shots or frames(traj.t_end, view.speed)
-        plan = view.camera_plan(viewport or Viewport())
+        vp = viewport or Viewport()
+        plan = view.camera_plan(vp)
+        seen = None  # the file's camera, for keeping the labels apart (web.labels)
         if plan is not None:
             look_at, position = plan.whole
             server.initial_camera.position = tuple(float(v) for v in position)
             server.initial_camera.look_at = tuple(float(v) for v in look_at)
+            seen = View(
+                np.asarray(position, float),
+                np.asarray(look_at, float),
+                np.array([0.0, 0.0, 1.0]),
+                vp.fov,
+                vp.width,
+                vp.height,
+            )
+        labels = LabelLayout()
         for i, t in enumerate(shots.times):
             if i:
                 recording.insert_sleep(shots.step_s)
             view.pose(traj, float(t))
+            labels.apply(view.label_points(), seen)
         return recording.as_html(), view, shots
 
 
