@@ -37,6 +37,11 @@ PASSES = 4  # rounds of moving a covering label to its least covering anchor
 CHAR_PX = 6.0  # a label's width per character (viser 1.1's labels: 5.5 px, measured in Chromium)
 PAD_PX = 10.0  # its background's padding, both sides together
 HEIGHT_PX = 18.0  # its height
+#: labels side by side closer than this are avoided where the anchors allow (two texts that touch
+#: on one line read as one: "thread 9.24 Nload P"), after covering; one above the other they may
+#: touch (lines of a list)
+GAP_PX = 4.0
+COVER_WEIGHT = 1000.0  # a pixel covered weighs as much as this many pixels of touching
 
 
 @dataclass(frozen=True)
@@ -78,27 +83,37 @@ def box(xy, text: str, anchor: str) -> tuple[float, float, float, float]:
     return left, top, left + w, top + h
 
 
-def overlap(a, b) -> float:
-    """The area two boxes (left, top, right, bottom) share."""
-    return max(0.0, min(a[2], b[2]) - max(a[0], b[0])) * max(0.0, min(a[3], b[3]) - max(a[1], b[1]))
+def overlap(a, b, gap: float = 0.0) -> float:
+    """The area two boxes (left, top, right, bottom) share, each grown by ``gap``/2 at its left
+    and right."""
+    across = min(a[2], b[2]) - max(a[0], b[0]) + gap
+    down = min(a[3], b[3]) - max(a[1], b[1])
+    return max(0.0, across) * max(0.0, down)
+
+
+def clash(a, b) -> float:
+    """How badly two label boxes meet: the area they share (weighted by :data:`COVER_WEIGHT`)
+    plus the area they share grown by :data:`GAP_PX` across."""
+    return COVER_WEIGHT * overlap(a, b) + overlap(a, b, GAP_PX)
 
 
 def choose(xys, texts: list[str], current: list[str]) -> list[str]:
     """The anchor of each label: first in order (the first labels keep their preferred
-    corners), its ``current`` one while it covers no label placed before it, else the first free
-    one of :data:`ANCHORS`, else the one that covers least; then, for a few rounds, each label
-    that still covers another moves to the anchor that covers least (a cluster of three labels
-    at nearly one point: the order alone can leave the middle one no free corner)."""
+    corners), its ``current`` one while it meets no label placed before it (:func:`clash`), else
+    the first free one of :data:`ANCHORS`, else the one that clashes least; then, for a few
+    rounds, each label that still meets another moves to the anchor that clashes least (a
+    cluster of three labels at nearly one point: the order alone can leave the middle one no
+    free corner)."""
     orders = [[now, *(a for a in ANCHORS if a != now)] if now in ANCHORS else list(ANCHORS) for now in current]
     boxes = [{a: box(xy, text, a) for a in ANCHORS} for xy, text in zip(xys, texts, strict=True)]
     pick: list[str] = []
     for i, order in enumerate(orders):
-        covered = [sum(overlap(boxes[i][a], boxes[j][pick[j]]) for j in range(i)) for a in order]
+        covered = [sum(clash(boxes[i][a], boxes[j][pick[j]]) for j in range(i)) for a in order]
         free = next((a for a, c in zip(order, covered, strict=True) if c == 0.0), None)
         pick.append(free if free is not None else order[int(np.argmin(covered))])
 
     def cost(i: int, a: str) -> float:
-        return sum(overlap(boxes[i][a], boxes[j][pick[j]]) for j in range(len(pick)) if j != i)
+        return sum(clash(boxes[i][a], boxes[j][pick[j]]) for j in range(len(pick)) if j != i)
 
     for _ in range(PASSES):
         moved = False

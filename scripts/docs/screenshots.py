@@ -2,6 +2,7 @@
 
     .venv/bin/python scripts/docs/screenshots.py [--out docs/screenshots] [--width 1280 --height 800]
                                                  [--scale 0.5] [NAME ...]
+    .venv/bin/python scripts/docs/screenshots.py --matrices [NAME ...]   (default: appell-hamel)
 
 starts the web app on a free loopback port (as the browser tests do), opens one page in
 headless Chromium (Debian's ``chromium``, driven by Playwright), and for each system
@@ -11,6 +12,9 @@ placed, holds the time at 0 (the first frame) and writes ``<out>/<NAME>-first-vi
 page as a visitor first sees it (scene, panel), drawn at ``--width`` × ``--height`` and scaled
 by ``--scale`` (640 × 400 by default), in 256 colours.  The catalogue pages show them
 (``NAME-*.png``: scripts/docs/gen_catalogue.py), ``docs/web.md`` has them side by side.
+
+With ``--matrices`` it writes ``<out>/<NAME>-matrices.png`` instead: the control panel with the
+system's *Derived matrices* folder open, the others folded.
 
 Prints each file, its size, and how much of the free part of the canvas (left of the control
 panel) the mechanism's parts span — what tests/web/test_first_view_browser.py asserts.
@@ -100,14 +104,63 @@ def first_views(out: Path, names: list[str] | None, width: int, height: int, sca
     return written
 
 
+def matrices_view(out: Path, name: str, scale: float) -> Path:
+    """``<out>/<name>-matrices.png``: the control panel with the system's *Derived matrices*
+    folder open (the others folded), as a class sees it."""
+    from playwright.sync_api import sync_playwright
+
+    from web.app import launch
+    from web.chromium import CHROMIUM_ARGS, chromium_path
+    from web.screenshot import close_toasts, open_page
+
+    app = launch(port=0, scene=name)
+    try:
+        with sync_playwright() as p:
+            browser = p.chromium.launch(executable_path=chromium_path(), headless=True, args=CHROMIUM_ARGS)
+            try:
+                page = open_page(browser, app.url + "?hideViserLogo", width=1280, height=2400)
+                page.add_style_tag(content=HIDE_TOASTS)
+                session = app.wait_for_session()
+                session.wait_idle(120)
+                session.set_playing(False)
+                for folder in ("Playback", session.system_view.folder, "Plots and summary", "Derived matrices"):
+                    page.get_by_text(folder, exact=True).first.click()
+                    time.sleep(0.5)
+                page.wait_for_function(
+                    "() => Array.from(document.querySelectorAll('img')).filter(i => i.naturalWidth > 100).length"
+                    f" >= {len(session.matrices.images)}",
+                    timeout=300000,
+                )
+                time.sleep(1.0)
+                close_toasts(page)
+                bottom = page.evaluate(
+                    "() => Math.max(...Array.from(document.querySelectorAll('img, pre'))"
+                    ".map(e => e.getBoundingClientRect().bottom))"
+                )
+                raw = page.screenshot(clip={"x": 860, "y": 0, "width": 420, "height": bottom + 24})
+            finally:
+                browser.close()
+    finally:
+        app.stop()
+    path = out / f"{name}-matrices.png"
+    path.write_bytes(_small_png(raw, scale))
+    print(f"{path}  {path.stat().st_size / 1024:.0f} KB", flush=True)
+    return path
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(prog="scripts/docs/screenshots.py", description=__doc__.split("\n\n")[0])
     ap.add_argument("--out", default=str(ROOT / "docs" / "screenshots"))
     ap.add_argument("--width", type=int, default=1280)
     ap.add_argument("--height", type=int, default=800)
     ap.add_argument("--scale", type=float, default=0.5)
+    ap.add_argument("--matrices", action="store_true", help="the derived-matrices panel of each named system instead")
     ap.add_argument("names", nargs="*", help="systems (default: every registered one)")
     args = ap.parse_args()
+    if args.matrices:
+        for name in args.names or ["appell-hamel"]:
+            matrices_view(Path(args.out), name, 1.0)
+        return
     written = first_views(Path(args.out), args.names or None, args.width, args.height, args.scale)
     total = sum(p.stat().st_size for p in written)
     print(f"{len(written)} pictures, {total / 1e6:.2f} MB")

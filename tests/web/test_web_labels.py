@@ -136,3 +136,18 @@ def test_the_page_keeps_the_paper_examples_labels_apart():
     finally:
         app.close()
         server.stop()
+
+
+def test_two_labels_side_by_side_do_not_touch_when_another_corner_is_free():
+    """ "thread 9.24 N" ending 1 px before "load P" on the same line reads as one text: a label
+    leaves a corner where it only touches another for a free one."""
+    from web.labels import GAP_PX, box, choose, overlap
+
+    xys = np.array([[100.0, 100.0], [99.0, 100.0]])
+    texts = ["load P", "thread 9.24 N"]
+    picked = choose(xys, texts, ["bottom-left", "bottom-right"])
+    a, b = (box(xy, t, k) for xy, t, k in zip(xys, texts, picked, strict=True))
+    assert picked[0] == "bottom-left" and picked[1] != "bottom-right"
+    assert overlap(a, b, GAP_PX) == 0.0
+    before = box(xys[0], texts[0], "bottom-left"), box(xys[1], texts[1], "bottom-right")
+    assert overlap(*before) == 0.0 and overlap(*before, GAP_PX) > 0.0  # it only touched
