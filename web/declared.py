@@ -263,6 +263,7 @@ class DeclaredScene:
         self.centre_rows: np.ndarray = np.zeros((1, 3))  # per output row, the point a following camera follows
         self.tag_node: Any = None  # a label naming a ghost, when it rides on a moving part
         self.tag_rows: np.ndarray | None = None
+        self.tag_label: tuple | None = None  # (node, frame or None, offset on it) of the tag
 
     @property
     def moving(self) -> list[Moving]:
@@ -337,11 +338,16 @@ class DeclaredScene:
             below = lowest < height - 0.5 * self.extent
             node.plane_opacity = GROUND_SEEN_THROUGH if below else GROUND_OPACITY
 
-    def label_points(self, k: int) -> list[tuple[Any, np.ndarray]]:
-        """The labels at output row k with their world points (:mod:`web.labels` keeps them
-        apart on the screen)."""
+    def label_points(self, k: int | None = None) -> list[tuple[Any, np.ndarray]]:
+        """The labels at output row k (default: the row shown) with their world points
+        (:mod:`web.labels` keeps them apart on the screen), and a ghost's tag."""
+        if k is None:
+            k = self.shown or 0
         out = []
-        for node, frame, where in self.pen.labels:
+        if self.tag_label is not None and self.tag_label[1] is None and self.tag_rows is not None:
+            out.append((self.tag_label[0], self.tag_rows[min(k, len(self.tag_rows) - 1)]))
+        labels = self.pen.labels + ([self.tag_label] if self.tag_label is not None and self.tag_label[1] else [])
+        for node, frame, where in labels:
             if frame is None and isinstance(where, int):  # at a moving point
                 if where < len(self.rows):
                     rows = self.rows[where]
@@ -431,10 +437,12 @@ class DeclaredScene:
         if self.frame_poses:
             first = next(iter(self.frame_poses))
             path = f"{self.prefix}/frames/{first}/tag"
-            self.scene.add_label(path, text, position=tuple(above), anchor="bottom-left")
+            node = self.scene.add_label(path, text, position=tuple(above), anchor="bottom-left")
+            self.tag_label = (node, first, above)
         elif self.rows:
             self.tag_node = self.scene.add_label(f"{self.prefix}/world/tag", text, anchor="bottom-left")
             self.tag_rows = self.rows[0][:, 0].astype(float) + above
+            self.tag_label = (self.tag_node, None, None)
             self.shown = None
 
     def bounds(self) -> Bounds | None:

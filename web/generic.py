@@ -380,8 +380,9 @@ class GenericView:
 
     def label_points(self) -> list:
         """The labels shown at the shown row with their world points: the parts' names first
-        (they keep their places), then the forces'."""
-        return [*self.declared.label_points(self.k), *self.forces.label_points(self.k)]
+        (they keep their places), then the forces', then the ghosts' names."""
+        ghosts = [p for g in self.ghosts if g.root.visible for p in g.label_points()]
+        return [*self.declared.label_points(self.k), *self.forces.label_points(self.k), *ghosts]
 
     def readouts(self, traj, t_now: float) -> None:
         """Slow-rate labels: the forces' magnitudes at their arrows and the readout in the panel."""

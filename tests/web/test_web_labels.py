@@ -151,3 +151,28 @@ def test_two_labels_side_by_side_do_not_touch_when_another_corner_is_free():
     assert overlap(a, b, GAP_PX) == 0.0
     before = box(xys[0], texts[0], "bottom-left"), box(xys[1], texts[1], "bottom-right")
     assert overlap(*before) == 0.0 and overlap(*before, GAP_PX) > 0.0  # it only touched
+
+
+def test_the_ghosts_names_are_kept_apart_from_the_shown_runs_labels():
+    """The sliding particle opens with two ghosts (its showcase): their names ride above their
+    balls, among the normal force's label."""
+    import viser
+
+    from web.app import MechanismApp
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    app = MechanismApp(server, sync=True, scene="sliding-particle")
+    try:
+        view = app.system_view
+        look_at, position = view.camera_plan().motion
+        cam = _view(position, look_at)
+        app.camera.view = lambda: cam
+        for t in (0.0, 135.0, 290.0):
+            app.seek(t)
+            items = view.label_points()
+            texts = [n.text for n, _ in items]
+            assert sum("ghost:" in x for x in texts) == 2 and any(x.startswith("normal") for x in texts), texts
+            assert _apart(_boxes(items, cam)), t
+    finally:
+        app.close()
+        server.stop()
