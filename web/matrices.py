@@ -4,7 +4,9 @@ viser 1.1's markdown does not typeset LaTeX (tested: ``$...$`` shows as source),
 matrices are drawn as images with matplotlib's mathtext, entry by entry (mathtext has no
 matrix environment): each entry is simplified once, the sums that occur in denominators
 are named n₁, n₂, … (as the paper names its n's, (67)–(76)) and defined under the
-matrices, and the grid gets brackets.  The LaTeX source is kept for copying.
+matrices, and the grid gets brackets.  A grid wider than the panel can show is drawn entry
+by entry, and an entry still too wide is set on lines of whole terms of its sums.  The LaTeX
+source is kept for copying.
 
 Symbolic work is slow (about 8 s for the nonlinear model) and holds the GIL, which
 would stall the web server's threads, so :func:`panel` runs it in a child process
@@ -30,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nmkane_core.symbolic.shorten import Budget, within
+from nmkane_core.symbolic.shorten import PANEL_S, Budget, within
 
 MATRICES = ("A1", "A2", "T", "V")
 #: what a model without A = −J2⁻¹J1 shows instead (redundant constraints: no square J2)
@@ -45,6 +47,9 @@ SIMPLIFY_OPS = 400  # entries up to this long are simplified, within a time budg
 #: a matrix drawn wider than this (px, at DPI) is drawn entry by entry, one under another: the
 #: panel is about 345 px wide (Example 1's T as a grid: 1,083 px, shown at a third of its size)
 WIDE_PX = 800
+#: an entry wider than WIDE_PX is set on lines of pieces at most this wide (:func:`_tokens`)
+PIECE_PX = 640
+PANEL_BUDGET_S = 4 * PANEL_S  # seconds for simplifying one panel's entries
 
 
 @dataclass
@@ -241,7 +246,9 @@ def _build(system: str, variant: str) -> Panel:
         raw = {name: d.matrix(name) for name in FALLBACK}
     shown = tuple(raw)
     elided = sp.Dummy("elided")  # stands for an entry too long to typeset
-    budget = Budget()  # the whole panel's (nmkane_core.symbolic.shorten)
+    # the whole panel's (nmkane_core.symbolic.shorten): 4 × a printout's, this child runs in the
+    # background and a loaded machine (the app warming every system) took 9 s for Example 1
+    budget = Budget(total_s=PANEL_BUDGET_S)
     nice = {name: M.applyfunc(lambda e: _nice(e, budget)) for name, M in raw.items()}
     longest = max((sp.count_ops(e) for M in nice.values() for e in M), default=0)
     mats = {name: M.applyfunc(lambda e: elided if sp.count_ops(e) > TYPESET_OPS else e) for name, M in nice.items()}
@@ -254,7 +261,9 @@ def _build(system: str, variant: str) -> Panel:
 
     images = {
         name: _matrix_or_entries(
-            TITLES[name], [[tex(short[name][i, j]) for j in range(short[name].cols)] for i in range(short[name].rows)]
+            TITLES[name],
+            [[tex(short[name][i, j]) for j in range(short[name].cols)] for i in range(short[name].rows)],
+            lambda i, j, M=short[name]: lambda: _tokens(M[i, j], tex),
         )
         for name in shown
         if short[name].rows and short[name].cols
@@ -363,18 +372,86 @@ def _matrix_image(title: str, cells: list[list[str]], pad: int = 10, gap: int = 
     return _to_rgba(np.pad(canvas, ((ICON_PAD, 0), (0, 0))))
 
 
-def _matrix_or_entries(title: str, cells: list[list[str]]) -> np.ndarray:
+def _matrix_or_entries(title: str, cells: list[list[str]], pieces=None) -> np.ndarray:
     """The matrix as a grid (:func:`_matrix_image`), or, wider than :data:`WIDE_PX`, its nonzero
     entries one under another (``T_{ij} = …``, the zeros counted on the first line): legible in
-    the narrow panel, each entry at its own size."""
+    the narrow panel, each entry at its own size; an entry still wider is broken across lines
+    at the terms of its sums (``pieces(i, j)``: a function giving its :func:`_tokens`)."""
     grid = _matrix_image(title, cells)
     if grid.shape[1] <= WIDE_PX:
         return grid
     entries = [(i, j, c) for i, row in enumerate(cells) for j, c in enumerate(row) if c.strip() != "0"]
     zeros = sum(len(row) for row in cells) - len(entries)
     head = rf"{title}:\ {len(cells)} \times {len(cells[0])},\ \mathrm{{{zeros}\ zeros\ not\ shown}}"
-    lines = [head] + [f"{{{title}}}_{{{i + 1}{j + 1}}} = {c}" for i, j, c in entries]  # {J_1}_{11}
+    lines = [head]
+    for i, j, c in entries:
+        lhs = f"{{{title}}}_{{{i + 1}{j + 1}}}"  # {J_1}_{11}
+        lines += _broken(lhs, c, pieces(i, j) if pieces is not None else None)
     return np.pad(_lines_image(lines), ((ICON_PAD, 0), (0, 0), (0, 0)), constant_values=255)
+
+
+def _split(e, tex) -> tuple[bool, str, list, str] | None:
+    """An entry as (negative, opener, terms, closer): the terms of the sum in its numerator (the
+    numerator, or its largest sum factor), the rest of it before them as ``factor/denominator (``
+    and ``)`` after; None when it has no sum to break at."""
+    import sympy as sp
+
+    num, den = sp.fraction(e)
+    negative = bool(num.could_extract_minus_sign())
+    num = -num if negative else num
+    if num.is_Add:
+        rest, body = [], num
+    elif num.is_Mul and any(f.is_Add for f in num.args):
+        body = max((f for f in num.args if f.is_Add), key=sp.count_ops)
+        rest = [f for f in num.args if f is not body]
+    else:
+        return None
+    factor = sp.Mul(*rest)
+    if factor == 1 and den == 1:
+        opener = "(" if negative else ""
+    else:
+        top = f"({tex(factor)})" if factor.is_Add and den == 1 else tex(factor)  # a sum times (…): in brackets
+        opener = (top if den == 1 else rf"\dfrac{{{top}}}{{{tex(den)}}}") + r"\,("
+    return negative, opener, list(sp.Add.make_args(body)), ")" if opener else ""
+
+
+def _tokens(e, tex, lead: str = "") -> list[str]:
+    """The pieces of ``e`` (``lead``: the sign it is written with, "", "+" or "-") to set on lines
+    of at most :data:`WIDE_PX`: ``e`` whole when it is at most :data:`PIECE_PX` wide (a line's
+    indent and left side take the rest) or has no sum to break at, else, in turn, the pieces of
+    the terms of its sum (:func:`_split`)."""
+    whole = f"{lead} {tex(e)}".strip()
+    parts = None if _tex_image(whole).shape[1] <= PIECE_PX else _split(e, tex)
+    if parts is None:
+        return [whole]
+    negative, opener, terms, closer = parts
+    sign = {"": "-", "+": "-", "-": "+"}[lead] if negative else lead
+    out: list[str] = []
+    for k, t in enumerate(terms):
+        minus = bool(t.could_extract_minus_sign())
+        out += _tokens(-t if minus else t, tex, "-" if minus else "+" if k else "")
+    out[-1] += closer
+    if opener:  # a piece of its own: the packing may start the first term on the next line
+        return [f"{sign} {opener}".strip(), *out]
+    out[0] = f"{sign} {out[0]}".strip()
+    return out
+
+
+def _broken(lhs: str, tex: str, tokens) -> list[str]:
+    """``lhs = tex`` as one line, or, wider than :data:`WIDE_PX`, as lines of the pieces
+    ``tokens()`` gives (:func:`_tokens`), the later lines indented."""
+    one = f"{lhs} = {tex}"
+    if tokens is None or _tex_image(one).shape[1] <= WIDE_PX:
+        return [one]
+    pieces = tokens()
+    lines, line = [], f"{lhs} = {pieces[0]}"
+    for piece in pieces[1:]:
+        longer = f"{line} {piece}"
+        if _tex_image(longer).shape[1] > WIDE_PX:
+            lines.append(line)
+            longer = rf"\qquad {piece}"
+        line = longer
+    return [*lines, line]
 
 
 def _lines_image(lines: list[str], pad: int = 12, vgap: int = 10) -> np.ndarray:

@@ -161,3 +161,34 @@ def test_the_child_stops_when_its_parent_dies(tmp_path):
     if alive:
         os.kill(pid, 9)
     assert not alive, "the matrices child outlived its parent"
+
+
+def test_unsimplified_entries_are_broken_across_lines_at_their_sums(monkeypatch):
+    """When the panel's time budget runs out (a loaded machine), Example 1's entries stay as
+    derived: T drawn entry by entry was 3,471 px wide and V 2,640 px, in a panel of about
+    345 px.  Each entry wider than WIDE_PX is now set on lines of whole terms."""
+    from nmkane_core.symbolic import shorten
+    from web import matrices as mx
+
+    real = shorten.Budget.__init__
+    monkeypatch.setattr(mx.Budget, "__init__", lambda self, total_s=0.0, entry_s=0.0: real(self, 0.0, 0.0))
+    p = mx._build("appell-hamel", "nonlinear")
+    widths = {k: img.shape[1] for k, img in p.images.items()}
+    assert max(widths.values()) <= 1.1 * mx.WIDE_PX, widths
+    assert p.images["T"].shape[0] > 1.5 * p.images["T"].shape[1]  # more lines than before
+
+
+def test_the_pieces_of_a_long_entry_keep_its_brackets_and_signs():
+    import sympy as sp
+
+    from web import matrices as mx
+
+    a, b, c, d, x = sp.symbols("a b c d x")
+    long = sum(sp.Symbol(f"w_{k}") * sp.cos(x) ** k for k in range(1, 40))
+    e = -a * (b - c * (long + d)) / (a + b)
+    tex = lambda v: sp.latex(v)  # noqa: E731
+    pieces = mx._tokens(e, tex)
+    joined = " ".join(pieces)
+    assert len(pieces) > 3 and joined.count("(") == joined.count(")")
+    assert pieces[0].startswith("-") and r"\dfrac" in pieces[0]  # −a/(a + b) (…: the sign and the front
+    assert all(mx._tex_image(p).shape[1] <= mx.PIECE_PX for p in pieces[1:])
