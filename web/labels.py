@@ -136,6 +136,7 @@ class LabelLayout:
 
     def __init__(self) -> None:
         self.changes = 0  # anchors changed so far (what a test counts)
+        self.seen: tuple | None = None  # what the last layout saw: nothing moved, nothing to do
 
     def apply(self, items: list[tuple[Any, np.ndarray]], view: View | None) -> int:
         """Choose and set the anchors of ``items`` [(label node, world point)] seen by ``view``
@@ -147,11 +148,16 @@ class LabelLayout:
         shown = [i for i in range(len(items)) if front[i]]
         nodes = [items[i][0] for i in shown]
         now = [str(n.anchor) for n in nodes]
-        new = choose(xy[shown], [str(n.text) for n in nodes], now)
+        texts = [str(n.text) for n in nodes]
+        seen = (np.round(xy[shown], 1).tobytes(), tuple(texts), tuple(now), tuple(map(id, nodes)))
+        if seen == self.seen:  # a paused frame, the camera still
+            return 0
+        new = choose(xy[shown], texts, now)
         changed = 0
         for node, was, anchor in zip(nodes, now, new, strict=True):
             if anchor != was:
                 node.anchor = anchor
                 changed += 1
         self.changes += changed
+        self.seen = (seen[0], seen[1], tuple(new), seen[3])
         return changed

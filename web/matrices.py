@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from nmkane_core.symbolic.shorten import PANEL_S, Budget, within
+from nmkane_core.symbolic.shorten import Budget, within
 
 MATRICES = ("A1", "A2", "T", "V")
 #: what a model without A = −J2⁻¹J1 shows instead (redundant constraints: no square J2)
@@ -49,7 +49,6 @@ SIMPLIFY_OPS = 400  # entries up to this long are simplified, within a time budg
 WIDE_PX = 800
 #: an entry wider than WIDE_PX is set on lines of pieces at most this wide (:func:`_tokens`)
 PIECE_PX = 640
-PANEL_BUDGET_S = 4 * PANEL_S  # seconds for simplifying one panel's entries
 
 
 @dataclass
@@ -246,9 +245,9 @@ def _build(system: str, variant: str) -> Panel:
         raw = {name: d.matrix(name) for name in FALLBACK}
     shown = tuple(raw)
     elided = sp.Dummy("elided")  # stands for an entry too long to typeset
-    # the whole panel's (nmkane_core.symbolic.shorten): 4 × a printout's, this child runs in the
-    # background and a loaded machine (the app warming every system) took 9 s for Example 1
-    budget = Budget(total_s=PANEL_BUDGET_S)
+    # the whole panel's (nmkane_core.symbolic.shorten); what it leaves unsimplified on a loaded
+    # machine is broken across lines (_tokens)
+    budget = Budget()
     nice = {name: M.applyfunc(lambda e: _nice(e, budget)) for name, M in raw.items()}
     longest = max((sp.count_ops(e) for M in nice.values() for e in M), default=0)
     mats = {name: M.applyfunc(lambda e: elided if sp.count_ops(e) > TYPESET_OPS else e) for name, M in nice.items()}
