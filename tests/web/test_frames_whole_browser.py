@@ -72,10 +72,11 @@ def _sample_throttled(page) -> list[dict]:
         cdp.detach()
 
 
-def _check_whole(frames: list[dict]) -> None:
+def _check_whole(frames: list[dict], server: str = "") -> None:
+    """``server``: what the app says of its animation, for a failure's message."""
     assert len(frames) == FRAMES
     moved = sum(a["bob"] != b["bob"] for a, b in itertools.pairwise(frames))
-    assert moved >= FRAMES // 2, f"the bob moved in {moved} of {FRAMES - 1} frames: the motion was not playing"
+    assert moved >= FRAMES // 2, f"the bob moved in {moved} of {FRAMES - 1} frames: the motion was not playing{server}"
     torn = [f"frame {i}: bob {f['bob']}, bar's end {f['end']} ({_gap(f):.3f} m apart)" for i, f in enumerate(frames)]
     torn = [t for t, f in zip(torn, frames, strict=True) if _gap(f) > TOLERANCE_M]
     assert not torn, f"{len(torn)} of {FRAMES} frames drawn torn:\n" + "\n".join(torn)
@@ -105,7 +106,13 @@ def test_each_frame_is_drawn_whole_in_the_live_page(app, browser):
     until(lambda: session.playing, 10, "the page plays")
     page.wait_for_function("() => window.__nmkaneWholeFrames === true", timeout=60000, polling=POLL_MS)
     _nodes_drawn(page)
-    _check_whole(_sample_throttled(page))
+    skipped_before = app.skipped
+    sampled = _sample_throttled(page)
+    server = (
+        f" (server: playing {session.playing}, t = {session.t_now:.3f} s, {app.fps():.1f} frames/s, "
+        f"{app.skipped - skipped_before} session frames skipped for a backlog)"
+    )
+    _check_whole(sampled, server)
     page.close()
 
 
