@@ -33,7 +33,8 @@ PHASE_TITLE = "Plotted quantity (phase portrait)"
 PLOT_HELP = (
     "Point at a plot for the values under the cursor; drag across it to zoom, double-click to zoom "
     "out. *Plot y* and *against x* take any expression of the run's quantities (t, the coordinates "
-    "and speeds, E, dE, `phi_NAME` of a constraint), e.g. `u1*cos(theta)`; x other than t draws a phase portrait."
+    "and speeds, E, dE, `phi_NAME` of a constraint), e.g. `u1*cos(theta)`; x other than t draws a phase "
+    "portrait, whose title gives the point at the shown time."
 )
 
 
@@ -236,13 +237,21 @@ class PlotPanel:
             self._send(self.handles[(traj.kind, key)], traj, key, curves, t_now)
 
     def _mark_phase(self, kind: str, phase, t_now: float) -> None:
-        """The portrait's current point: two grid lines crossing there (sent when it moved)."""
+        """The portrait's current point: two grid lines crossing there, and its values in the
+        title (a portrait has no values under a cursor: x need not increase), sent when it moved."""
         x, y = phase.at(t_now)
         if self._phase_now.get(kind, (None, None))[0] == (x, y):
             return
         self._phase_now[kind] = ((x, y), t_now)
         y_axis = self._phase_layout.get(kind, (pl.Y_AXIS_PX, pl.PADDING))[0]
-        self.phases[kind].axes = pl.phase_axes(x, y, phase.x_label, phase.y_label, y_axis)
+        chart = self.phases[kind]
+        chart.axes = pl.phase_axes(x, y, phase.x_label, phase.y_label, y_axis)
+        chart.title = phase_title(phase.x_label, phase.y_label, x, y, t_now)
+
+
+def phase_title(x_label: str, y_label: str, x: float, y: float, t: float) -> str:
+    """A phase portrait's title with its point at the shown time."""
+    return f"{PHASE_TITLE} — at t = {t:.3g} s: {x_label} = {x:.4g}, {y_label} = {y:.4g}"
 
 
 def summary_rows(traj) -> list[list[str]]:

@@ -96,6 +96,11 @@ def test_a_download_whose_client_left_is_closed_at_once(tmp_path, suffix):
 
 # --------------------------------------------------------------------- the service's memory
 DEADLINE_S = 3.0
+#: what ten downloads at once may leave behind: they leave 43-52 MiB in the allocators (measured 7
+#: times on a 2-core machine: it grows with the clients, 15 MiB for 3, 78 MiB for 20 — what the
+#: run's decoded floats fragment of Python's small-object arenas), the defect 400 MiB.  The bound
+#: was 50 MiB, which a sound service passed only now and then (CI: 88 -> 140 MiB)
+LEFT_MIB = 100
 BIG_RUN = {"system": "sliding-particle", "dt": 0.001, "t_final": 99.99, "every": 1}  # 100,000 rows, 21 MB
 
 
@@ -121,10 +126,12 @@ def test_ten_clients_that_read_nothing_of_a_csv_leave_the_memory_where_it_was(tm
         for s in socks:
             s.close()
         end = time.monotonic() + 20  # the memory of the dropped downloads returns (an event loop's cleanup)
-        while rss_mib(pid) - start >= 50 and time.monotonic() < end:
+        while rss_mib(pid) - start >= LEFT_MIB and time.monotonic() < end:
             time.sleep(0.5)
         after = rss_mib(pid)
-        assert after - start < 50, f"10 CSV clients that read nothing: {start:.0f} -> {after:.0f} MiB after they left"
+        assert after - start < LEFT_MIB, (
+            f"10 CSV clients that read nothing: {start:.0f} -> {after:.0f} MiB after they left"
+        )
         assert httpx.get(f"{url}/api/health", timeout=10).status_code == 200
     finally:
         server.stop(timeout=60)

@@ -410,9 +410,12 @@ def test_a_paused_phase_portraits_current_point_follows_a_seek(app):
     k = int(np.searchsorted(run.t, 2.0, side="right")) - 1
     assert chart.axes[2]["splits"] == (pytest.approx(run.state["x"][k]),)
     assert chart.axes[3]["splits"] == (pytest.approx(run.state["y"][k]),)
+    x, y = run.state["x"][k], run.state["y"][k]
+    assert chart.title.endswith(f"at t = 2 s: x = {x:.4g}, y = {y:.4g}")  # the point's values, in words
     app.seek(5.0)
     k = int(np.searchsorted(run.t, 5.0, side="right")) - 1
     assert chart.axes[2]["splits"] == (pytest.approx(run.state["x"][k]),) and chart.data is data
+    assert f"x = {run.state['x'][k]:.4g}" in chart.title
 
 
 def test_the_status_says_which_speeds_the_run_took_independent(app):
