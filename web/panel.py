@@ -251,7 +251,7 @@ class PlotPanel:
 
 def phase_title(x_label: str, y_label: str, x: float, y: float, t: float) -> str:
     """A phase portrait's title with its point at the shown time."""
-    return f"{PHASE_TITLE} — at t = {t:.3g} s: {x_label} = {x:.4g}, {y_label} = {y:.4g}"
+    return f"Phase portrait at t = {t:.3g} s: {x_label} = {x:.4g}, {y_label} = {y:.4g}"
 
 
 def summary_rows(traj) -> list[list[str]]:
