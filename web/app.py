@@ -17,6 +17,8 @@ This module is the app's public face; the parts live in:
 * :mod:`web.runs` — re-simulation on a control change via :mod:`web.worker`;
 * :mod:`web.panel` — plots, summary, status text and the derived-matrices panel;
 * :mod:`web.camera` — following the system while keeping the viewer's orbit;
+* :mod:`web.labels` — which corner of its text each 3D label holds, so that none covers another
+  in the browser's picture;
 * :mod:`web.viser_compat` — every use of viser's private API, in one place.
 
 Geometry helpers live in :mod:`web.geometry`, plot data in :mod:`web.plots`, the matrices
