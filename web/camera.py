@@ -139,36 +139,34 @@ class CameraRig:
 
     def viewport(self) -> Viewport:
         """The browser's canvas (a default one until it has reported)."""
+        return self._canvas() or Viewport()
+
+    def _canvas(self) -> Viewport | None:
+        """The canvas the browser reported, or None (no browser, or no report yet)."""
         cam = getattr(self.client, "camera", None)
         if cam is None:
-            return Viewport()
+            return None
         try:
             w, h, fov = float(cam.image_width), float(cam.image_height), float(cam.fov)
         except (AttributeError, AssertionError, TypeError, ValueError):  # not reported yet
-            return Viewport()
-        if not (w > 0 and h > 0 and 0 < fov < math.pi):
-            return Viewport()
-        return Viewport(w, h, fov)
+            return None
+        return Viewport(w, h, fov) if w > 0 and h > 0 and 0 < fov < math.pi else None
 
     def view(self) -> View | None:
         """Where the browser's camera is and what it sees (for :mod:`web.labels`), or None before
         it has reported its camera."""
-        cam = getattr(self.client, "camera", None)
-        if cam is None or not self.alive():
+        canvas = self._canvas() if self.alive() else None
+        if canvas is None:
             return None
+        cam = self.client.camera
         try:
-            v = View(
-                np.asarray(cam.position, float),
-                np.asarray(cam.look_at, float),
-                np.asarray(cam.up_direction, float),
-                float(cam.fov),
-                float(cam.image_width),
-                float(cam.image_height),
-            )
+            position, look_at = np.asarray(cam.position, float), np.asarray(cam.look_at, float)
+            up = np.asarray(cam.up_direction, float)
         except (AttributeError, AssertionError, TypeError, ValueError):  # not reported yet
             return None
-        ok = v.width > 0 and v.height > 0 and 0 < v.fov < math.pi
-        return v if ok and np.all(np.isfinite(v.position)) and np.all(np.isfinite(v.look_at)) else None
+        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(look_at))):
+            return None
+        return View(position, look_at, up, canvas.fov, canvas.width, canvas.height)
 
     def place(self, look_at: np.ndarray, position: np.ndarray, following: bool) -> None:
         """Put the camera at ``position`` looking at ``look_at`` (a reset: later reports are

@@ -263,7 +263,7 @@ class DeclaredScene:
         self.centre_rows: np.ndarray = np.zeros((1, 3))  # per output row, the point a following camera follows
         self.tag_node: Any = None  # a label naming a ghost, when it rides on a moving part
         self.tag_rows: np.ndarray | None = None
-        self.tag_label: tuple | None = None  # (node, frame or None, offset on it) of the tag
+        self.tag_label: tuple | None = None  # (node, frame, offset on it) or (node, None, its points per row)
 
     @property
     def moving(self) -> list[Moving]:
@@ -341,24 +341,26 @@ class DeclaredScene:
     def label_points(self, k: int | None = None) -> list[tuple[Any, np.ndarray]]:
         """The labels at output row k (default: the row shown) with their world points
         (:mod:`web.labels` keeps them apart on the screen), and a ghost's tag."""
-        if k is None:
-            k = self.shown or 0
-        out = []
-        if self.tag_label is not None and self.tag_label[1] is None and self.tag_rows is not None:
-            out.append((self.tag_label[0], self.tag_rows[min(k, len(self.tag_rows) - 1)]))
-        labels = self.pen.labels + ([self.tag_label] if self.tag_label is not None and self.tag_label[1] else [])
-        for node, frame, where in labels:
-            if frame is None and isinstance(where, int):  # at a moving point
-                if where < len(self.rows):
-                    rows = self.rows[where]
-                    out.append((node, rows[min(k, len(rows) - 1), 0].astype(float)))
-            elif frame is None:
-                out.append((node, where))
-            elif frame in self.frame_poses:
-                pos, q = self.frame_poses[frame]
-                i = min(k, len(pos) - 1)
-                out.append((node, pos[i] + geo.rotate(q[i], where)))
-        return out
+        k = (self.shown or 0) if k is None else k
+        labels = [*self.pen.labels, *([self.tag_label] if self.tag_label is not None else [])]
+        points = [(node, self._world_point(frame, where, k)) for node, frame, where in labels]
+        return [(node, p) for node, p in points if p is not None]
+
+    def _world_point(self, frame: str | None, where, k: int) -> np.ndarray | None:
+        """Where a label is at output row k: ``where`` on ``frame`` (an offset), or in the world
+        (a point, points per row, or the index of the :class:`Moving` that places it)."""
+        if frame is not None:
+            if frame not in self.frame_poses:
+                return None
+            pos, q = self.frame_poses[frame]
+            i = min(k, len(pos) - 1)
+            return pos[i] + geo.rotate(q[i], where)
+        if isinstance(where, int):  # placed by a Moving: its first point
+            if where >= len(self.rows):
+                return None
+            where = self.rows[where][:, 0]
+        where = np.asarray(where, float)
+        return where[min(k, len(where) - 1)] if where.ndim == 2 else where
 
     def parts_at(self, k: int) -> Bounds | None:
         """(lowest, highest) corner of the mechanism's parts at output row k
@@ -442,7 +444,7 @@ class DeclaredScene:
         elif self.rows:
             self.tag_node = self.scene.add_label(f"{self.prefix}/world/tag", text, anchor="bottom-left")
             self.tag_rows = self.rows[0][:, 0].astype(float) + above
-            self.tag_label = (self.tag_node, None, None)
+            self.tag_label = (self.tag_node, None, self.tag_rows)
             self.shown = None
 
     def bounds(self) -> Bounds | None:

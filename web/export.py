@@ -128,7 +128,7 @@ def record(traj: Trajectory, shots: Frames | None = None, viewport=None) -> tupl
     """The recorded animation as viser's standalone HTML; returns (html, the view, the frames)."""
     from .camera import Viewport
     from .generic import GenericView
-    from .labels import LabelLayout, View
+    from .labels import LabelLayout, seen_from
 
     with _private_server() as server:
         recording = server.get_scene_serializer()
@@ -143,14 +143,7 @@ def record(traj: Trajectory, shots: Frames | None = None, viewport=None) -> tupl
             look_at, position = plan.whole
             server.initial_camera.position = tuple(float(v) for v in position)
             server.initial_camera.look_at = tuple(float(v) for v in look_at)
-            seen = View(
-                np.asarray(position, float),
-                np.asarray(look_at, float),
-                np.array([0.0, 0.0, 1.0]),
-                vp.fov,
-                vp.width,
-                vp.height,
-            )
+            seen = seen_from(look_at, position, vp)
         labels = LabelLayout()
         for i, t in enumerate(shots.times):
             if i:

@@ -138,8 +138,7 @@ def panel_html(view, traj, shots, title: str | None = None) -> str:
         for label, r in traj.runs.items()
     )
     legend = html.escape(view.legend(traj).replace("**", ""))
-    forces = getattr(view, "forces", None)  # the arrows' scale (the scene's labels name the forces)
-    scale = forces.scale_text if forces is not None and forces.visible else ""
+    scale = view.forces.scale_text if view.forces.visible else ""  # the scene's labels name the forces
     heading = html.escape(title or view.title)
     speed = f"{shots.speed:g}× (the bar's time is playback time)" if shots.speed != 1 else "1× (real time)"
     return (

@@ -151,20 +151,18 @@ class ForceArrows:
         self.shown = k
         for name, tail in self.tails.items():
             i = min(k, len(tail) - 1)
-            p, v = tail[i], self.vectors[name][i]
-            tip = p + self.scale * v
-            _place(self.arrows[name], p, self.scale * v)
-            self.labels[name].position = tuple(float(c) for c in tip)
+            _place(self.arrows[name], tail[i], self.scale * self.vectors[name][i])
+            self.labels[name].position = tuple(float(c) for c in self._tip(name, i))
 
     def label_points(self, k: int) -> list:
         """The force labels shown at output row k, with their points (the arrows' tips)."""
         if not self.visible or not self.tails:
             return []
-        out = []
-        for name, tail in self.tails.items():
-            i = min(k, len(tail) - 1)
-            out.append((self.labels[name], tail[i] + self.scale * self.vectors[name][i]))
-        return out
+        return [(self.labels[name], self._tip(name, min(k, len(tail) - 1))) for name, tail in self.tails.items()]
+
+    def _tip(self, name: str, i: int) -> np.ndarray:
+        """The tip of force ``name``'s arrow at output row i (where its label is)."""
+        return self.tails[name][i] + self.scale * self.vectors[name][i]
 
     def readout(self, k: int) -> None:
         """The labels' magnitudes at output row k (slow rate)."""

@@ -73,6 +73,19 @@ class View:
         return xy, depth > 1e-9
 
 
+def seen_from(look_at, position, viewport) -> View:
+    """The :class:`View` of a camera placed at ``position`` looking at ``look_at``, z up, on a
+    canvas ``viewport`` (:class:`web.camera.Viewport`: width, height, fov)."""
+    return View(
+        np.asarray(position, float),
+        np.asarray(look_at, float),
+        np.array([0.0, 0.0, 1.0]),
+        float(viewport.fov),
+        float(viewport.width),
+        float(viewport.height),
+    )
+
+
 def box(xy, text: str, anchor: str) -> tuple[float, float, float, float]:
     """(left, top, right, bottom) in pixels of a label of ``text`` holding ``anchor`` at ``xy``."""
     w, h = CHAR_PX * len(text) + PAD_PX, HEIGHT_PX

@@ -23,6 +23,7 @@ panel) the mechanism's parts span — what tests/web/test_first_view_browser.py 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import io
 import sys
 import time
@@ -54,21 +55,20 @@ def _small_png(raw: bytes, scale: float) -> bytes:
     return out.getvalue()
 
 
-def first_views(out: Path, names: list[str] | None, width: int, height: int, scale: float) -> list[Path]:
+@contextlib.contextmanager
+def _page(width: int, height: int, scene: str | None = None):
+    """(page, session): the web app on a free loopback port, one page of it in headless Chromium
+    (notifications hidden), its first run installed; everything stopped afterwards."""
     from playwright.sync_api import sync_playwright
 
-    from nmkane_core import system_names
-    from tests.web._pages import PARTS
     from web.app import launch
     from web.chromium import CHROMIUM_ARGS, chromium_path
-    from web.screenshot import close_toasts, open_page
+    from web.screenshot import open_page
 
     exe = chromium_path()
     if exe is None:
         raise SystemExit("headless Chromium not found (apt-get install chromium)")
-    out.mkdir(parents=True, exist_ok=True)
-    written = []
-    app = launch(port=0)
+    app = launch(port=0, scene=scene)
     try:
         with sync_playwright() as p:
             browser = p.chromium.launch(executable_path=exe, headless=True, args=CHROMIUM_ARGS)
@@ -77,71 +77,65 @@ def first_views(out: Path, names: list[str] | None, width: int, height: int, sca
                 page.add_style_tag(content=HIDE_TOASTS)
                 session = app.wait_for_session()
                 session.wait_idle(120)
-                for name in names or list(system_names()):
-                    close_toasts(page)
-                    title = next(t for t, n in session.choices.items() if n == name)
-                    if session.scene_choice.value != title:
-                        session.scene_choice.value = title
-                    _until(lambda n=name: session.traj is not None and session.traj.kind == n, 120, f"{name}: a run")
-                    session.wait_idle(120)
-                    session.set_playing(False)
-                    session.seek(0.0)
-                    session.reset_view()  # the first view (a system shown before keeps the viewer's camera)
-                    _until(lambda: session.camera.reset_at == 0.0, 60, f"{name}: the camera placed")
-                    time.sleep(1.0)  # the page draws a few frames (software WebGL: about one a second)
-                    raw = page.screenshot(timeout=120000)
-                    box = page.evaluate(PARTS, session.system_view.declared.part_names())
-                    path = out / f"{name}-first-view.png"
-                    path.write_bytes(_small_png(raw, scale))
-                    written.append(path)
-                    span = max(box["hi"][0] - box["lo"][0], box["hi"][1] - box["lo"][1])
-                    share = span / min(box["free"], box["canvas"][1])
-                    print(f"{path}  {path.stat().st_size / 1024:.0f} KB  parts span {share:.0%}", flush=True)
+                yield page, session
             finally:
                 browser.close()
     finally:
         app.stop()
+
+
+def first_views(out: Path, names: list[str] | None, width: int, height: int, scale: float) -> list[Path]:
+    from nmkane_core import system_names
+    from tests.web._pages import PARTS
+    from web.screenshot import close_toasts
+
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    with _page(width, height) as (page, session):
+        for name in names or list(system_names()):
+            close_toasts(page)
+            title = next(t for t, n in session.choices.items() if n == name)
+            if session.scene_choice.value != title:
+                session.scene_choice.value = title
+            _until(lambda n=name: session.traj is not None and session.traj.kind == n, 120, f"{name}: a run")
+            session.wait_idle(120)
+            session.set_playing(False)
+            session.seek(0.0)
+            session.reset_view()  # the first view (a system shown before keeps the viewer's camera)
+            _until(lambda: session.camera.reset_at == 0.0, 60, f"{name}: the camera placed")
+            time.sleep(1.0)  # the page draws a few frames (software WebGL: about one a second)
+            raw = page.screenshot(timeout=120000)
+            box = page.evaluate(PARTS, session.system_view.declared.part_names())
+            path = out / f"{name}-first-view.png"
+            path.write_bytes(_small_png(raw, scale))
+            written.append(path)
+            span = max(box["hi"][0] - box["lo"][0], box["hi"][1] - box["lo"][1])
+            share = span / min(box["free"], box["canvas"][1])
+            print(f"{path}  {path.stat().st_size / 1024:.0f} KB  parts span {share:.0%}", flush=True)
     return written
 
 
 def matrices_view(out: Path, name: str, scale: float) -> Path:
     """``<out>/<name>-matrices.png``: the control panel with the system's *Derived matrices*
     folder open (the others folded), as a class sees it."""
-    from playwright.sync_api import sync_playwright
+    from web.screenshot import close_toasts
 
-    from web.app import launch
-    from web.chromium import CHROMIUM_ARGS, chromium_path
-    from web.screenshot import close_toasts, open_page
-
-    app = launch(port=0, scene=name)
-    try:
-        with sync_playwright() as p:
-            browser = p.chromium.launch(executable_path=chromium_path(), headless=True, args=CHROMIUM_ARGS)
-            try:
-                page = open_page(browser, app.url + "?hideViserLogo", width=1280, height=2400)
-                page.add_style_tag(content=HIDE_TOASTS)
-                session = app.wait_for_session()
-                session.wait_idle(120)
-                session.set_playing(False)
-                for folder in ("Playback", session.system_view.folder, "Plots and summary", "Derived matrices"):
-                    page.get_by_text(folder, exact=True).first.click()
-                    time.sleep(0.5)
-                page.wait_for_function(
-                    "() => Array.from(document.querySelectorAll('img')).filter(i => i.naturalWidth > 100).length"
-                    f" >= {len(session.matrices.images)}",
-                    timeout=300000,
-                )
-                time.sleep(1.0)
-                close_toasts(page)
-                bottom = page.evaluate(
-                    "() => Math.max(...Array.from(document.querySelectorAll('img, pre'))"
-                    ".map(e => e.getBoundingClientRect().bottom))"
-                )
-                raw = page.screenshot(clip={"x": 860, "y": 0, "width": 420, "height": bottom + 24})
-            finally:
-                browser.close()
-    finally:
-        app.stop()
+    with _page(1280, 2400, scene=name) as (page, session):
+        session.set_playing(False)
+        for folder in ("Playback", session.system_view.folder, "Plots and summary", "Derived matrices"):
+            page.get_by_text(folder, exact=True).first.click()
+            time.sleep(0.5)
+        page.wait_for_function(
+            "() => Array.from(document.querySelectorAll('img')).filter(i => i.naturalWidth > 100).length"
+            f" >= {len(session.matrices.images)}",
+            timeout=300000,
+        )
+        time.sleep(1.0)
+        close_toasts(page)
+        bottom = page.evaluate(
+            "() => Math.max(...Array.from(document.querySelectorAll('img, pre')).map(e => e.getBoundingClientRect().bottom))"
+        )
+        raw = page.screenshot(clip={"x": 860, "y": 0, "width": 420, "height": bottom + 24})
     path = out / f"{name}-matrices.png"
     path.write_bytes(_small_png(raw, scale))
     print(f"{path}  {path.stat().st_size / 1024:.0f} KB", flush=True)

@@ -97,7 +97,7 @@ def test_a_download_whose_client_left_is_closed_at_once(tmp_path, suffix):
 # --------------------------------------------------------------------- the service's memory
 DEADLINE_S = 3.0
 #: what ten downloads at once may leave behind: they leave 43-52 MiB in the allocators (measured 7
-#: times on a 2-core machine: it grows with the clients, 15 MiB for 3, 78 MiB for 20 — what the
+#: times on a 2-core machine: it grows with the clients, 13-16 MiB for 3, 76-80 MiB for 20 — what the
 #: run's decoded floats fragment of Python's small-object arenas), the defect 400 MiB.  The bound
 #: was 50 MiB, which a sound service passed only now and then (CI: 88 -> 140 MiB)
 LEFT_MIB = 100

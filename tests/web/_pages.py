@@ -120,3 +120,23 @@ def new_session(app, open_page):
     with app._lock:
         session = app.sessions[next(iter(set(app.sessions) - before))]
     return session, page
+
+
+def label_boxes(items, view) -> list[tuple[str, tuple]]:
+    """(text, screen box) of each label of ``items`` [(label node, world point)] at the anchor it
+    holds, seen by ``view`` (web.labels.View)."""
+    from web.labels import box
+
+    xy, _ = view.project(np.array([p for _, p in items], float))
+    return [(n.text, box(xy[i], n.text, n.anchor)) for i, (n, _) in enumerate(items)]
+
+
+def covering(boxes: list[tuple[str, tuple]]) -> str | None:
+    """The first two labels of ``boxes`` [(text, box)] that cover each other, said; None: none do."""
+    from web.labels import overlap
+
+    for i, (ta, a) in enumerate(boxes):
+        for tb, b in boxes[i + 1 :]:
+            if overlap(a, b) > 0.0:
+                return f"label {ta!r} covers {tb!r} ({a} and {b})"
+    return None

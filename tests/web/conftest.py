@@ -82,3 +82,17 @@ def browser(_chromium):
     yield _FrameCapped(_chromium)
     for context in list(_chromium.contexts):
         context.close()
+
+
+def _viser_server():
+    import viser
+
+    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)  # a free port
+    yield srv
+    srv.stop()
+
+
+#: a viser server of its own for each test (the app tests' ``MechanismApp(server, sync=True)``)
+server = pytest.fixture(name="server")(_viser_server)
+#: one viser server for a module's tests
+module_server = pytest.fixture(scope="module", name="module_server")(_viser_server)

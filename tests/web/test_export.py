@@ -8,9 +8,7 @@ import tomllib
 from importlib import metadata
 from pathlib import Path
 
-import numpy as np
 import pytest
-import viser
 
 import nmkane_core
 from nmkane_core.cli import commands, main
@@ -195,13 +193,6 @@ def test_show_without_a_viewer_says_what_to_install(run, monkeypatch):
         run.show()
 
 
-@pytest.fixture()
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
 def test_the_export_button_sends_the_shown_run_with_its_ghost(server, monkeypatch):
     sent = []
     monkeypatch.setattr(server, "send_file_download", lambda name, data, **kw: sent.append((name, data, kw)))
@@ -223,14 +214,13 @@ def test_the_export_button_sends_the_shown_run_with_its_ghost(server, monkeypatc
 def test_the_exported_labels_do_not_cover_each_other_seen_from_the_files_camera(run):
     """The file plays recorded frames: each frame's label corners were chosen for the file's
     camera (web.labels), as the live page chooses them for the browser's (issue 43, item 6)."""
+    from tests.web._pages import covering, label_boxes
     from web.camera import Viewport
-    from web.labels import View, box, overlap
+    from web.labels import seen_from
 
     _, view, _ = export.record(export.trajectory(run))
     vp = Viewport()
     look_at, position = view.camera_plan(vp).whole
-    seen = View(np.asarray(position), np.asarray(look_at), np.array([0.0, 0.0, 1.0]), vp.fov, vp.width, vp.height)
-    items = view.label_points()  # at the last frame
-    xy, _ = seen.project(np.array([p for _, p in items]))
-    boxes = [box(xy[i], n.text, n.anchor) for i, (n, _) in enumerate(items)]
-    assert len(boxes) >= 4 and all(overlap(a, b) == 0.0 for i, a in enumerate(boxes) for b in boxes[i + 1 :])
+    seen = seen_from(look_at, position, vp)
+    boxes = label_boxes(view.label_points(), seen)  # at the last frame
+    assert len(boxes) >= 4 and covering(boxes) is None, covering(boxes)

@@ -15,7 +15,7 @@ vehicle travelled (the Chaplygin sleigh: 6 % of the view)."""
 import pytest
 
 from tests._helpers import require_browser
-from tests.web._pages import DRAWN, HIDE_TOASTS, PARTS, until
+from tests.web._pages import DRAWN, HIDE_TOASTS, PARTS, covering, until
 
 require_browser()
 
@@ -80,7 +80,7 @@ PROJECT = """([root, points]) => {
 def labels_apart(page, session, what: str) -> int:
     """The 3D labels' text boxes (web.labels' size of a label, at the anchor each holds) do not
     cover each other in the page's picture (issue 43, item 6); returns how many were shown."""
-    from web.labels import box, overlap
+    from web.labels import box
 
     with session.lock:  # the layout of the camera the page shows (the next frame would do it too)
         session.playback.labels.apply(session.system_view.label_points(), session.camera.view())
@@ -88,9 +88,8 @@ def labels_apart(page, session, what: str) -> int:
     root = session.system_view.declared.prefix  # the system's node: at the world's origin
     drawn = page.evaluate(PROJECT, [root, [[float(c) for c in p] for _, _, p in items]])
     boxes = [(t, box(xy[:2], t, a)) for (t, a, _), xy in zip(items, drawn, strict=True) if xy[2]]
-    for i, (ta, a) in enumerate(boxes):
-        for tb, b in boxes[i + 1 :]:
-            assert overlap(a, b) == 0.0, f"{what}: label {ta!r} covers {tb!r} ({a} and {b})"
+    clash = covering(boxes)
+    assert clash is None, f"{what}: {clash}"
     return len(boxes)
 
 

@@ -78,13 +78,6 @@ class RawClient:
 
 
 @pytest.fixture()
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
-@pytest.fixture()
 def connected(server):
     """(the raw client, viser's ClientHandle of it)."""
     raw = RawClient(server.get_port())

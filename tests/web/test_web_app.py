@@ -7,7 +7,6 @@ import time
 
 import numpy as np
 import pytest
-import viser
 
 from nmkane_core.systems.appell_hamel import LOAD_RADIUS
 from web import geometry as geo
@@ -17,13 +16,6 @@ from web.app import MechanismApp, launch
 from web.worker import LatestWorker
 
 AH, PT = "appell-hamel", "sliding-particle"
-
-
-@pytest.fixture()
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)  # a free port
-    yield srv
-    srv.stop()
 
 
 @pytest.fixture()

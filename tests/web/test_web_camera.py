@@ -9,7 +9,6 @@ import math
 
 import numpy as np
 import pytest
-import viser
 
 from nmkane_core import system_names
 from web.camera import PANEL_PX, Viewport, frame
@@ -45,16 +44,9 @@ def test_a_framed_box_is_whole_in_the_free_part_of_the_canvas(box, direction):
     assert span > 0.55  # and it fills the free part (not a few pixels)
 
 
-@pytest.fixture(scope="module")
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
 @pytest.fixture()
-def app(server):
-    a = MechanismApp(server, sync=True)
+def app(module_server):
+    a = MechanismApp(module_server, sync=True)
     yield a
     a.close()
 

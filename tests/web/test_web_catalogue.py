@@ -20,16 +20,9 @@ CATALOGUE = ("knife-edge", "chaplygin-sleigh", "rolling-disk", "odometer-puck", 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "isokinetic_bowl.py"
 
 
-@pytest.fixture(scope="module")
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
 @pytest.fixture()
-def app(server):
-    a = MechanismApp(server, sync=True)
+def app(module_server):
+    a = MechanismApp(module_server, sync=True)
     yield a
     a.close()
 
@@ -103,9 +96,9 @@ def test_parameter_sliders_linear_or_log():
     assert log.label == "m [kg]"  # typed and shown in kg, not as an exponent
 
 
-def test_a_plugged_in_system_gets_the_generic_page(server):
+def test_a_plugged_in_system_gets_the_generic_page(module_server):
     assert load_systems([str(EXAMPLE)]) == []
-    a = MechanismApp(server, sync=True, scene="isokinetic-bowl")
+    a = MechanismApp(module_server, sync=True, scene="isokinetic-bowl")
     try:
         assert a.system_view.system == "isokinetic-bowl"
         run = a.traj.main
@@ -128,8 +121,8 @@ def test_a_plugged_in_system_gets_the_generic_page(server):
         a.close()
 
 
-def test_scene_option_opens_on_a_system_and_an_unknown_one_is_refused(server):
-    a = MechanismApp(server, sync=True, scene="rolling-disk")
+def test_scene_option_opens_on_a_system_and_an_unknown_one_is_refused(module_server):
+    a = MechanismApp(module_server, sync=True, scene="rolling-disk")
     try:
         assert a.kind == "rolling-disk" and a.traj.kind == a.kind
         assert len(a.sim_log) == 1  # one run: no detour through the first scene

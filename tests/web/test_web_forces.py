@@ -6,7 +6,6 @@ import types
 
 import numpy as np
 import pytest
-import viser
 
 from nmkane_core.run.registry import get_system
 from web.app import MechanismApp
@@ -45,13 +44,6 @@ def test_force_curves_give_the_magnitude_of_each_force_and_none_without_forces()
     assert out is not None and out.labels == ["|blade|"]
     np.testing.assert_allclose(out.ys[0], 2.0)
     assert force_curves(core, {"main": _run(t, {})}, t, lambda r, v: v) is None
-
-
-@pytest.fixture()
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
 
 
 def test_rolling_disk_draws_its_contact_force_at_scale_and_the_checkbox_hides_it(server):

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from tests._helpers import require
+from tests.web._pages import covering, label_boxes
 
 require("viser")
 
@@ -51,22 +52,10 @@ class _Label:
 
 
 def _view(position=(10.0, 0.0, 0.0), look_at=(0.0, 0.0, 0.0)):
-    from web.labels import View
+    from web.camera import Viewport
+    from web.labels import seen_from
 
-    return View(np.array(position), np.array(look_at), np.array([0.0, 0.0, 1.0]), 1.309, 1280.0, 800.0)
-
-
-def _boxes(items, view):
-    from web.labels import box
-
-    xy, _ = view.project(np.array([p for _, p in items], float))
-    return [box(xy[i], n.text, n.anchor) for i, (n, _) in enumerate(items)]
-
-
-def _apart(boxes) -> bool:
-    from web.labels import overlap
-
-    return all(overlap(a, b) == 0.0 for i, a in enumerate(boxes) for b in boxes[i + 1 :])
+    return seen_from(look_at, position, Viewport(1280.0, 800.0))
 
 
 def test_projection_puts_the_look_at_point_in_the_middle_and_up_up():
@@ -83,9 +72,9 @@ def test_labels_at_one_point_take_the_four_corners():
 
     labels = [_Label(t) for t in ("load P", "thread 9.53 N", "pulleys", "contact 5.4 N")]
     items = [(n, np.zeros(3)) for n in labels]
-    assert not _apart(_boxes(items, _view()))  # all bottom-left: each covers the others
+    assert covering(label_boxes(items, _view()))  # all bottom-left: each covers the others
     LabelLayout().apply(items, _view())
-    assert len({n.anchor for n in labels}) == 4 and _apart(_boxes(items, _view()))
+    assert len({n.anchor for n in labels}) == 4 and covering(label_boxes(items, _view())) is None
     assert labels[0].anchor == ANCHORS[0]  # the first keeps its preferred corner
 
 
@@ -110,15 +99,12 @@ def test_when_every_corner_is_covered_the_least_covered_one_is_taken():
     assert len(set(out[:4])) == 4 and out[4] in out[:4]
 
 
-def test_the_page_keeps_the_paper_examples_labels_apart():
+def test_the_page_keeps_the_paper_examples_labels_apart(server):
     """Appell–Hamel seen from its first view: at t = 0 the load hangs just under the pulleys, at
     t = 19 s the thread's force label sits at the load; their labels covered each other (issue
     43, item 6).  The layout, given the first view's camera, keeps every label's box apart."""
-    import viser
-
     from web.app import MechanismApp
 
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = MechanismApp(server, sync=True)
     try:
         assert app.kind == "appell-hamel"
@@ -131,11 +117,10 @@ def test_the_page_keeps_the_paper_examples_labels_apart():
             items = view.label_points()
             texts = sorted(n.text.split(" ")[0] for n, _ in items)
             assert texts == ["contact", "load", "pulleys", "thread", "wheel"], texts
-            assert _apart(_boxes(items, cam)), t
+            assert covering(label_boxes(items, cam)) is None, t
         assert app.playback.labels.changes > 0
     finally:
         app.close()
-        server.stop()
 
 
 def test_two_labels_side_by_side_do_not_touch_when_another_corner_is_free():
@@ -153,14 +138,11 @@ def test_two_labels_side_by_side_do_not_touch_when_another_corner_is_free():
     assert overlap(*before) == 0.0 and overlap(*before, GAP_PX) > 0.0  # it only touched
 
 
-def test_the_ghosts_names_are_kept_apart_from_the_shown_runs_labels():
+def test_the_ghosts_names_are_kept_apart_from_the_shown_runs_labels(server):
     """The sliding particle opens with two ghosts (its showcase): their names ride above their
     balls, among the normal force's label."""
-    import viser
-
     from web.app import MechanismApp
 
-    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
     app = MechanismApp(server, sync=True, scene="sliding-particle")
     try:
         view = app.system_view
@@ -172,7 +154,6 @@ def test_the_ghosts_names_are_kept_apart_from_the_shown_runs_labels():
             items = view.label_points()
             texts = [n.text for n, _ in items]
             assert sum("ghost:" in x for x in texts) == 2 and any(x.startswith("normal") for x in texts), texts
-            assert _apart(_boxes(items, cam)), t
+            assert covering(label_boxes(items, cam)) is None, t
     finally:
         app.close()
-        server.stop()

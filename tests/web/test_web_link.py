@@ -4,22 +4,14 @@ and every changed control under the REST names; opening one applies its values, 
 bad ones beside their box and applies the rest; a reload keeps the setup."""
 
 import pytest
-import viser
 
 from web.link import link_pairs, read_link
 from web.session import MechanismApp
 
 
-@pytest.fixture(scope="module")
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
 @pytest.fixture()
-def app(server):
-    a = MechanismApp(server, sync=True)
+def app(module_server):
+    a = MechanismApp(module_server, sync=True)
     yield a
     a.close()
 

@@ -5,7 +5,6 @@ the marker waits while the viewer points at or zooms a plot."""
 
 import numpy as np
 import pytest
-import viser
 
 from nmkane_core.analysis import expressions as ex
 from web.panel import WINDOW_S
@@ -55,16 +54,9 @@ def test_arithmetic_edge_cases_give_numbers_not_exceptions():
     assert np.isinf(out).all()
 
 
-@pytest.fixture(scope="module")
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
 @pytest.fixture()
-def app(server):
-    a = MechanismApp(server, sync=True)
+def app(module_server):
+    a = MechanismApp(module_server, sync=True)
     yield a
     a.close()
 

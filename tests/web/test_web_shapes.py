@@ -8,7 +8,6 @@ import json
 
 import numpy as np
 import pytest
-import viser
 
 from nmkane_core import Parameter, System, register, simulate
 from nmkane_core.declare import visuals as decl
@@ -88,13 +87,6 @@ def systems():
     unregister(BARE)
 
 
-@pytest.fixture(scope="module")
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
-
-
 def test_every_declared_kind_has_one_renderer():
     assert set(RENDERERS) == set(decl.SHAPES.values())
     for kind, cls in decl.SHAPES.items():
@@ -115,15 +107,15 @@ def test_the_compiled_table_survives_the_json_cache(systems):
     assert by["mast"].resolve(sizes).end.tolist() == [0.0, 0.0, 2.0]
 
 
-def test_every_kind_is_drawn_where_its_declaration_puts_it(systems, server):
+def test_every_kind_is_drawn_where_its_declaration_puts_it(systems, module_server):
     system = systems[0]
     run = simulate({"system": NAME, "params": {"m": 2.0}}, progress=False)
-    scene = DeclaredScene(server.scene, system)
+    scene = DeclaredScene(module_server.scene, system)
     scene.install(run, run.settings["params"])
     k = len(run.t) // 2
     scene.pose(k)
     x, y, th = (float(run.state[n][k]) for n in ("x", "y", "theta"))
-    node = lambda path: server.scene.get_handle_by_name(f"/sys/{NAME}/{path}")  # noqa: E731
+    node = lambda path: module_server.scene.get_handle_by_name(f"/sys/{NAME}/{path}")  # noqa: E731
     np.testing.assert_allclose(node("frames/skate").position, (x, y, 0), atol=1e-5)
     np.testing.assert_allclose(geo.rotate(node("frames/skate").wxyz, (1, 0, 0)), (np.cos(th), np.sin(th), 0), atol=1e-5)
     assert tuple(node("frames/skate/blade").dimensions) == pytest.approx((0.8, 0.03, 0.1))
@@ -143,24 +135,24 @@ def test_every_kind_is_drawn_where_its_declaration_puts_it(systems, server):
     lo, hi = scene.bounds()
     assert hi[2] >= 1.0 and lo[0] > -1.5  # the ball's path is inside the bounds, the fixed ramp and rail not
     assert scene.extent == pytest.approx(0.8)  # the largest solid: the blade (the ramp's half length: 0.71)
-    ghost = DeclaredScene(server.scene, system, ghost=(255, 0, 0), index=1)
+    ghost = DeclaredScene(module_server.scene, system, ghost=(255, 0, 0), index=1)
     ghost.install(run, run.settings["params"])
-    ghost_node = lambda path: server.scene.get_handle_by_name(f"/sys/{NAME}/ghost1/{path}")  # noqa: E731
+    ghost_node = lambda path: module_server.scene.get_handle_by_name(f"/sys/{NAME}/ghost1/{path}")  # noqa: E731
     assert tuple(ghost_node("frames/skate/blade").color) == (255, 0, 0)
     assert ghost_node("frames/skate/blade").opacity < 1
     for fixed in ("world/ramp", "ground", "world/name", "frames/skate/tag"):  # drawn once, by the main scene
         assert ghost_node(fixed) is None, fixed
 
 
-def test_a_system_without_visuals_is_drawn_as_a_point_at_its_coordinates(systems, server):
+def test_a_system_without_visuals_is_drawn_as_a_point_at_its_coordinates(systems, module_server):
     run = simulate({"system": BARE}, progress=False)
-    scene = DeclaredScene(server.scene, systems[1])
+    scene = DeclaredScene(module_server.scene, systems[1])
     scene.install(run, run.settings["params"])
     k = len(run.t) - 1
     scene.pose(k)
-    point = server.scene.get_handle_by_name(f"/sys/{BARE}/world/point")
+    point = module_server.scene.get_handle_by_name(f"/sys/{BARE}/world/point")
     np.testing.assert_allclose(point.position, [run.state[n][k] for n in ("x", "y", "theta")], atol=1e-5)
-    assert server.scene.get_handle_by_name(f"/sys/{BARE}/world/trace").points.shape[0] > 10
+    assert module_server.scene.get_handle_by_name(f"/sys/{BARE}/world/trace").points.shape[0] > 10
 
 
 @pytest.mark.parametrize("lean_deg", [0.0, 10.0, 30.0, 60.0])

@@ -6,19 +6,11 @@ import time
 
 import numpy as np
 import pytest
-import viser
 
 from nmkane_core.run.simulate import simulate
 from web.controls import DT_RANGE, Control, dt_of
 from web.session import MechanismApp
 from web.study import GAIN_FIELDS, METRICS, N_DT, N_GAIN, study_axes
-
-
-@pytest.fixture()
-def server():
-    srv = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-    yield srv
-    srv.stop()
 
 
 @pytest.fixture()
